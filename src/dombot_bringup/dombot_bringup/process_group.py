@@ -1,0 +1,144 @@
+"""Run several node processes like a launch file, without ROS's launch package.
+
+``launch``/``launch_ros`` cannot be installed on machines without a system ROS 2,
+so the bring-up starts its nodes with this small supervisor: each child gets its
+own process group, its output is forwarded line by line with a ``[name]`` prefix,
+the last lines are kept for the report when a node dies, and stopping sends
+SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses.
+"""
+
+from __future__ import annotations
+
+import collections
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TextIO
+
+TAIL_LINES = 20
+
+
+class NodeDiedError(RuntimeError):
+    """A supervised process exited while it was still needed."""
+
+    def __init__(self, name: str, returncode: int, tail: Sequence[str]) -> None:
+        self.name = name
+        self.returncode = returncode
+        self.tail = list(tail)
+        last = "\n".join(f"    {line}" for line in self.tail) or "    (no output)"
+        super().__init__(f"node '{name}' died with exit code {returncode}; last output:\n{last}")
+
+
+@dataclass
+class ManagedProcess:
+    """One child process with forwarded, remembered output."""
+
+    name: str
+    command: Sequence[str]
+    env: dict[str, str] | None = None
+    process: subprocess.Popen[str] | None = None
+    tail: collections.deque[str] = field(default_factory=lambda: collections.deque(maxlen=TAIL_LINES))
+    _reader: threading.Thread | None = None
+
+    def start(self, sink: TextIO, lock: threading.Lock) -> None:
+        self.process = subprocess.Popen(
+            list(self.command),
+            env=self.env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            bufsize=1,
+            start_new_session=True,
+        )
+        self._reader = threading.Thread(target=self._forward, args=(sink, lock), daemon=True)
+        self._reader.start()
+
+    def _forward(self, sink: TextIO, lock: threading.Lock) -> None:
+        assert self.process is not None and self.process.stdout is not None
+        for raw in self.process.stdout:
+            line = raw.rstrip("\n")
+            self.tail.append(line)
+            with lock:
+                sink.write(f"[{self.name}] {line}\n")
+                sink.flush()
+
+    @property
+    def returncode(self) -> int | None:
+        return None if self.process is None else self.process.poll()
+
+    def signal(self, signum: int) -> None:
+        if self.process is not None and self.process.poll() is None:
+            try:
+                os.killpg(self.process.pid, signum)
+            except ProcessLookupError:
+                pass
+
+    def wait(self, timeout: float) -> bool:
+        """Wait for exit; True if the process has exited."""
+        if self.process is None:
+            return True
+        try:
+            self.process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return False
+        if self._reader is not None:
+            self._reader.join(timeout=2.0)
+        return True
+
+
+class ProcessGroup:
+    """Start, watch and stop a set of node processes."""
+
+    def __init__(self, sink: TextIO = sys.stdout, stop_timeout: float = 5.0) -> None:
+        self._sink = sink
+        self._lock = threading.Lock()
+        self._stop_timeout = stop_timeout
+        self.processes: list[ManagedProcess] = []
+
+    def start(self, name: str, command: Sequence[str], env: dict[str, str] | None = None) -> ManagedProcess:
+        managed = ManagedProcess(name=name, command=command, env=env)
+        managed.start(self._sink, self._lock)
+        self.processes.append(managed)
+        return managed
+
+    def check(self) -> None:
+        """Raise NodeDiedError for the first process that has exited."""
+        for managed in self.processes:
+            code = managed.returncode
+            if code is not None:
+                managed.wait(timeout=2.0)
+                raise NodeDiedError(managed.name, code, managed.tail)
+
+    def wait_until(self, ready: Callable[[], bool], timeout: float, what: str) -> None:
+        """Poll ``ready`` while checking that no node died; TimeoutError names ``what``."""
+        deadline = time.monotonic() + timeout
+        while not ready():
+            self.check()
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"timed out after {timeout:.0f} s waiting for {what}")
+            time.sleep(0.1)
+
+    def stop(self) -> dict[str, int | None]:
+        """Stop every process (SIGINT → SIGTERM → SIGKILL); return their exit codes."""
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            alive = [p for p in self.processes if p.returncode is None]
+            if not alive:
+                break
+            for managed in alive:
+                managed.signal(signum)
+            deadline = time.monotonic() + self._stop_timeout
+            for managed in alive:
+                managed.wait(timeout=max(0.0, deadline - time.monotonic()))
+        return {p.name: p.returncode for p in self.processes}
+
+    def __enter__(self) -> ProcessGroup:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
