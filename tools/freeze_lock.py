@@ -17,7 +17,7 @@ from importlib.metadata import distributions
 def locked_requirements() -> list[str]:
     pins = set()
     for dist in distributions():
-        if not str(dist._path).endswith(".dist-info"):  # noqa: SLF001 - no public accessor
+        if not str(dist._path).endswith(".dist-info"):
             continue
         version = dist.version.removesuffix("+cpu")
         pins.add(f"{dist.metadata['Name'].lower()}=={version}")

@@ -14,10 +14,12 @@ setup(
     zip_safe=False,
     maintainer="DOM-BOT developers",
     maintainer_email="dombot@example.org",
-    description="Bring-up of the DOM-BOT node graph: builds a domino run from a pile in simulation and knocks it down.",
+    description=(
+        "Bring-up of the DOM-BOT node graph: builds a domino run from a pile in "
+        "simulation and knocks it down."
+    ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-        ],
+        "console_scripts": [],
     },
 )

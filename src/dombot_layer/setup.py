@@ -14,7 +14,10 @@ setup(
     zip_safe=False,
     maintainer="DOM-BOT developers",
     maintainer_email="dombot@example.org",
-    description="Domino-laying vehicle: exact trolley kinematics, wheel velocity commands, path schedules and a vehicle simulation.",
+    description=(
+        "Domino-laying vehicle: exact trolley kinematics, wheel velocity commands, path "
+        "schedules and a vehicle simulation."
+    ),
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

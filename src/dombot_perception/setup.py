@@ -14,10 +14,12 @@ setup(
     zip_safe=False,
     maintainer="DOM-BOT developers",
     maintainer_email="dombot@example.org",
-    description="RGB-D perception of a domino pile: segmentation, multi-camera box fitting, grasp scoring; publishes domino poses.",
+    description=(
+        "RGB-D perception of a domino pile: segmentation, multi-camera box fitting, grasp"
+        " scoring; publishes domino poses."
+    ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-        ],
+        "console_scripts": [],
     },
 )

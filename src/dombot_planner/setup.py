@@ -14,10 +14,12 @@ setup(
     zip_safe=False,
     maintainer="DOM-BOT developers",
     maintainer_email="dombot@example.org",
-    description="The /plan_place service: pick-and-place trajectories by Drake kinematic trajectory optimization on a shadow plant.",
+    description=(
+        "The /plan_place service: pick-and-place trajectories by Drake kinematic "
+        "trajectory optimization on a shadow plant."
+    ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-        ],
+        "console_scripts": [],
     },
 )

@@ -14,10 +14,12 @@ setup(
     zip_safe=False,
     maintainer="DOM-BOT developers",
     maintainer_email="dombot@example.org",
-    description="Drake simulation of the DOM-BOT cell exposed over ROS 2 like real hardware: cameras, joint states, trajectory and gripper actions.",
+    description=(
+        "Drake simulation of the DOM-BOT cell exposed over ROS 2 like real hardware: "
+        "cameras, joint states, trajectory and gripper actions."
+    ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [
-        ],
+        "console_scripts": [],
     },
 )

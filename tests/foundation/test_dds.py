@@ -62,9 +62,7 @@ def spin_until(node: Node, done, timeout: float) -> bool:
 
 def test_custom_message_published_in_one_process_arrives_in_another(node: Node) -> None:
     received: list[DominoDetectionArray] = []
-    node.create_subscription(
-        DominoDetectionArray, "/foundation/detections", received.append, 10
-    )
+    node.create_subscription(DominoDetectionArray, "/foundation/detections", received.append, 10)
     with python_process(TALKER) as talker:
         assert spin_until(node, lambda: len(received) >= 3, timeout=30), talker.poll()
     ids = [msg.detections[0].id for msg in received]

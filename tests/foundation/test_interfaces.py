@@ -45,7 +45,9 @@ MESSAGES = [
     sample_segment(),
     WheelVelocities(left=3.5, right=4.0, wheel_speed_ratio=0.875, message="ok"),
     PlanPlace.Request(grasp_width=0.0075, time_budget=2.0),
-    PlanPlace.Response(success=False, error_code=PlanPlace.Response.TIMEOUT, segments=[sample_segment()]),
+    PlanPlace.Response(
+        success=False, error_code=PlanPlace.Response.TIMEOUT, segments=[sample_segment()]
+    ),
     DetectDominoes.Request(cameras=["camera_0", "camera_1"]),
     DetectDominoes.Response(success=True, message="2 dominoes"),
     ResetSim.Request(domino_count=30, seed=-7),
@@ -75,9 +77,15 @@ def test_round_trip_preserves_nested_values() -> None:
 
 def test_error_codes_are_distinct_and_named() -> None:
     names = [
-        "SUCCESS", "INVALID_REQUEST", "NO_START_STATE", "OUTSIDE_WORKSPACE",
-        "GRASP_UNREACHABLE", "PLACE_UNREACHABLE", "PLACE_IN_COLLISION",
-        "PLANNING_FAILED", "TIMEOUT",
+        "SUCCESS",
+        "INVALID_REQUEST",
+        "NO_START_STATE",
+        "OUTSIDE_WORKSPACE",
+        "GRASP_UNREACHABLE",
+        "PLACE_UNREACHABLE",
+        "PLACE_IN_COLLISION",
+        "PLANNING_FAILED",
+        "TIMEOUT",
     ]
     codes = [getattr(PlanPlace.Response, name) for name in names]
     assert codes[0] == 0
@@ -89,5 +97,8 @@ def test_action_semantics_match_control_msgs() -> None:
     assert (result.SUCCESSFUL, result.INVALID_GOAL, result.INVALID_JOINTS) == (0, -1, -2)
     assert (result.PATH_TOLERANCE_VIOLATED, result.GOAL_TOLERANCE_VIOLATED) == (-4, -5)
     assert set(GripperCommand.Result.get_fields_and_field_types()) == {
-        "position", "effort", "stalled", "reached_goal",
+        "position",
+        "effort",
+        "stalled",
+        "reached_goal",
     }

@@ -10,6 +10,7 @@ SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses.
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
 import signal
 import subprocess
@@ -42,7 +43,9 @@ class ManagedProcess:
     command: Sequence[str]
     env: dict[str, str] | None = None
     process: subprocess.Popen[str] | None = None
-    tail: collections.deque[str] = field(default_factory=lambda: collections.deque(maxlen=TAIL_LINES))
+    tail: collections.deque[str] = field(
+        default_factory=lambda: collections.deque(maxlen=TAIL_LINES)
+    )
     _reader: threading.Thread | None = None
 
     def start(self, sink: TextIO, lock: threading.Lock) -> None:
@@ -74,10 +77,8 @@ class ManagedProcess:
 
     def signal(self, signum: int) -> None:
         if self.process is not None and self.process.poll() is None:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.process.pid, signum)
-            except ProcessLookupError:
-                pass
 
     def wait(self, timeout: float) -> bool:
         """Wait for exit; True if the process has exited."""
@@ -101,7 +102,9 @@ class ProcessGroup:
         self._stop_timeout = stop_timeout
         self.processes: list[ManagedProcess] = []
 
-    def start(self, name: str, command: Sequence[str], env: dict[str, str] | None = None) -> ManagedProcess:
+    def start(
+        self, name: str, command: Sequence[str], env: dict[str, str] | None = None
+    ) -> ManagedProcess:
         managed = ManagedProcess(name=name, command=command, env=env)
         managed.start(self._sink, self._lock)
         self.processes.append(managed)

@@ -1,1 +1,3 @@
-"""Domino-laying vehicle: exact trolley kinematics, wheel velocity commands, path schedules and a vehicle simulation."""
+"""Domino-laying vehicle: exact trolley kinematics, wheel velocity commands, path schedules
+and a vehicle simulation.
+"""

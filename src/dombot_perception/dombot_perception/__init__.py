@@ -1,1 +1,3 @@
-"""RGB-D perception of a domino pile: segmentation, multi-camera box fitting, grasp scoring; publishes domino poses."""
+"""RGB-D perception of a domino pile: segmentation, multi-camera box fitting, grasp scoring;
+publishes domino poses.
+"""

@@ -1,1 +1,3 @@
-"""The /plan_place service: pick-and-place trajectories by Drake kinematic trajectory optimization on a shadow plant."""
+"""The /plan_place service: pick-and-place trajectories by Drake kinematic trajectory
+optimization on a shadow plant.
+"""

@@ -1,1 +1,3 @@
-"""Drake simulation of the DOM-BOT cell exposed over ROS 2 like real hardware: cameras, joint states, trajectory and gripper actions."""
+"""Drake simulation of the DOM-BOT cell exposed over ROS 2 like real hardware: cameras, joint
+states, trajectory and gripper actions.
+"""
