@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
-from dombot_bringup.layouts import BuildArea, LayoutError
 from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
+from dombot_bringup.layouts import BuildArea, LayoutError
 
 AREA = BuildArea(x_min=0.3, x_max=0.8, y_min=-0.1, y_max=0.5, reach_min=0.35, reach_max=0.8)
 

@@ -6,6 +6,7 @@ import io
 import sys
 
 import pytest
+
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 
 SLEEPER = "import time, sys\nprint('ready', flush=True)\nwhile True: time.sleep(0.1)"

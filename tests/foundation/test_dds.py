@@ -7,10 +7,10 @@ import time
 import pytest
 import rclpy
 from rclpy.node import Node
-from support.ros_processes import python_process
 
 from dombot_msgs.msg import DominoDetectionArray
 from dombot_msgs.srv import ResetSim
+from support.ros_processes import python_process
 
 TALKER = """
 import rclpy

@@ -1,0 +1,52 @@
+"""The measured dimensions of the domino-laying vehicle, validated once.
+
+Frame and lengths (see docs/LAYER.md for the figure): the tractor is a
+differential-drive vehicle; M is the midpoint of its front (drive) axle. The
+trolley hangs on a pivot P that lies ``d_p`` behind M on the tractor's centre
+line. The trolley's single wheel axle is centred at W, ``d_tw`` behind P along
+the trolley's centre line. The deposit point D, where a domino leaves the
+trolley, lies ``d_l`` further back along the trolley's centre line from W and
+``d_t`` to the side: positive ``d_t`` is towards the vehicle's right.
+``d_w`` is the distance between the drive wheels, ``wheel_radius`` their radius.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+
+@dataclass(frozen=True)
+class VehicleGeometry:
+    """Lengths in metres. ``d_t`` may be zero or negative; every other length is positive."""
+
+    d_p: float = 0.10  # front-axle midpoint M → trolley pivot P
+    d_tw: float = 0.15  # pivot P → trolley wheel axle W
+    d_l: float = 0.04  # W → deposit point D, along the trolley
+    d_t: float = 0.02  # W → deposit point D, across the trolley (+ = vehicle's right)
+    d_w: float = 0.16  # distance between the drive wheels
+    wheel_radius: float = 0.03
+
+    def __post_init__(self) -> None:
+        for field in fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"VehicleGeometry.{field.name} must be a number, got {value!r}")
+            if not math.isfinite(value):
+                raise ValueError(f"VehicleGeometry.{field.name} must be finite, got {value}")
+            if field.name != "d_t" and value <= 0.0:
+                raise ValueError(f"VehicleGeometry.{field.name} must be positive, got {value} m")
+
+    @property
+    def deposit_offset(self) -> float:
+        """z of eq. (5): distance from the trolley wheel axle to the deposit point."""
+        return math.hypot(self.d_l, self.d_t)
+
+    def deposit_angle(self, turn_sign: float) -> float:
+        """φ of eq. (4), for a left (+1) or right (−1) turn.
+
+        The equations are written for a left turn, where the vehicle's right side
+        faces away from the centre O; in a right turn it faces O, so the lateral
+        offset changes sign.
+        """
+        return math.atan2(turn_sign * self.d_t, self.d_l)

@@ -1,0 +1,129 @@
+"""Deposit paths (lines, arcs, smoothed polylines) → time-stamped wheel schedules.
+
+The user describes where the dominoes should go (the *deposit* path). Each piece
+of constant curvature maps to a vehicle midpoint radius by inverse kinematics; in
+steady state the whole vehicle–trolley rig turns rigidly about the centre O, so a
+deposit arc of length L and radius r_d takes (L/|r_d|)·|r_m|/v seconds at midpoint
+speed v. The schedule is that steady-state plan; the trolley needs a short
+distance to settle after each change of curvature (vehicle_sim shows how much).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import splev, splprep
+
+from dombot_layer.kinematics import (
+    LayerKinematics,
+    UnreachableRadiusError,
+    wheel_angular_velocities,
+)
+
+
+@dataclass(frozen=True)
+class Straight:
+    length: float  # m
+
+
+@dataclass(frozen=True)
+class Arc:
+    radius: float  # m, signed: + turns left
+    length: float  # m of deposit path
+
+
+Segment = Straight | Arc
+
+
+@dataclass(frozen=True)
+class WheelSchedule:
+    """Piecewise-constant wheel commands: command k holds from start_time[k] to start_time[k+1]."""
+
+    start_time: np.ndarray  # s, one more entry than commands: the last is the end time
+    left: np.ndarray  # rad/s
+    right: np.ndarray  # rad/s
+    deposit_radius: np.ndarray  # m, signed, inf = straight
+    midpoint_radius: np.ndarray  # m, signed
+    deposit_times: np.ndarray  # s, when each domino is laid (steady state)
+
+    @property
+    def duration(self) -> float:
+        return float(self.start_time[-1])
+
+    def command_at(self, t: float) -> tuple[float, float]:
+        """Wheel velocities at time t; zero (stopped) outside the schedule."""
+        if not 0.0 <= t < self.duration:
+            return 0.0, 0.0
+        k = int(np.searchsorted(self.start_time, t, side="right")) - 1
+        return float(self.left[k]), float(self.right[k])
+
+
+class PathError(ValueError):
+    """A path the vehicle cannot lay; the message says where along the path."""
+
+
+def schedule_segments(
+    kinematics: LayerKinematics, segments: list[Segment], forward_speed: float, spacing: float
+) -> WheelSchedule:
+    """Wheel schedule laying dominoes every ``spacing`` metres along the deposit path."""
+    if not (forward_speed > 0 and math.isfinite(forward_speed)):
+        raise PathError(f"forward speed must be a positive number of m/s, got {forward_speed}")
+    if not (spacing > 0 and math.isfinite(spacing)):
+        raise PathError(f"spacing must be a positive number of metres, got {spacing}")
+    deposit_r = np.array(
+        [math.inf if isinstance(s, Straight) else s.radius for s in segments], dtype=float
+    )
+    lengths = np.array([s.length for s in segments], dtype=float)
+    if np.any(~(lengths > 0)) or np.any(~np.isfinite(lengths)):
+        raise PathError("every segment needs a positive, finite length")
+    midpoint_r, valid = kinematics.midpoint_radii(deposit_r)
+    if not np.all(valid):
+        first = int(np.argmin(valid))
+        try:
+            kinematics.midpoint_radius(deposit_r[first])
+        except UnreachableRadiusError as error:
+            where = f"{float(lengths[:first].sum()):.3f} m along the path (segment {first})"
+            raise PathError(f"at {where}: {error}") from error
+    # Deposit point speed = v·|r_d|/|r_m| (rigid rotation about O); 1·v when straight.
+    deposit_speed = (
+        np.where(np.isinf(deposit_r), 1.0, np.abs(deposit_r) / np.abs(midpoint_r)) * forward_speed
+    )
+    durations = lengths / deposit_speed
+    start_time = np.concatenate([[0.0], np.cumsum(durations)])
+    left, right = wheel_angular_velocities(kinematics.geometry, midpoint_r, forward_speed)
+    path_position = np.arange(0.0, lengths.sum() + 1e-12, spacing)
+    deposit_times = np.interp(
+        path_position, np.concatenate([[0.0], np.cumsum(lengths)]), start_time
+    )
+    return WheelSchedule(
+        start_time, np.asarray(left), np.asarray(right), deposit_r, midpoint_r, deposit_times
+    )
+
+
+def polyline_segments(
+    points: np.ndarray, step: float = 0.01, smoothing: float = 0.0
+) -> list[Segment]:
+    """Fit a smooth cubic spline through a polyline and cut it into short constant-curvature arcs.
+
+    ``smoothing`` is scipy's ``splprep`` s (0 interpolates the points). Each
+    piece of ``step`` metres gets the spline's curvature at its middle.
+    """
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 3:
+        raise PathError("a polyline needs at least three (x, y) points")
+    if not np.all(np.isfinite(points)):
+        raise PathError("polyline points must be finite")
+    tck, _ = splprep(points.T, s=smoothing, k=min(3, len(points) - 1))
+    u = np.linspace(0.0, 1.0, 20001)
+    dx, dy = splev(u, tck, der=1)
+    ddx, ddy = splev(u, tck, der=2)
+    speed = np.hypot(dx, dy)
+    arc_length = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(u))])
+    curvature = (dx * ddy - dy * ddx) / speed**3
+    count = max(1, round(arc_length[-1] / step))
+    edges = np.linspace(0.0, arc_length[-1], count + 1)
+    middle_curvature = np.interp(0.5 * (edges[1:] + edges[:-1]), arc_length, curvature)
+    piece = arc_length[-1] / count
+    return [Straight(piece) if abs(k) < 1e-9 else Arc(1.0 / k, piece) for k in middle_curvature]
