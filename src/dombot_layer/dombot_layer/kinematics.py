@@ -25,7 +25,7 @@ from scipy.optimize import brentq, minimize_scalar
 from dombot_layer.geometry import VehicleGeometry
 
 TABLE_SIZE = 4097  # samples of the laying branch used to start the vectorized inverse
-NEWTON_STEPS = 4
+MAX_NEWTON_STEPS = 80  # bisection fallback bound; ordinary radii converge in 2–4
 FAR_RADIUS = 1e6  # m; beyond this the branch is r_d ≈ r_m + const to double precision
 
 
@@ -191,11 +191,7 @@ class LayerKinematics:
         target = abs(r_d)
         k = int(np.searchsorted(branch.log_r_d_table, math.log(target)))
         if k >= branch.r_m_table.size:
-            lo, hi = (
-                branch.r_m_table[-1],
-                target
-                + 2 * (self.geometry.d_p + self.geometry.d_tw + self.geometry.deposit_offset),
-            )
+            lo, hi = branch.r_m_table[-1], target + 2 * self._rig_length
         else:
             lo, hi = branch.r_m_table[max(k - 1, 0)], branch.r_m_table[k]
         root = brentq(
@@ -250,18 +246,45 @@ class LayerKinematics:
         k = np.clip(np.searchsorted(table, log_target), 1, table.size - 1)
         lo, hi = branch.r_m_table[k - 1], branch.r_m_table[k]
         beyond = log_target > table[-1]
-        hi = np.where(
-            beyond,
-            target + 2 * (self.geometry.d_p + self.geometry.d_tw + self.geometry.deposit_offset),
-            hi,
-        )
+        hi = np.where(beyond, target + 2 * self._rig_length, hi)
         lo = np.where(beyond, branch.r_m_table[-1], lo)
-        weight = (log_target - table[k - 1]) / (table[k] - table[k - 1])
-        r = np.where(beyond, target, lo * (hi / lo) ** np.clip(weight, 0.0, 1.0))
-        for _ in range(NEWTON_STEPS):
-            value, slope = _deposit_radius_slope(self.geometry, r, sign)
-            r = np.clip(r - (value - target) / slope, lo, hi)
+        weight = np.clip((log_target - table[k - 1]) / (table[k] - table[k - 1]), 0.0, 1.0)
+        r = np.where(beyond, target, lo * (hi / lo) ** weight)
+        return self._safeguarded_newton(r, lo, hi, target, sign)
+
+    def _safeguarded_newton(
+        self, r: np.ndarray, lo: np.ndarray, hi: np.ndarray, target: np.ndarray, sign: float
+    ) -> np.ndarray:
+        """Newton on a monotonic bracket; a step leaving the bracket bisects instead.
+
+        Near the geometric limit dr_d/dr_m is unbounded and plain Newton stalls
+        against the bracket, so the bracket shrinks on every step and bisection
+        guarantees convergence there.
+        """
+        tolerance = 4 * np.finfo(float).eps * np.maximum(target, 1.0)
+        active = np.arange(r.size)
+        for _ in range(MAX_NEWTON_STEPS):
+            value, slope = _deposit_radius_slope(self.geometry, r[active], sign)
+            residual = value - target[active]
+            done = np.abs(residual) <= tolerance[active]
+            below = residual < 0
+            lo[active] = np.where(below, r[active], lo[active])
+            hi[active] = np.where(below, hi[active], r[active])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = r[active] - residual / slope
+            inside = (step > lo[active]) & (step < hi[active])
+            r[active] = np.where(
+                done, r[active], np.where(inside, step, 0.5 * (lo[active] + hi[active]))
+            )
+            active = active[~done]
+            if active.size == 0:
+                break
         return r
+
+    @property
+    def _rig_length(self) -> float:
+        g = self.geometry
+        return g.d_p + g.d_tw + g.deposit_offset
 
     def all_midpoint_radii(self, radius: float) -> list[float]:
         """Every r_m (same turn direction) with this r_d, laying-branch solution first."""

@@ -87,9 +87,9 @@ def schedule_segments(
             where = f"{float(lengths[:first].sum()):.3f} m along the path (segment {first})"
             raise PathError(f"at {where}: {error}") from error
     # Deposit point speed = v·|r_d|/|r_m| (rigid rotation about O); 1·v when straight.
-    deposit_speed = (
-        np.where(np.isinf(deposit_r), 1.0, np.abs(deposit_r) / np.abs(midpoint_r)) * forward_speed
-    )
+    with np.errstate(invalid="ignore"):  # inf/inf on straights, replaced by 1
+        ratio = np.where(np.isinf(deposit_r), 1.0, np.abs(deposit_r) / np.abs(midpoint_r))
+    deposit_speed = ratio * forward_speed
     durations = lengths / deposit_speed
     start_time = np.concatenate([[0.0], np.cumsum(durations)])
     left, right = wheel_angular_velocities(kinematics.geometry, midpoint_r, forward_speed)
