@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 import rclpy
 from rclpy.node import Node
 
 from dombot_msgs.msg import DominoDetectionArray
 from dombot_msgs.srv import ResetSim
-from support.ros_processes import python_process
+from support.ros_processes import python_process, spin_until
 
 TALKER = """
 import rclpy
@@ -51,13 +49,6 @@ def node():
     yield test_node
     test_node.destroy_node()
     rclpy.shutdown()
-
-
-def spin_until(node: Node, done, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and not done():
-        rclpy.spin_once(node, timeout_sec=0.1)
-    return done()
 
 
 def test_custom_message_published_in_one_process_arrives_in_another(node: Node) -> None:

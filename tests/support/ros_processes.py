@@ -6,19 +6,20 @@ import os
 import subprocess
 import sys
 import textwrap
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
+
+import rclpy
+from ament_index_python.packages import get_package_prefix
+from rclpy.node import Node
 
 
 @contextmanager
-def python_process(source: str) -> Iterator[subprocess.Popen[str]]:
-    """Run ``source`` in a child interpreter with this session's environment."""
+def _supervised(command: list[str]) -> Iterator[subprocess.Popen[str]]:
     child = subprocess.Popen(
-        [sys.executable, "-c", textwrap.dedent(source)],
-        env=dict(os.environ),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
+        command, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
     try:
         yield child
@@ -29,3 +30,26 @@ def python_process(source: str) -> Iterator[subprocess.Popen[str]]:
         except subprocess.TimeoutExpired:
             child.kill()
             child.wait()
+
+
+@contextmanager
+def python_process(source: str) -> Iterator[subprocess.Popen[str]]:
+    """Run ``source`` in a child interpreter with this session's environment."""
+    with _supervised([sys.executable, "-c", textwrap.dedent(source)]) as child:
+        yield child
+
+
+@contextmanager
+def installed_node(package: str, executable: str, *args: str) -> Iterator[subprocess.Popen[str]]:
+    """Run an installed node executable, found through the ament index as ros2 run does."""
+    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    with _supervised([str(path), *args]) as child:
+        yield child
+
+
+def spin_until(node: Node, done: Callable[[], bool], timeout: float) -> bool:
+    """Spin ``node`` until ``done()`` or the timeout; return ``done()``."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not done():
+        rclpy.spin_once(node, timeout_sec=0.05)
+    return done()

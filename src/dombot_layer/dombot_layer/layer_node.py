@@ -1,0 +1,252 @@
+"""layer_node: deposit radius or path in, left/right wheel velocity commands out.
+
+A thin ROS adapter over ``kinematics`` and ``paths``: parameters hold the vehicle
+geometry and speed (validated; a rejected update keeps the old values), a target
+radius sets a steady command, a path plays a time-stamped schedule. Commands are
+streamed at ``command_rate`` on the ros2_control forward-command topic and as the
+richer ``dombot_msgs/WheelVelocities``. Anything unreachable or malformed stops
+the wheels and says why; the node keeps serving.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields
+
+import numpy as np
+import rclpy
+import rclpy.executors
+from nav_msgs.msg import Path
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_msgs.msg import Float64, Float64MultiArray
+
+from dombot_layer.geometry import VehicleGeometry
+from dombot_layer.kinematics import (
+    LayerKinematics,
+    UnreachableRadiusError,
+    wheel_angular_velocities,
+    wheel_speed_ratio,
+)
+from dombot_layer.paths import (
+    PathError,
+    Straight,
+    WheelSchedule,
+    polyline_segments,
+    schedule_segments,
+)
+from dombot_msgs.msg import WheelVelocities
+
+GEOMETRY_PREFIX = "geometry."
+
+
+class LayerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("layer_node")
+        defaults = VehicleGeometry()
+        for field in fields(VehicleGeometry):
+            self.declare_parameter(
+                GEOMETRY_PREFIX + field.name,
+                float(getattr(defaults, field.name)),
+                ParameterDescriptor(description=f"vehicle {field.name} [m], see docs/LAYER.md"),
+            )
+        self.declare_parameter(
+            "forward_speed", 0.1, ParameterDescriptor(description="front-axle midpoint speed [m/s]")
+        )
+        self.declare_parameter(
+            "deposit_spacing", 0.03, ParameterDescriptor(description="domino spacing on paths [m]")
+        )
+        self.declare_parameter(
+            "command_rate", 20.0, ParameterDescriptor(description="command publish rate [Hz]")
+        )
+        self.kinematics = LayerKinematics(self._geometry_from(self._parameter_values()))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self.command_pub = self.create_publisher(
+            Float64MultiArray, "wheel_velocity_controller/commands", 10
+        )
+        self.status_pub = self.create_publisher(WheelVelocities, "layer/wheel_velocities", 10)
+        self.create_subscription(Float64, "layer/target_radius", self._on_target_radius, 10)
+        self.create_subscription(Path, "layer/path", self._on_path, 10)
+        self.command = self._stop_command(
+            WheelVelocities.STATUS_STOPPED, "waiting for a target radius or path"
+        )
+        self.schedule: WheelSchedule | None = None
+        self.schedule_start = 0.0
+        self.timer = self.create_timer(
+            1.0 / self.get_parameter("command_rate").value, self._publish
+        )
+        minimum = self.kinematics.minimum_laying_radius
+        self.get_logger().info(
+            f"ready: minimum laying radius {minimum('left'):.4f} m (left), "
+            f"{minimum('right'):.4f} m (right)"
+        )
+
+    # ------------------------------------------------------------------ parameters
+    def _parameter_values(self, overrides: dict[str, object] | None = None) -> dict[str, object]:
+        values = {name: self.get_parameter(name).value for name in self._parameter_names()}
+        values.update(overrides or {})
+        return values
+
+    def _parameter_names(self) -> list[str]:
+        names = [GEOMETRY_PREFIX + f.name for f in fields(VehicleGeometry)]
+        return [*names, "forward_speed", "deposit_spacing", "command_rate"]
+
+    @staticmethod
+    def _geometry_from(values: dict[str, object]) -> VehicleGeometry:
+        return VehicleGeometry(
+            **{f.name: values[GEOMETRY_PREFIX + f.name] for f in fields(VehicleGeometry)}
+        )
+
+    def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        candidate = self._parameter_values({p.name: p.value for p in parameters})
+        try:
+            geometry = self._geometry_from(candidate)
+            for name in ("forward_speed", "deposit_spacing", "command_rate"):
+                value = candidate[name]
+                if (
+                    isinstance(value, bool)
+                    or not isinstance(value, int | float)
+                    or not (math.isfinite(value) and value > 0)
+                ):
+                    raise ValueError(f"{name} must be a positive number, got {value!r}")
+        except ValueError as error:
+            self.get_logger().error(f"rejected parameter update: {error}")
+            return SetParametersResult(successful=False, reason=str(error))
+        if geometry != self.kinematics.geometry:
+            self.kinematics = LayerKinematics(geometry)
+            self.get_logger().info(f"geometry updated: {geometry}")
+        if candidate["command_rate"] != self.get_parameter("command_rate").value:
+            self.timer.cancel()
+            self.timer = self.create_timer(1.0 / candidate["command_rate"], self._publish)
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ inputs
+    def _on_target_radius(self, message: Float64) -> None:
+        self.schedule = None
+        self.command = self._radius_command(message.data)
+
+    def _radius_command(self, radius: float) -> WheelVelocities:
+        speed = float(self.get_parameter("forward_speed").value)
+        try:
+            midpoint = self.kinematics.midpoint_radius(radius)
+        except UnreachableRadiusError as error:
+            status = (
+                WheelVelocities.STATUS_INVALID
+                if math.isnan(radius)
+                else WheelVelocities.STATUS_UNREACHABLE
+            )
+            self.get_logger().error(f"{error}; stopping the wheels")
+            return self._stop_command(status, str(error), radius)
+        left, right = wheel_angular_velocities(self.kinematics.geometry, midpoint, speed)
+        ratio = wheel_speed_ratio(self.kinematics.geometry, midpoint)
+        self.get_logger().info(
+            f"target r_d = {radius:.4f} m → r_m = {midpoint:.4f} m, wheel speed ratio {ratio:.4f}, "
+            f"left {left:.3f} rad/s, right {right:.3f} rad/s"
+        )
+        return WheelVelocities(
+            left=left,
+            right=right,
+            forward_speed=speed,
+            deposit_radius=radius,
+            midpoint_radius=midpoint,
+            wheel_speed_ratio=ratio,
+            status=WheelVelocities.STATUS_OK,
+            message="laying",
+        )
+
+    def _on_path(self, message: Path) -> None:
+        points = np.array(
+            [[p.pose.position.x, p.pose.position.y] for p in message.poses], dtype=float
+        )
+        try:
+            segments = self._segments_from(points)
+            self.schedule = schedule_segments(
+                self.kinematics,
+                segments,
+                float(self.get_parameter("forward_speed").value),
+                float(self.get_parameter("deposit_spacing").value),
+            )
+        except PathError as error:
+            self.schedule = None
+            self.get_logger().error(f"path rejected: {error}; stopping the wheels")
+            self.command = self._stop_command(
+                WheelVelocities.STATUS_UNREACHABLE, f"path rejected: {error}"
+            )
+            return
+        self.schedule_start = self._now()
+        self.get_logger().info(
+            f"path accepted: {len(segments)} pieces, {self.schedule.duration:.1f} s, "
+            f"{len(self.schedule.deposit_times)} dominoes"
+        )
+
+    @staticmethod
+    def _segments_from(points: np.ndarray) -> list:
+        if len(points) == 2:
+            length = float(np.linalg.norm(points[1] - points[0]))
+            if length > 0:
+                return [Straight(length)]
+        if len(points) < 2:
+            raise PathError("a path needs at least two poses")
+        return polyline_segments(points)
+
+    # ------------------------------------------------------------------ output
+    def _publish(self) -> None:
+        if self.schedule is not None:
+            self.command = self._schedule_command(self._now() - self.schedule_start)
+        self.command.header.stamp = self.get_clock().now().to_msg()
+        self.status_pub.publish(self.command)
+        self.command_pub.publish(Float64MultiArray(data=[self.command.left, self.command.right]))
+
+    def _schedule_command(self, elapsed: float) -> WheelVelocities:
+        schedule = self.schedule
+        if elapsed >= schedule.duration:
+            self.schedule = None
+            self.get_logger().info("path finished; wheels stopped")
+            return self._stop_command(WheelVelocities.STATUS_STOPPED, "path finished")
+        k = int(np.searchsorted(schedule.start_time, elapsed, side="right")) - 1
+        left, right = schedule.command_at(elapsed)
+        midpoint = float(schedule.midpoint_radius[k])
+        return WheelVelocities(
+            left=left,
+            right=right,
+            forward_speed=float(self.get_parameter("forward_speed").value),
+            deposit_radius=float(schedule.deposit_radius[k]),
+            midpoint_radius=midpoint,
+            wheel_speed_ratio=wheel_speed_ratio(self.kinematics.geometry, midpoint),
+            status=WheelVelocities.STATUS_OK,
+            message=f"path piece {k + 1}/{len(schedule.left)}",
+        )
+
+    @staticmethod
+    def _stop_command(status: int, message: str, radius: float = math.nan) -> WheelVelocities:
+        return WheelVelocities(
+            left=0.0,
+            right=0.0,
+            forward_speed=0.0,
+            deposit_radius=radius,
+            midpoint_radius=math.nan,
+            wheel_speed_ratio=math.nan,
+            status=status,
+            message=message,
+        )
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = LayerNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
