@@ -22,6 +22,7 @@ setup(
     entry_points={
         "console_scripts": [
             "layer_node = dombot_layer.layer_node:main",
+            "vehicle_sim_node = dombot_layer.vehicle_sim_node:main",
         ],
     },
 )

@@ -7,7 +7,7 @@ import pytest
 
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import LayerKinematics, forward, wheel_angular_velocities
-from dombot_layer.vehicle_sim import circle_center, simulate
+from dombot_layer.vehicle_sim import VehicleSimulator, circle_center, simulate
 
 GEOMETRY = VehicleGeometry()
 KINEMATICS = LayerKinematics(GEOMETRY)
@@ -64,3 +64,13 @@ def test_straight_driving_lays_a_straight_line_at_the_spacing() -> None:
     assert np.allclose(result.deposits[:, 1], -GEOMETRY.d_t, atol=1e-12)
     gaps = np.linalg.norm(np.diff(result.deposits, axis=0), axis=1)
     assert gaps == pytest.approx(np.full(gaps.size, 0.02), abs=1e-9)
+
+
+def test_stepping_in_real_time_lays_the_same_dominoes_as_the_batch_run() -> None:
+    midpoint = KINEMATICS.midpoint_radius(0.4)
+    left, right = wheel_angular_velocities(GEOMETRY, midpoint, SPEED)
+    batch = simulate(GEOMETRY, lambda t: (left, right), 6.0, spacing=0.02)
+    stepper = VehicleSimulator(GEOMETRY, spacing=0.02)
+    laid = np.concatenate([stepper.step(left, right, 0.05) for _ in range(120)])
+    assert laid.shape == batch.deposits.shape
+    assert np.max(np.abs(laid - batch.deposits)) < 1e-8

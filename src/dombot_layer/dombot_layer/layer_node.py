@@ -167,6 +167,7 @@ class LayerNode(Node):
                 segments,
                 float(self.get_parameter("forward_speed").value),
                 float(self.get_parameter("deposit_spacing").value),
+                look_ahead=True,
             )
         except PathError as error:
             self.schedule = None
@@ -236,9 +237,10 @@ class LayerNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
 
-def main(args: list[str] | None = None) -> None:
+def spin(node_class: type[Node], args: list[str] | None = None) -> None:
+    """Run one node until Ctrl-C or shutdown, then clean up."""
     rclpy.init(args=args)
-    node = LayerNode()
+    node = node_class()
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
@@ -246,6 +248,10 @@ def main(args: list[str] | None = None) -> None:
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def main(args: list[str] | None = None) -> None:
+    spin(LayerNode, args)
 
 
 if __name__ == "__main__":

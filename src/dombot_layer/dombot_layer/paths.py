@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import splev, splprep
 
+from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import (
     LayerKinematics,
     UnreachableRadiusError,
@@ -64,10 +65,28 @@ class PathError(ValueError):
     """A path the vehicle cannot lay; the message says where along the path."""
 
 
+def rig_length(geometry: VehicleGeometry) -> float:
+    """How far the deposit point trails the drive-axle midpoint when driving straight."""
+    return geometry.d_p + geometry.d_tw + geometry.d_l
+
+
 def schedule_segments(
-    kinematics: LayerKinematics, segments: list[Segment], forward_speed: float, spacing: float
+    kinematics: LayerKinematics,
+    segments: list[Segment],
+    forward_speed: float,
+    spacing: float,
+    look_ahead: bool = False,
 ) -> WheelSchedule:
-    """Wheel schedule laying dominoes every ``spacing`` metres along the deposit path."""
+    """Wheel schedule laying dominoes every ``spacing`` metres along the deposit path.
+
+    With ``look_ahead`` the vehicle first drives straight for the rig length
+    (the deposit point, which starts that far behind the drive axle, lays a
+    straight lead-in) and steers each piece of the path when its drive axle,
+    not its deposit point, reaches it — the deposit point then follows the
+    path a rig length later instead of lagging every curve by that much.
+    """
+    if look_ahead:
+        segments = [*segments, Straight(rig_length(kinematics.geometry))]
     if not (forward_speed > 0 and math.isfinite(forward_speed)):
         raise PathError(f"forward speed must be a positive number of m/s, got {forward_speed}")
     if not (spacing > 0 and math.isfinite(spacing)):

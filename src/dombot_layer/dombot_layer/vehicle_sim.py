@@ -72,6 +72,29 @@ def _dynamics(
     return rates
 
 
+def _integrate(
+    geometry: VehicleGeometry,
+    command: WheelCommand,
+    t_span: tuple[float, float],
+    initial: np.ndarray,
+    max_step: float,
+):
+    # Tight tolerances keep integration error far below the 0.1 mm the kinematics are checked to.
+    solution = solve_ivp(
+        _dynamics(geometry, command),
+        t_span,
+        initial,
+        method="DOP853",
+        rtol=1e-11,
+        atol=1e-12,
+        dense_output=True,
+        max_step=max_step,
+    )
+    if not solution.success:
+        raise RuntimeError(f"vehicle simulation failed: {solution.message}")
+    return solution
+
+
 def simulate(
     geometry: VehicleGeometry,
     command: WheelCommand,
@@ -82,31 +105,15 @@ def simulate(
 ) -> SimulationResult:
     """Integrate from M at the origin heading +x, trolley at ``initial_trolley_angle`` (rad).
 
-    ``command(t)`` gives (left, right) wheel angular velocities in rad/s. Tight
-    tolerances (rtol 1e-11) keep integration error far below the 0.1 mm the
-    kinematics are checked to.
+    ``command(t)`` gives (left, right) wheel angular velocities in rad/s. A domino
+    is laid at the start and after every further ``spacing`` metres.
     """
     if not (duration > 0 and spacing > 0):
         raise ValueError("duration and spacing must be positive")
     initial = np.array([0.0, 0.0, 0.0, initial_trolley_angle, 0.0])
-    solution = solve_ivp(
-        _dynamics(geometry, command),
-        (0.0, duration),
-        initial,
-        method="DOP853",
-        rtol=1e-11,
-        atol=1e-12,
-        dense_output=True,
-        max_step=max_step,
-    )
-    if not solution.success:
-        raise RuntimeError(f"vehicle simulation failed: {solution.message}")
-    deposit_times = _crossing_times(solution, spacing)
-    deposits = (
-        _points(geometry, solution.sol(deposit_times))[2]
-        if deposit_times.size
-        else np.empty((2, 0))
-    )
+    solution = _integrate(geometry, command, (0.0, duration), initial, max_step)
+    deposit_times = _crossing_times(solution, np.arange(0.0, solution.y[4, -1], spacing))
+    deposits = _points(geometry, solution.sol(deposit_times))[2]
     _, wheel, deposit = _points(geometry, solution.y)
     return SimulationResult(
         time=solution.t,
@@ -119,18 +126,62 @@ def simulate(
     )
 
 
-def _crossing_times(solution, spacing: float) -> np.ndarray:
-    """Times at which the deposit arc length passes 0, spacing, 2·spacing, …"""
+def _crossing_times(solution, marks: np.ndarray) -> np.ndarray:
+    """Times at which the deposit arc length (monotonic) passes each mark."""
+    if marks.size == 0:
+        return np.empty(0)
     fine_t = np.linspace(solution.t[0], solution.t[-1], max(2001, 20 * solution.t.size))
     travelled = solution.sol(fine_t)[4]
-    marks = np.arange(0.0, travelled[-1], spacing)
-    # Arc length is monotonic: invert by interpolation, then polish with two Newton steps.
     times = np.interp(marks, travelled, fine_t)
-    for _ in range(2):
+    for _ in range(2):  # Newton polish on the dense output
         values = solution.sol(times)[4]
         slope = (solution.sol(times + 1e-6)[4] - solution.sol(times - 1e-6)[4]) / 2e-6
         times = times - (values - marks) / np.where(slope > 0, slope, np.inf)
     return times
+
+
+class VehicleSimulator:
+    """The same model stepped in real time by wheel commands, for a ROS node."""
+
+    def __init__(self, geometry: VehicleGeometry, spacing: float, max_step: float = 0.05) -> None:
+        if not spacing > 0:
+            raise ValueError(f"spacing must be positive, got {spacing}")
+        self.geometry = geometry
+        self.spacing = spacing
+        self.max_step = max_step
+        self.time = 0.0
+        self.state = np.zeros(5)
+        self.next_mark = 0.0
+
+    def step(self, left: float, right: float, dt: float) -> np.ndarray:
+        """Advance ``dt`` seconds at constant wheel velocities; return the dominoes laid (k, 2)."""
+        if not dt > 0:
+            return np.empty((0, 2))
+        solution = _integrate(
+            self.geometry,
+            lambda t: (left, right),
+            (self.time, self.time + dt),
+            self.state,
+            self.max_step,
+        )
+        travelled = solution.y[4, -1]
+        marks = (
+            np.arange(self.next_mark, travelled, self.spacing)
+            if travelled > self.next_mark
+            else np.empty(0)
+        )
+        times = _crossing_times(solution, marks)
+        self.next_mark = float(marks[-1] + self.spacing) if marks.size else self.next_mark
+        self.time += dt
+        self.state = solution.y[:, -1]
+        return _points(self.geometry, solution.sol(times))[2].T if times.size else np.empty((0, 2))
+
+    def pose(self) -> tuple[float, float, float]:
+        """Midpoint M (x, y) and tractor heading [rad]."""
+        return float(self.state[0]), float(self.state[1]), float(self.state[2])
+
+    def trolley_wheel(self) -> np.ndarray:
+        return _points(self.geometry, self.state[:, None])[1][:, 0]
 
 
 def circle_center(midpoint_radius: float) -> np.ndarray:
