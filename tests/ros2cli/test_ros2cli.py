@@ -1,0 +1,245 @@
+"""The `ros2` command DOM-BOT provides where ros2cli cannot be installed."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from support.ros_processes import python_process
+
+ROS2 = shutil.which("ros2")
+
+TALKER = """
+import rclpy
+from std_msgs.msg import String
+rclpy.init()
+node = rclpy.create_node("cli_talker")
+pub = node.create_publisher(String, "/cli/chatter", 10)
+node.create_timer(0.1, lambda: pub.publish(String(data="hello dombot")))
+rclpy.spin(node)
+"""
+
+SETBOOL_SERVER = """
+import rclpy
+from std_srvs.srv import SetBool
+rclpy.init()
+node = rclpy.create_node("cli_server")
+def handle(request, response):
+    response.success = request.data
+    response.message = "on" if request.data else "off"
+    return response
+node.create_service(SetBool, "/cli/switch", handle)
+rclpy.spin(node)
+"""
+
+POSE_STAMPED = """\
+# A Pose with reference coordinate frame and timestamp
+
+std_msgs/Header header
+\tbuiltin_interfaces/Time stamp
+\t\tint32 sec
+\t\tuint32 nanosec
+\tstring frame_id
+Pose pose
+\tPoint position
+\t\tfloat64 x
+\t\tfloat64 y
+\t\tfloat64 z
+\tQuaternion orientation
+\t\tfloat64 x 0
+\t\tfloat64 y 0
+\t\tfloat64 z 0
+\t\tfloat64 w 1"""
+
+
+def ros2(
+    *args: str, env: dict[str, str] | None = None, timeout: float = 60
+) -> subprocess.CompletedProcess[str]:
+    assert ROS2 is not None, "ros2 is not on PATH; source .dombot/activate.bash"
+    return subprocess.run(
+        [ROS2, *args], capture_output=True, text=True, timeout=timeout, env=env or dict(os.environ)
+    )
+
+
+def assert_clean_failure(result: subprocess.CompletedProcess[str], message: str) -> None:
+    assert result.returncode != 0
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.fixture
+def fake_prefix(tmp_path: Path) -> dict[str, str]:
+    """An ament prefix with package 'fake_pkg': 'greet' (exit 3) and two 'twin' executables."""
+    (tmp_path / "share/ament_index/resource_index/packages").mkdir(parents=True)
+    (tmp_path / "share/ament_index/resource_index/packages/fake_pkg").write_text("")
+    lib = tmp_path / "lib/fake_pkg"
+    (lib / "tools").mkdir(parents=True)
+    scripts = {
+        lib / "greet": "import sys\nprint('args:', sys.argv[1:])\nsys.exit(3)\n",
+        lib / "twin": "",
+        lib / "tools" / "twin": "",
+    }
+    for path, body in scripts.items():
+        path.write_text(f"#!{shutil.which('python3')}\n{body}")
+        path.chmod(0o755)
+    (lib / "not_executable").write_text("data")
+    env = dict(os.environ)
+    env["AMENT_PREFIX_PATH"] = f"{tmp_path}{os.pathsep}{env.get('AMENT_PREFIX_PATH', '')}"
+    return env
+
+
+def test_run_resolves_through_the_ament_index_and_passes_args_and_exit_code(fake_prefix) -> None:
+    result = ros2("run", "fake_pkg", "greet", "one", "--ros-args", "-p", "x:=1", env=fake_prefix)
+    assert result.returncode == 3
+    assert result.stdout.strip() == "args: ['one', '--ros-args', '-p', 'x:=1']"
+
+
+def test_run_errors_match_ros2run(fake_prefix) -> None:
+    assert_clean_failure(
+        ros2("run", "no_such_pkg", "x", env=fake_prefix), "Package 'no_such_pkg' not found"
+    )
+    assert_clean_failure(ros2("run", "fake_pkg", "nope", env=fake_prefix), "No executable found")
+    assert_clean_failure(
+        ros2("run", "fake_pkg", "not_executable", env=fake_prefix), "No executable found"
+    )
+    assert_clean_failure(
+        ros2("run", "fake_pkg", "twin", env=fake_prefix), "Multiple executables found:"
+    )
+
+
+def test_pkg_verbs(fake_prefix) -> None:
+    assert "fake_pkg" in ros2("pkg", "list", env=fake_prefix).stdout.split()
+    executables = ros2("pkg", "executables", "fake_pkg", env=fake_prefix).stdout.splitlines()
+    assert executables == ["fake_pkg greet", "fake_pkg twin", "fake_pkg twin"]
+    prefix = ros2("pkg", "prefix", "fake_pkg", env=fake_prefix).stdout.strip()
+    assert Path(prefix, "lib/fake_pkg/greet").is_file()
+    assert_clean_failure(ros2("pkg", "prefix", "no_such_pkg"), "Package 'no_such_pkg' not found")
+
+
+def test_interface_show_prints_the_expanded_definition() -> None:
+    result = ros2("interface", "show", "geometry_msgs/msg/PoseStamped")
+    assert result.returncode == 0
+    assert result.stdout.rstrip("\n") == POSE_STAMPED
+
+
+def test_interface_show_our_service_and_list() -> None:
+    text = ros2("interface", "show", "dombot_msgs/srv/PlanPlace").stdout
+    assert "uint8 PLACE_IN_COLLISION=6" in text and "\n---\n" in text
+    listing = ros2("interface", "list").stdout
+    assert "    dombot_msgs/action/ExecuteTrajectory" in listing.split("Actions:")[1]
+    assert "dombot_msgs/msg/WheelVelocities" in ros2("interface", "package", "dombot_msgs").stdout
+
+
+def test_unknown_interface_is_a_clean_error() -> None:
+    assert_clean_failure(ros2("interface", "show", "nope_msgs/msg/Nothing"), "Unknown interface")
+    assert_clean_failure(ros2("interface", "show", "garbage"), "not an interface name")
+
+
+def test_topic_list_info_and_echo_against_a_publisher_process() -> None:
+    with python_process(TALKER):
+        echo = ros2("topic", "echo", "/cli/chatter", "--once")
+        topics = ros2("topic", "list", "-t").stdout.splitlines()
+        info = ros2("topic", "info", "/cli/chatter").stdout
+        nodes = ros2("node", "list").stdout.split()
+    assert echo.returncode == 0, echo.stderr
+    assert echo.stdout == "data: hello dombot\n---\n"
+    assert "/cli/chatter [std_msgs/msg/String]" in topics
+    assert "Type: std_msgs/msg/String" in info and "Publisher count: 1" in info
+    assert "/cli_talker" in nodes
+
+
+def test_topic_pub_reaches_a_subscriber_process() -> None:
+    listener = """
+    import rclpy
+    from std_msgs.msg import Float64
+    rclpy.init()
+    node = rclpy.create_node("cli_listener")
+    def got(msg):
+        print("got", msg.data, flush=True)
+        raise SystemExit(0)
+    node.create_subscription(Float64, "/cli/value", got, 10)
+    rclpy.spin(node)
+    """
+    with python_process(listener) as process:
+        ros2(
+            "topic",
+            "pub",
+            "-t",
+            "20",
+            "-r",
+            "10",
+            "/cli/value",
+            "std_msgs/msg/Float64",
+            "{data: 2.5}",
+        )
+        output, _ = process.communicate(timeout=30)
+    assert "got 2.5" in output
+
+
+def test_service_call_crosses_processes() -> None:
+    with python_process(SETBOOL_SERVER):
+        result = ros2("service", "call", "/cli/switch", "std_srvs/srv/SetBool", "{data: true}")
+        services = ros2("service", "list", "-t").stdout.splitlines()
+    assert result.returncode == 0, result.stderr
+    assert "requester: making request: std_srvs.srv.SetBool_Request(data=True)" in result.stdout
+    assert "response:\nstd_srvs.srv.SetBool_Response(success=True, message='on')" in result.stdout
+    assert "/cli/switch [std_srvs/srv/SetBool]" in services
+
+
+def test_bad_yaml_and_fields_are_clean_errors() -> None:
+    bad = ros2("topic", "pub", "--once", "/cli/x", "std_msgs/msg/Float64", "{data: [")
+    assert_clean_failure(bad, "not valid YAML")
+    wrong = ros2("topic", "pub", "--once", "/cli/x", "std_msgs/msg/Float64", "{dat: 1}")
+    assert_clean_failure(wrong, "has no field 'dat'")
+    assert_clean_failure(ros2("topic", "echo", "/cli/x", "nope/msg/X", "--once"), "is invalid")
+
+
+def test_ros2_run_starts_an_installed_node_that_joins_the_graph() -> None:
+    process = subprocess.Popen(
+        [ROS2, "run", "dombot_layer", "layer_node"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        nodes = []
+        for _ in range(10):
+            nodes = ros2("node", "list").stdout.split()
+            if "/layer_node" in nodes:
+                break
+        assert "/layer_node" in nodes
+        info = ros2("node", "info", "/layer_node").stdout
+        assert "    /layer/target_radius: std_msgs/msg/Float64" in info.split("Publishers:")[0]
+    finally:
+        process.terminate()
+        assert process.wait(timeout=10) is not None
+
+
+def test_hands_over_to_a_real_ros2_when_one_is_installed(tmp_path: Path) -> None:
+    real = tmp_path / "ros2"
+    real.write_text(
+        textwrap.dedent("""\
+        #!/bin/sh
+        echo "real ros2 got: $*"
+        exit 7
+    """)
+    )
+    real.chmod(0o755)
+    env = dict(os.environ, DOMBOT_ROS2_REAL=str(real))
+    result = ros2("topic", "list", "-t", env=env)
+    assert result.returncode == 7
+    assert result.stdout.strip() == "real ros2 got: topic list -t"
+
+
+def test_a_real_ros2_earlier_on_path_is_found(tmp_path: Path) -> None:
+    real = tmp_path / "ros2"
+    real.write_text("#!/bin/sh\necho from-path-ros2\n")
+    real.chmod(0o755)
+    env = dict(os.environ)
+    env["PATH"] = f"{tmp_path}{os.pathsep}{env['PATH']}"
+    assert ros2("pkg", "list", env=env).stdout.strip() == "from-path-ros2"
