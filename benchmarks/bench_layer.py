@@ -18,11 +18,10 @@ from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import (
     LayerKinematics,
     deposit_radius,
-    forward,
-    wheel_angular_velocities,
 )
 from dombot_layer.plotting import plot_deposit_curve, plot_geometry, plot_simulation
-from dombot_layer.vehicle_sim import circle_center, simulate
+from dombot_layer.vehicle_sim import circle_center
+from dombot_layer.verification import drive_circle
 
 SPEED = 0.1  # m/s
 
@@ -73,24 +72,6 @@ def ik_speed(kinematics: LayerKinematics) -> dict:
     }
 
 
-def simulate_circle(
-    kinematics: LayerKinematics, radius: float, start_at_equilibrium: bool, distance: float
-):
-    geometry = kinematics.geometry
-    midpoint = kinematics.midpoint_radius(radius)
-    left, right = wheel_angular_velocities(geometry, midpoint, SPEED)
-    theta = -float(np.sign(midpoint)) * forward(geometry, midpoint).theta
-    result = simulate(
-        geometry,
-        lambda t: (left, right),
-        distance / SPEED,
-        spacing=0.01,
-        initial_trolley_angle=theta if start_at_equilibrium else 0.0,
-    )
-    laid = np.linalg.norm(result.deposits - circle_center(midpoint), axis=1)
-    return result, midpoint, laid
-
-
 def simulation_agreement(kinematics: LayerKinematics) -> dict:
     rows = []
     for side, sign in (("left", 1.0), ("right", -1.0)):
@@ -98,8 +79,10 @@ def simulation_agreement(kinematics: LayerKinematics) -> dict:
         for radius in sign * np.array([minimum * 1.0001, minimum * 1.01, 0.1, 0.3, 1.0, 3.0, 10.0]):
             if abs(radius) < minimum:
                 continue
-            _, _, at_equilibrium = simulate_circle(kinematics, radius, True, distance=3.0)
-            _, _, from_straight = simulate_circle(kinematics, radius, False, distance=10.0)
+            _, at_equilibrium = drive_circle(
+                kinematics, radius, 3.0, SPEED, start_at_equilibrium=True
+            )
+            _, from_straight = drive_circle(kinematics, radius, 10.0, SPEED)
             settled = from_straight[len(from_straight) // 2 :]
             rows.append(
                 {
@@ -122,7 +105,8 @@ def simulation_agreement(kinematics: LayerKinematics) -> dict:
 
 
 def write_figures(kinematics: LayerKinematics, folder: Path) -> list[str]:
-    result, midpoint, _ = simulate_circle(kinematics, 0.3, False, distance=3.0)
+    result, _ = drive_circle(kinematics, 0.3, 3.0, SPEED)
+    midpoint = kinematics.midpoint_radius(0.3)
     return [
         str(plot_geometry(kinematics.geometry, 0.25, folder / "layer_geometry.png")),
         str(plot_deposit_curve(kinematics, folder / "layer_deposit_radius.png")),

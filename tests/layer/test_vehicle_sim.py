@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from dombot_layer.geometry import VehicleGeometry
-from dombot_layer.kinematics import LayerKinematics, forward, wheel_angular_velocities
+from dombot_layer.kinematics import LayerKinematics, wheel_angular_velocities
 from dombot_layer.vehicle_sim import VehicleSimulator, circle_center, simulate
+from dombot_layer.verification import drive_circle
 
 GEOMETRY = VehicleGeometry()
 KINEMATICS = LayerKinematics(GEOMETRY)
@@ -15,19 +16,7 @@ SPEED = 0.1  # m/s
 
 
 def laid_radii(deposit_radius: float, distance: float, start_at_equilibrium: bool) -> np.ndarray:
-    midpoint = KINEMATICS.midpoint_radius(deposit_radius)
-    left, right = wheel_angular_velocities(GEOMETRY, midpoint, SPEED)
-    # In steady state the trolley (W → P) points θ of eq. (9) clockwise of the tractor
-    # in a left turn, anticlockwise in a right turn.
-    theta = -float(np.sign(midpoint)) * forward(GEOMETRY, midpoint).theta
-    result = simulate(
-        GEOMETRY,
-        lambda t: (left, right),
-        distance / SPEED,
-        spacing=0.01,
-        initial_trolley_angle=theta if start_at_equilibrium else 0.0,
-    )
-    return np.linalg.norm(result.deposits - circle_center(midpoint), axis=1)
+    return drive_circle(KINEMATICS, deposit_radius, distance, SPEED, 0.01, start_at_equilibrium)[1]
 
 
 @pytest.mark.parametrize("radius", [0.1, 0.3, 1.0, 10.0, -0.15, -1.0, -10.0])

@@ -9,10 +9,15 @@ from ament_index_python.packages import PackageNotFoundError, get_package_share_
 from ament_index_python.resources import get_resource, get_resources
 
 KINDS = ("msg", "srv", "action")
+# Primitive type names as .msg files spell them and as the generated classes'
+# get_fields_and_field_types() does (IDL names: double, float, octet ...).
 PRIMITIVES = {
     "bool",
     "byte",
     "char",
+    "octet",
+    "float",
+    "double",
     "float32",
     "float64",
     "int8",

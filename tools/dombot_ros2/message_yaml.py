@@ -14,28 +14,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from dombot_ros2.interfaces import load_type
-
-PRIMITIVE_TYPES = {
-    "bool",
-    "byte",
-    "char",
-    "float",
-    "double",
-    "float32",
-    "float64",
-    "int8",
-    "uint8",
-    "int16",
-    "uint16",
-    "int32",
-    "uint32",
-    "int64",
-    "uint64",
-    "string",
-    "wstring",
-    "octet",
-}
+from dombot_ros2.interfaces import PRIMITIVES, load_type
 
 
 def is_message(value: Any) -> bool:
@@ -120,7 +99,7 @@ def _field_value(current: Any, field_type: str, value: Any, name: str) -> Any:
     if element is not None:
         if not isinstance(value, list):
             raise ValueError(f"field '{name}' is a {field_type} and needs a list, got {value!r}")
-        if element in PRIMITIVE_TYPES:
+        if element.split("<=")[0] in PRIMITIVES:
             return [_primitive(element, v, name) for v in value]
         cls = load_type(element, kind="msg")
         items = []
