@@ -66,6 +66,20 @@ def ros2(
     )
 
 
+def ros2_until(expected: str, *args: str, attempts: int = 6) -> str:
+    """Output of a graph listing once it shows ``expected``.
+
+    Without a ros2 daemon every call discovers the graph anew, and a loaded machine
+    can take longer than one call's settling time; ros2cli behaves the same.
+    """
+    output = ""
+    for _ in range(attempts):
+        output = ros2(*args).stdout
+        if expected in output:
+            break
+    return output
+
+
 def assert_clean_failure(result: subprocess.CompletedProcess[str], message: str) -> None:
     assert result.returncode != 0
     assert message in result.stderr
@@ -143,9 +157,9 @@ def test_unknown_interface_is_a_clean_error() -> None:
 def test_topic_list_info_and_echo_against_a_publisher_process() -> None:
     with python_process(TALKER):
         echo = ros2("topic", "echo", "/cli/chatter", "--once")
-        topics = ros2("topic", "list", "-t").stdout.splitlines()
+        topics = ros2_until("/cli/chatter", "topic", "list", "-t").splitlines()
         info = ros2("topic", "info", "/cli/chatter").stdout
-        nodes = ros2("node", "list").stdout.split()
+        nodes = ros2_until("/cli_talker", "node", "list").split()
     assert echo.returncode == 0, echo.stderr
     assert echo.stdout == "data: hello dombot\n---\n"
     assert "/cli/chatter [std_msgs/msg/String]" in topics
@@ -184,7 +198,7 @@ def test_topic_pub_reaches_a_subscriber_process() -> None:
 def test_service_call_crosses_processes() -> None:
     with python_process(SETBOOL_SERVER):
         result = ros2("service", "call", "/cli/switch", "std_srvs/srv/SetBool", "{data: true}")
-        services = ros2("service", "list", "-t").stdout.splitlines()
+        services = ros2_until("/cli/switch", "service", "list", "-t").splitlines()
     assert result.returncode == 0, result.stderr
     assert "requester: making request: std_srvs.srv.SetBool_Request(data=True)" in result.stdout
     assert "response:\nstd_srvs.srv.SetBool_Response(success=True, message='on')" in result.stdout
@@ -209,7 +223,7 @@ def test_ros2_run_starts_an_installed_node_that_joins_the_graph() -> None:
     try:
         nodes = []
         for _ in range(10):
-            nodes = ros2("node", "list").stdout.split()
+            nodes = ros2_until("/cli_talker", "node", "list").split()
             if "/layer_node" in nodes:
                 break
         assert "/layer_node" in nodes

@@ -190,7 +190,7 @@ def _graph(args, graph, node) -> list[str]:
         elif args.verb == "hz":
             graph.topic_hz(node, args.topic_name, args.message_type, args.window, wait=5.0)
         elif args.verb == "info":
-            return graph.topic_info(node, args.topic_name, args.verbose)
+            return graph.topic_info(node, args.topic_name, args.verbose, wait=5.0)
         elif args.verb == "pub":
             times = 1 if args.once else args.times
             graph.topic_pub(node, args.topic_name, args.message_type, args.values, args.rate, times)

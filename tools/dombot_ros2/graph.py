@@ -20,16 +20,37 @@ from dombot_ros2.packages import CommandError
 
 
 @contextmanager
-def graph_node(spin_time: float) -> Iterator[Node]:
-    """A hidden node that has spun ``spin_time`` seconds so discovery has settled."""
+def graph_node(spin_time: float, settle_limit: float = 5.0) -> Iterator[Node]:
+    """A hidden node whose view of the graph has settled.
+
+    There is no daemon holding the graph, so each command discovers it anew: spin
+    ``spin_time``, then until the set of nodes and topics stops changing for 0.5 s
+    (a loaded machine discovers slowly), at most ``settle_limit`` seconds.
+    """
     rclpy.init()
     node = rclpy.create_node(f"_ros2cli_{os.getpid()}", start_parameter_services=False)
     try:
         spin_for(node, spin_time)
+        deadline = time.monotonic() + settle_limit
+        seen = _graph_snapshot(node)
+        while time.monotonic() < deadline:
+            spin_for(node, 0.5)
+            now = _graph_snapshot(node)
+            if now == seen:
+                break
+            seen = now
         yield node
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _graph_snapshot(node: Node) -> tuple:
+    return (
+        sorted(node.get_node_names_and_namespaces()),
+        sorted((name, tuple(types)) for name, types in node.get_topic_names_and_types()),
+        sorted((name, tuple(types)) for name, types in node.get_service_names_and_types()),
+    )
 
 
 def spin_for(node: Node, seconds: float) -> None:
@@ -122,10 +143,12 @@ def _rate_report(stamps: list[float]) -> str:
     )
 
 
-def topic_info(node: Node, topic: str, verbose: bool) -> list[str]:
+def topic_info(node: Node, topic: str, verbose: bool, wait: float) -> list[str]:
+    try:
+        topic_type(node, topic, wait)
+    except CommandError:
+        raise CommandError(f"Unknown topic '{topic}'") from None
     types = dict(node.get_topic_names_and_types()).get(topic)
-    if not types:
-        raise CommandError(f"Unknown topic '{topic}'")
     publishers = node.get_publishers_info_by_topic(topic)
     subscribers = node.get_subscriptions_info_by_topic(topic)
     lines = [f"Type: {types[0]}", "", f"Publisher count: {len(publishers)}", ""]
