@@ -1,0 +1,115 @@
+"""Build the DOM-BOT cell into a Drake MultibodyPlant from the scenario.
+
+The simulator and the planner call these same functions, so both see the same
+arm, gripper, table and cameras. The planner's shadow plant is the same cell with
+the finger joints replaced by welds at the grasp width and the standing dominoes
+as anchored boxes; it has no loose dominoes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import Box, SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import LoadModelDirectives, Parser, ProcessModelDirectives
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction, MultibodyPlant
+from pydrake.multibody.tree import ModelInstanceIndex
+from pydrake.systems.framework import DiagramBuilder
+
+from dombot_description import DOMINO_SIZE, PACKAGE_DIR
+from dombot_description.scenario import Scenario
+
+DOMINO_FILE = PACKAGE_DIR / "models" / "domino.sdf"
+OBSTACLE_FRICTION = CoulombFriction(0.5, 0.4)
+
+
+@dataclass(frozen=True)
+class CellModels:
+    arm: ModelInstanceIndex
+    gripper: ModelInstanceIndex
+    table: ModelInstanceIndex
+
+
+def make_parser(plant: MultibodyPlant) -> Parser:
+    """A parser that resolves package://dombot_description without ROS."""
+    parser = Parser(plant)
+    if not parser.package_map().Contains("dombot_description"):
+        parser.package_map().Add("dombot_description", str(PACKAGE_DIR))
+    return parser
+
+
+def add_cell(plant: MultibodyPlant, scenario: Scenario) -> CellModels:
+    """Arm welded to the world, gripper on its flange, table; from the scenario's directives."""
+    parser = make_parser(plant)
+    directives = LoadModelDirectives(str(scenario.directives_path))
+    ProcessModelDirectives(directives, plant, parser)
+    return CellModels(
+        arm=plant.GetModelInstanceByName("iiwa"),
+        gripper=plant.GetModelInstanceByName("wsg"),
+        table=plant.GetModelInstanceByName("table"),
+    )
+
+
+def add_dominoes(plant: MultibodyPlant, count: int) -> list[ModelInstanceIndex]:
+    """``count`` free dominoes named domino_0 … (bodies named 'domino')."""
+    parser = make_parser(plant)
+    parser.SetAutoRenaming(True)
+    text = DOMINO_FILE.read_text()
+    instances = []
+    for index in range(count):
+        instance = parser.AddModelsFromString(
+            text.replace('name="domino">', f'name="domino_{index}">', 1), "sdf"
+        )[0]
+        instances.append(instance)
+    return instances
+
+
+def weld_fingers(plant: MultibodyPlant, scenario: Scenario, opening: float) -> None:
+    """Replace the finger joints by welds holding the fingers ``opening`` metres apart."""
+    if not 0.0 <= opening <= 0.11:
+        raise ValueError(f"finger opening must be within the 0–0.11 m stroke, got {opening}")
+    for name in scenario.gripper_joints:
+        joint = plant.GetJointByName(name)
+        parent, child = joint.frame_on_parent(), joint.frame_on_child()
+        offset = opening / 2.0 * np.asarray(joint.translation_axis())
+        for actuator_index in plant.GetJointActuatorIndices():
+            if plant.get_joint_actuator(actuator_index).joint().index() == joint.index():
+                plant.RemoveJointActuator(plant.get_joint_actuator(actuator_index))
+        plant.RemoveJoint(joint)
+        plant.WeldFrames(parent, child, RigidTransform(offset))
+
+
+def add_standing_obstacles(plant: MultibodyPlant, poses: Sequence[RigidTransform]) -> None:
+    """Dominoes already placed, as anchored collision boxes (domino body frames in world)."""
+    for index, pose in enumerate(poses):
+        plant.RegisterCollisionGeometry(
+            plant.world_body(),
+            pose,
+            Box(*DOMINO_SIZE),
+            f"standing_domino_{index}",
+            OBSTACLE_FRICTION,
+        )
+
+
+@dataclass
+class ShadowPlant:
+    builder_diagram: object
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    models: CellModels
+
+
+def build_shadow_plant(
+    scenario: Scenario, grasp_opening: float, obstacle_poses: Sequence[RigidTransform] = ()
+) -> ShadowPlant:
+    """The planner's plant: the arm's 7 joints only, fingers welded, obstacles anchored."""
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    models = add_cell(plant, scenario)
+    weld_fingers(plant, scenario, grasp_opening)
+    add_standing_obstacles(plant, obstacle_poses)
+    plant.Finalize()
+    return ShadowPlant(builder.Build(), plant, scene_graph, models)
