@@ -1,33 +1,45 @@
 """Benchmark the domino-layer kinematics: accuracy, speed, and agreement with the simulation.
 
 Prints one JSON object on stdout (progress on stderr). ``--figures DIR`` also
-writes the geometry, r_d(r_m) and simulation figures used in docs/LAYER.md.
+regenerates the figures of docs/LAYER.md into DIR.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import math
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import brentq
 
 from dombot_layer.geometry import VehicleGeometry
-from dombot_layer.kinematics import (
-    LayerKinematics,
-    deposit_radius,
-)
-from dombot_layer.plotting import plot_deposit_curve, plot_geometry, plot_simulation
-from dombot_layer.vehicle_sim import circle_center
+from dombot_layer.kinematics import LayerKinematics, deposit_radius, forward, trolley_wheel_radius
+from dombot_layer.plotting import write_doc_figures
+from dombot_layer.vehicle_sim import SimulationResult
 from dombot_layer.verification import drive_circle
 
 SPEED = 0.1  # m/s
+SETTLED = 1e-6  # rad: trolley angle this close to eq. (9) counts as past the transient
+SIM_DISTANCE = 20.0  # m driven from straight per radius
 
 
 def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
+
+
+def benchmark_radii(kinematics: LayerKinematics) -> list[float]:
+    """From each turn's minimum laying radius to 10 m."""
+    radii = []
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        minimum = kinematics.minimum_laying_radius(side)
+        radii += [sign * minimum * f for f in (1.0, 1.0001, 1.01, 1.5)]
+        radii += [sign * r for r in (0.1, 0.3, 1.0, 3.0, 10.0)]
+    return radii
 
 
 def ik_accuracy(kinematics: LayerKinematics) -> dict:
@@ -36,17 +48,34 @@ def ik_accuracy(kinematics: LayerKinematics) -> dict:
     radii = np.concatenate(
         [np.geomspace(left_min, 1000.0, 500_000), -np.geomspace(right_min, 1000.0, 500_000)]
     )
-    midpoint, valid = kinematics.midpoint_radii(radii)
-    error = np.abs(deposit_radius(kinematics.geometry, midpoint) - radii)
+    inverse = kinematics.midpoint_radii(radii)
+    error = np.abs(deposit_radius(kinematics.geometry, inverse.midpoint_radius) - radii)
     return {
         "radii": int(radii.size),
-        "domain_m": [(-1000.0), float(-right_min), float(left_min), 1000.0],
-        "all_valid": bool(valid.all()),
+        "domain_m": [-1000.0, -right_min, left_min, 1000.0],
+        "all_valid": bool(inverse.valid.all()),
         "max_abs_error_m": float(error.max()),
-        "max_abs_error_m_0.1_to_100": float(
-            error[(np.abs(radii) >= 0.1) & (np.abs(radii) <= 100)].max()
-        ),
+        "max_rel_error": float((error / np.abs(radii)).max()),
+        "max_diff_from_brentq_on_eqs_1_9_m": brentq_difference(kinematics),
     }
+
+
+def brentq_difference(kinematics: LayerKinematics) -> float:
+    """Largest |r_m| gap between the closed form and scipy's brentq on eqs (1)–(9)."""
+    geometry = kinematics.geometry
+    worst = 0.0
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        minimum = kinematics.minimum_laying_radius(side)
+        branch_start = abs(kinematics.midpoint_radius(sign * minimum))
+        for target in minimum * np.geomspace(1.0 + 1e-6, 1e4, 200):
+            root = brentq(
+                lambda r, t=target, s=sign: abs(deposit_radius(geometry, s * r)) - t,
+                branch_start,
+                target + 1.0,
+                xtol=1e-15,
+            )
+            worst = max(worst, abs(root - abs(kinematics.midpoint_radius(sign * target))))
+    return worst
 
 
 def ik_speed(kinematics: LayerKinematics) -> dict:
@@ -61,82 +90,97 @@ def ik_speed(kinematics: LayerKinematics) -> dict:
         kinematics.midpoint_radii(radii)
         runs.append(time.perf_counter() - start)
     singles = []
-    for radius in radii[:2000]:
+    for radius in radii[:20_000].tolist():
         start = time.perf_counter()
         kinematics.midpoint_radius(radius)
         singles.append(time.perf_counter() - start)
     return {
+        "vectorized_radii": int(radii.size),
         "vectorized_radii_per_s": float(radii.size / np.median(runs)),
         "single_call_median_us": float(np.median(singles) * 1e6),
         "single_call_p95_us": float(np.percentile(singles, 95) * 1e6),
     }
 
 
-def simulation_agreement(kinematics: LayerKinematics) -> dict:
-    rows = []
-    for side, sign in (("left", 1.0), ("right", -1.0)):
-        minimum = kinematics.minimum_laying_radius(side)
-        for radius in sign * np.array([minimum * 1.0001, minimum * 1.01, 0.1, 0.3, 1.0, 3.0, 10.0]):
-            if abs(radius) < minimum:
-                continue
-            _, at_equilibrium = drive_circle(
-                kinematics, radius, 3.0, SPEED, start_at_equilibrium=True
-            )
-            _, from_straight = drive_circle(kinematics, radius, 10.0, SPEED)
-            settled = from_straight[len(from_straight) // 2 :]
-            rows.append(
-                {
-                    "deposit_radius_m": float(radius),
-                    "max_error_from_predicted_steady_state_m": float(
-                        np.abs(at_equilibrium - abs(radius)).max()
-                    ),
-                    "max_error_after_transient_m": float(np.abs(settled - abs(radius)).max()),
-                }
-            )
-            log(f"sim r_d={radius:+.4f} m: {rows[-1]}")
+def settling_distance(kinematics: LayerKinematics, radius: float, theta: float) -> float | None:
+    """Drive distance for the trolley angle to fall from θ to SETTLED, linearised model.
+
+    The error shrinks by exp(−R_w/d_tw) per radian the tractor turns; None when
+    R_w = 0 (trolley wheel on O), where it never settles.
+    """
+    midpoint = kinematics.midpoint_radius(radius)
+    rate = float(trolley_wheel_radius(kinematics.geometry, midpoint)) / kinematics.geometry.d_tw
+    return math.log(theta / SETTLED) / rate * abs(midpoint) if rate > 0 else None
+
+
+def settling_time(result: SimulationResult, signed_theta: float) -> float | None:
+    """When the trolley angle last came within SETTLED of eq. (9); None if it never did."""
+    unsettled = np.nonzero(np.abs(result.trolley_angle - signed_theta) > SETTLED)[0]
+    if unsettled.size == 0:
+        return 0.0
+    return result.time[unsettled[-1] + 1] if unsettled[-1] + 1 < result.time.size else None
+
+
+def simulation_case(kinematics: LayerKinematics, radius: float) -> dict:
+    midpoint = kinematics.midpoint_radius(radius)
+    theta = forward(kinematics.geometry, midpoint).theta
+    _, steady = drive_circle(kinematics, radius, 3.0, SPEED, start_at_equilibrium=True)
+    result, laid = drive_circle(kinematics, radius, SIM_DISTANCE, SPEED)
+    settled_at = settling_time(result, math.copysign(theta, midpoint))
+    after = result.deposit_times > (math.inf if settled_at is None else settled_at)
+    settled = np.count_nonzero(after) >= 10
     return {
-        "speed_m_per_s": SPEED,
-        "cases": rows,
-        "max_error_steady_state_m": max(r["max_error_from_predicted_steady_state_m"] for r in rows),
-        "max_error_after_transient_m_for_radii_ge_0.1": max(
-            r["max_error_after_transient_m"] for r in rows if abs(r["deposit_radius_m"]) >= 0.1
+        "deposit_radius_m": radius,
+        "steady_state_max_error_m": float(np.abs(steady - abs(radius)).max()),
+        "from_straight_settled_after_m": float(settled_at * SPEED) if settled else None,
+        "from_straight_max_error_after_settling_m": (
+            float(np.abs(laid[after] - abs(radius)).max()) if settled else None
         ),
+        "predicted_settling_distance_m": settling_distance(kinematics, radius, theta),
     }
 
 
-def write_figures(kinematics: LayerKinematics, folder: Path) -> list[str]:
-    result, _ = drive_circle(kinematics, 0.3, 3.0, SPEED)
-    midpoint = kinematics.midpoint_radius(0.3)
-    return [
-        str(plot_geometry(kinematics.geometry, 0.25, folder / "layer_geometry.png")),
-        str(plot_deposit_curve(kinematics, folder / "layer_deposit_radius.png")),
-        str(plot_simulation(result, folder / "layer_sim.png", 0.3, circle_center(midpoint))),
-    ]
+def simulation_agreement(kinematics: LayerKinematics) -> dict:
+    cases = []
+    for radius in benchmark_radii(kinematics):
+        cases.append(simulation_case(kinematics, radius))
+        log(f"sim r_d={radius:+.6f} m: {cases[-1]}")
+    settled = [c for c in cases if c["from_straight_settled_after_m"] is not None]
+    return {
+        "speed_m_per_s": SPEED,
+        "from_straight_distance_m": SIM_DISTANCE,
+        "settled_when_trolley_angle_within_rad": SETTLED,
+        "cases": cases,
+        "max_error_steady_state_m": max(c["steady_state_max_error_m"] for c in cases),
+        "max_error_after_transient_m": max(
+            c["from_straight_max_error_after_settling_m"] for c in settled
+        ),
+        "unsettled_radii_m": [c["deposit_radius_m"] for c in cases if c not in settled],
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--figures", type=Path, help="also write the docs figures into this folder")
     args = parser.parse_args()
-    geometry = VehicleGeometry()
-    kinematics = LayerKinematics(geometry)
-    log("IK accuracy ...")
+    kinematics = LayerKinematics(VehicleGeometry())
     report = {
         "benchmark": "layer",
-        "geometry": geometry.__dict__,
+        "geometry": dataclasses.asdict(kinematics.geometry),
         "minimum_laying_radius_m": {
-            "left": kinematics.minimum_laying_radius("left"),
-            "right": kinematics.minimum_laying_radius("right"),
+            side: kinematics.minimum_laying_radius(side) for side in ("left", "right")
         },
-        "ik_accuracy": ik_accuracy(kinematics),
     }
+    log("IK accuracy ...")
+    report["ik_accuracy"] = ik_accuracy(kinematics)
     log("IK speed ...")
     report["ik_speed"] = ik_speed(kinematics)
     log("simulation ...")
     report["simulation"] = simulation_agreement(kinematics)
     if args.figures:
-        report["figures"] = write_figures(kinematics, args.figures)
-    print(json.dumps(report, indent=2))
+        log("figures ...")
+        report["figures"] = [str(p) for p in write_doc_figures(kinematics, args.figures)]
+    print(json.dumps(report, indent=2, allow_nan=False))
 
 
 if __name__ == "__main__":

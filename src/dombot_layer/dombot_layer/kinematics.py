@@ -5,28 +5,37 @@ negative turns right, ``±inf`` drives straight. The source's equations are
 written for a left turn; a right turn is their mirror image, in which the
 deposit point's lateral offset ``d_t`` points the other way relative to O.
 
-Forward: midpoint radius r_m → trolley angle θ, deposit point, deposit radius r_d.
-Inverse: r_d → r_m on the *laying branch*, the r_m interval connected to straight
-driving (r_m → ∞) on which r_d grows with r_m. Steering continuously from a
-straight run into a curve keeps the vehicle on that branch, so that is the
-solution returned; ``all_midpoint_radii`` lists the others where the geometry
-has them. The smallest |r_d| on the branch is the minimum laying radius.
+Forward: midpoint radius r_m → trolley angle θ, deposit point, deposit radius r_d,
+by eqs (1)–(9). Inverse: exact and closed-form. The trolley wheel W rolls on a
+circle about O, so O lies on W's axle line and the deposit point D sits ``d_l``
+along the trolley and ``±d_t`` across it from that line:
+
+    r_d² = d_l² + (R_w + s·d_t)²,   R_w² = r_m² + d_p² − d_tw²   (s = +1 left, −1 right)
+
+with R_w the radius of W's circle. Both steps invert in closed form. Of the two
+roots, R_w = √(r_d² − d_l²) − s·d_t lies on the *laying branch*, the one connected
+to straight driving (r_m → ∞), on which r_d grows with r_m; steering continuously
+out of a straight keeps the vehicle there, so it is the solution returned, and
+``all_midpoint_radii`` also lists the other where it exists. The smallest |r_d| on
+the laying branch is the minimum laying radius.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property
+from enum import IntEnum
+from typing import Literal, NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from dombot_layer.geometry import VehicleGeometry
 
-TABLE_SIZE = 4097  # samples of the laying branch used to start the vectorized inverse
-MAX_NEWTON_STEPS = 80  # bisection fallback bound; ordinary radii converge in 2–4
-FAR_RADIUS = 1e6  # m; beyond this the branch is r_d ≈ r_m + const to double precision
+Turn = Literal["left", "right", "both"]
+FloatOrArray = float | np.ndarray
+SquareRoot = Callable[[FloatOrArray], FloatOrArray]  # math.sqrt-like or np.sqrt
+TURNS = {"left": 1.0, "right": -1.0}  # turn direction → sign of its radii
 
 
 class UnreachableRadiusError(ValueError):
@@ -35,7 +44,25 @@ class UnreachableRadiusError(ValueError):
     def __init__(self, radius: float, reason: str) -> None:
         self.radius = radius
         self.reason = reason
-        super().__init__(f"cannot lay dominoes on radius {radius!r} m: {reason}")
+        super().__init__(f"cannot lay dominoes on radius {float(radius):.6g} m: {reason}")
+
+
+class RadiusStatus(IntEnum):
+    """Per-radius outcome of the vectorized inverse; anything but REACHABLE is invalid."""
+
+    REACHABLE = 0
+    NAN = 1  # the requested radius is NaN
+    ZERO = 2  # r_d = 0 has no turn direction
+    BELOW_MINIMUM = 3  # |r_d| below the minimum laying radius for that turn
+    SPIN_ON_THE_SPOT = 4  # needs r_m = 0, which no forward speed commands
+
+
+class InverseResult(NamedTuple):
+    """Vectorized inverse kinematics; ``midpoint_radius`` is NaN where not ``valid``."""
+
+    midpoint_radius: np.ndarray
+    valid: np.ndarray
+    status: np.ndarray  # RadiusStatus values
 
 
 @dataclass(frozen=True)
@@ -52,29 +79,55 @@ class ForwardResult:
     deposit_radius: np.ndarray | float
 
 
-def _turn_sign(radius: np.ndarray | float) -> np.ndarray | float:
-    return np.where(np.asarray(radius) < 0, -1.0, 1.0)
+def _sqrt_or_nan(value: float) -> float:
+    """math.sqrt with numpy's domain behaviour: NaN instead of an exception."""
+    return math.sqrt(value) if value >= 0.0 else math.nan
+
+
+def _turn_sign(radius: np.ndarray | float) -> np.ndarray:
+    """+1 for left turns (including +0 and +inf), −1 for right turns."""
+    return np.where(np.signbit(radius), -1.0, 1.0)
+
+
+def _arccos_limit_and_spin_radius(geometry: VehicleGeometry) -> tuple[float, float]:
+    """(L, S): the smallest |r_m| eq. (8) allows, and R_w when r_m = 0; one is zero.
+
+    R_w² = r_m² + d_p² − d_tw² = (r_m − L)(r_m + L) + S², written so that R_w is
+    exactly zero at r_m = L instead of a rounding error that could be negative.
+    """
+    excess = geometry.d_tw**2 - geometry.d_p**2
+    return math.sqrt(max(excess, 0.0)), math.sqrt(max(-excess, 0.0))
+
+
+def trolley_wheel_radius(
+    geometry: VehicleGeometry, midpoint_radius: np.ndarray | float
+) -> np.ndarray | float:
+    """R_w, radius of the trolley wheel's circle about O; NaN below the arccos limit."""
+    limit, spin = _arccos_limit_and_spin_radius(geometry)
+    r = np.abs(np.asarray(midpoint_radius, dtype=float))
+    with np.errstate(invalid="ignore"):
+        return np.sqrt((r - limit) * (r + limit) + spin * spin)
 
 
 def forward(geometry: VehicleGeometry, midpoint_radius: np.ndarray | float) -> ForwardResult:
-    """Eqs (1)–(9), vectorized; NaN where r_m is outside the geometric domain."""
+    """Eqs (1)–(9), vectorized; NaN where r_m is outside the arccos domain of eq. (8).
+
+    θ = π − atan(r_m/d_p) − acos(d_tw/ρ) (eq. 9) is evaluated as
+    atan2(d_p, r_m) + atan2(d_tw, R_w), the same angle: it avoids cancelling two
+    angles near π/2 at large radii and an arccos argument rounded above 1 at the limit.
+    """
     r_m = np.asarray(midpoint_radius, dtype=float)
     sign = _turn_sign(r_m)
     r = np.abs(r_m)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.hypot(r, geometry.d_p)
-        # θ = π − atan(r/d_p) − acos(d_tw/ρ) (eq. 9), written as atan(d_p/r) + asin(d_tw/ρ)
-        # to avoid cancelling two angles near π/2 on large radii.
-        theta = np.arctan2(geometry.d_p, r) + np.arcsin(geometry.d_tw / rho)
-        phi = np.arctan2(sign * geometry.d_t, geometry.d_l)  # eq. (4)
-        z = geometry.deposit_offset  # eq. (5)
-        x = geometry.d_p + geometry.d_tw * np.cos(theta) + z * np.cos(phi - theta)  # eq. (1)
-        y = r - geometry.d_tw * np.sin(theta) + z * np.sin(phi - theta)  # eq. (2)
-        r_d = sign * np.hypot(x, y)  # eq. (3)
-    straight = np.isinf(r)
-    r_d = np.where(straight, r_m, r_d)
-    theta = np.where(straight, 0.0, theta)
-    if np.ndim(midpoint_radius) == 0:
+    theta = np.arctan2(geometry.d_p, r) + np.arctan2(
+        geometry.d_tw, trolley_wheel_radius(geometry, r)
+    )
+    phi = np.arctan2(sign * geometry.d_t, geometry.d_l)  # eq. (4)
+    z = geometry.deposit_offset  # eq. (5)
+    x = geometry.d_p + geometry.d_tw * np.cos(theta) + z * np.cos(phi - theta)  # eq. (1)
+    y = r - geometry.d_tw * np.sin(theta) + z * np.sin(phi - theta)  # eq. (2)
+    r_d = sign * np.hypot(x, y)  # eq. (3); inf when r_m is
+    if r_m.ndim == 0:
         return ForwardResult(float(theta), float(x), float(y), float(r_d))
     return ForwardResult(theta, x, y, r_d)
 
@@ -86,237 +139,125 @@ def deposit_radius(
     return forward(geometry, midpoint_radius).deposit_radius
 
 
-def _deposit_radius_scalar(geometry: VehicleGeometry, r: float, sign: float) -> float:
-    """|r_d| for |r_m| = r with plain ``math``: ~1 µs, for the scalar root finder."""
-    rho = math.hypot(r, geometry.d_p)
-    theta = math.atan2(geometry.d_p, r) + math.asin(geometry.d_tw / rho)
-    phi = math.atan2(sign * geometry.d_t, geometry.d_l)
-    z = geometry.deposit_offset
-    x = geometry.d_p + geometry.d_tw * math.cos(theta) + z * math.cos(phi - theta)
-    y = r - geometry.d_tw * math.sin(theta) + z * math.sin(phi - theta)
-    return math.hypot(x, y)
-
-
-def _deposit_radius_slope(
-    geometry: VehicleGeometry, r: np.ndarray, sign: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """|r_d| and d|r_d|/d|r_m| by differentiating eqs (1)–(9), for Newton steps."""
-    c, d_p = geometry.d_tw, geometry.d_p
-    rho2 = r * r + d_p * d_p
-    rho = np.sqrt(rho2)
-    theta = np.arctan2(d_p, r) + np.arcsin(c / rho)
-    dtheta = -d_p / rho2 - c * r / (rho2 * np.sqrt(np.maximum(rho2 - c * c, 1e-300)))
-    phi = math.atan2(sign * geometry.d_t, geometry.d_l)
-    z = geometry.deposit_offset
-    cos_t, sin_t = np.cos(theta), np.sin(theta)
-    cos_pt, sin_pt = np.cos(phi - theta), np.sin(phi - theta)
-    x = d_p + c * cos_t + z * cos_pt
-    y = r - c * sin_t + z * sin_pt
-    dx = (-c * sin_t + z * sin_pt) * dtheta
-    dy = 1.0 - (c * cos_t + z * cos_pt) * dtheta
-    r_d = np.hypot(x, y)
-    return r_d, (x * dx + y * dy) / r_d
-
-
-@dataclass(frozen=True)
-class _Branch:
-    """The laying branch for one turn direction, sampled for fast inversion."""
-
-    r_min: float  # smallest |r_m| on the branch
-    r_d_min: float  # minimum laying radius |r_d|
-    r_m_table: np.ndarray
-    log_r_d_table: np.ndarray
-
-
 class LayerKinematics:
-    """Kinematics of one vehicle geometry; precomputes the laying branches once."""
+    """Inverse kinematics and domain limits of one vehicle geometry."""
 
     def __init__(self, geometry: VehicleGeometry) -> None:
         self.geometry = geometry
+        self._limit, self._spin_radius = _arccos_limit_and_spin_radius(geometry)
+        starts = {turn: self._branch_start(sign) for turn, sign in TURNS.items()}
+        self._minimum = {turn: radius for turn, (radius, _) in starts.items()}
+        # False where the branch starts at r_m = 0: its minimum needs spinning on the spot.
+        self._minimum_is_laid = {turn: laid for turn, (_, laid) in starts.items()}
 
     @property
     def geometric_limit(self) -> float:
-        """Smallest |r_m| for which eq. (8)'s arccos is defined (trolley wheel at O)."""
+        """Smallest |r_m| for which eq. (8)'s arccos is defined (trolley wheel on O)."""
+        return self._limit
+
+    def _branch_start(self, sign: float) -> tuple[float, bool]:
+        """|r_d| where the laying branch starts (R_w = max(S, −s·d_t)); is r_m > 0 there?"""
+        outward = sign * self.geometry.d_t  # D's offset away from O, across the trolley
+        start = max(self._spin_radius, -outward)
+        midpoint = self._midpoint_from_wheel(start, _sqrt_or_nan)
+        return math.hypot(self.geometry.d_l, start + outward), midpoint > 0.0
+
+    def minimum_laying_radius(self, turn: Turn = "both") -> float:
+        """Smallest |r_d| on the laying branch; 'both' gives the larger of the two turns."""
+        if turn == "both":
+            return max(self._minimum.values())
+        if turn not in self._minimum:
+            raise ValueError(f"turn must be 'left', 'right' or 'both', got {turn!r}")
+        return self._minimum[turn]
+
+    def _laying_midpoint(
+        self, target: FloatOrArray, sign: FloatOrArray, sqrt: SquareRoot
+    ) -> FloatOrArray:
+        """|r_m| on the laying branch for |r_d| = ``target``; NaN where no real root exists.
+
+        Written once for floats (``sqrt`` from math, ~1 µs) and arrays (numpy's).
+        (r_d − d_l)(r_d + d_l) rather than r_d² − d_l² avoids cancellation near d_l.
+        """
         g = self.geometry
-        return math.sqrt(max(g.d_tw**2 - g.d_p**2, 0.0))
+        wheel = sqrt((target - g.d_l) * (target + g.d_l)) - sign * g.d_t  # R_w
+        return self._midpoint_from_wheel(wheel, sqrt)
 
-    @cached_property
-    def _left(self) -> _Branch:
-        return self._laying_branch(1.0)
+    def _midpoint_from_wheel(self, wheel: FloatOrArray, sqrt: SquareRoot) -> FloatOrArray:
+        """|r_m| from R_w, the inverse of ``trolley_wheel_radius``; NaN where R_w < S."""
+        spin = self._spin_radius
+        return sqrt((wheel - spin) * (wheel + spin) + self._limit**2)
 
-    @cached_property
-    def _right(self) -> _Branch:
-        return self._laying_branch(-1.0)
-
-    def _branch(self, sign: float) -> _Branch:
-        return self._left if sign > 0 else self._right
-
-    def _laying_branch(self, sign: float) -> _Branch:
-        lower = max(self.geometric_limit, 1e-9)
-        r_grid = np.geomspace(lower, FAR_RADIUS, 20001)
-        r_d = np.abs(deposit_radius(self.geometry, sign * r_grid))
-        falling = np.nonzero(np.diff(r_d) <= 0.0)[0]
-        if falling.size:
-            k = int(falling[-1]) + 1  # r_d rises monotonically from r_grid[k] on
-            lo, hi = r_grid[max(k - 1, 0)], r_grid[min(k + 1, r_grid.size - 1)]
-            best = minimize_scalar(
-                lambda r: _deposit_radius_scalar(self.geometry, r, sign),
-                bounds=(lo, hi),
-                method="bounded",
-                options={"xatol": 1e-13},
-            )
-            r_min = float(best.x)
-        else:
-            r_min = lower
-        r_table = np.geomspace(r_min, FAR_RADIUS, TABLE_SIZE)
-        r_d_table = np.abs(deposit_radius(self.geometry, sign * r_table))
-        return _Branch(r_min, float(r_d_table[0]), r_table, np.log(r_d_table))
-
-    def minimum_laying_radius(self, turn: str = "both") -> float:
-        """Smallest |r_d| on the laying branch for 'left', 'right' or 'both' (the larger)."""
-        if turn == "left":
-            return self._left.r_d_min
-        if turn == "right":
-            return self._right.r_d_min
-        return max(self._left.r_d_min, self._right.r_d_min)
+    def midpoint_radii(self, deposit_radii: np.ndarray | float) -> InverseResult:
+        """Vectorized inverse kinematics on the laying branch, with a status per radius."""
+        r_d = np.asarray(deposit_radii, dtype=float)
+        sign = _turn_sign(r_d)
+        target = np.abs(r_d)
+        with np.errstate(invalid="ignore"):
+            r_m = sign * self._laying_midpoint(target, sign, np.sqrt)
+        left = sign > 0
+        minimum = np.where(left, self._minimum["left"], self._minimum["right"])
+        laid = np.where(left, self._minimum_is_laid["left"], self._minimum_is_laid["right"])
+        spins = ~(np.abs(r_m) > 0.0) | ((target == minimum) & ~laid)
+        status = np.select(
+            [np.isnan(r_d), r_d == 0.0, target < minimum, spins],
+            [
+                RadiusStatus.NAN,
+                RadiusStatus.ZERO,
+                RadiusStatus.BELOW_MINIMUM,
+                RadiusStatus.SPIN_ON_THE_SPOT,
+            ],
+            RadiusStatus.REACHABLE,
+        )
+        valid = status == RadiusStatus.REACHABLE
+        return InverseResult(np.where(valid, r_m, np.nan), valid, status)
 
     def midpoint_radius(self, radius: float) -> float:
-        """Inverse kinematics for one radius: brentq on a bracket from the branch table."""
+        """Inverse kinematics for one radius; raises ``UnreachableRadiusError`` with the reason.
+
+        Same formula and validity test as ``midpoint_radii`` in plain floats; the
+        array path only words the error.
+        """
         r_d = float(radius)
-        self._check_scalar(r_d)
-        if math.isinf(r_d):
-            return r_d
-        sign = 1.0 if r_d > 0 else -1.0
-        branch = self._branch(sign)
-        target = abs(r_d)
-        k = int(np.searchsorted(branch.log_r_d_table, math.log(target)))
-        if k >= branch.r_m_table.size:
-            lo, hi = branch.r_m_table[-1], target + 2 * self._rig_length
-        else:
-            lo, hi = branch.r_m_table[max(k - 1, 0)], branch.r_m_table[k]
-        root = brentq(
-            lambda r: _deposit_radius_scalar(self.geometry, r, sign) - target,
-            lo,
-            hi,
-            xtol=1e-14,
-            rtol=4 * np.finfo(float).eps,
-        )
-        return sign * root
+        sign = math.copysign(1.0, r_d)
+        turn = "left" if sign > 0 else "right"
+        minimum = self._minimum[turn]
+        if abs(r_d) > minimum or (abs(r_d) == minimum and self._minimum_is_laid[turn]):
+            r_m = self._laying_midpoint(abs(r_d), sign, _sqrt_or_nan)
+            if r_m > 0.0:
+                return sign * r_m
+        status = RadiusStatus(int(self.midpoint_radii(r_d).status))
+        raise UnreachableRadiusError(radius, self._reason(status, r_d))
 
-    def _check_scalar(self, r_d: float) -> None:
-        if math.isnan(r_d):
-            raise UnreachableRadiusError(r_d, "the radius is NaN")
-        if r_d == 0.0:
-            raise UnreachableRadiusError(
-                r_d, "a zero radius has no turn direction; the vehicle cannot turn on the spot"
-            )
-        if math.isinf(r_d):
-            return
-        turn = "left" if r_d > 0 else "right"
-        minimum = self.minimum_laying_radius(turn)
-        if abs(r_d) < minimum:
-            raise UnreachableRadiusError(
-                r_d,
-                f"below the minimum laying radius {minimum:.6g} m of this geometry "
-                f"for a {turn} turn",
-            )
-
-    def midpoint_radii(self, deposit_radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Vectorized inverse kinematics: (r_m, valid); r_m is NaN where not valid.
-
-        A table lookup on the laying branch starts safeguarded Newton steps
-        (clipped to the table bracket), which converge to round-off in a few steps.
-        """
-        r_d = np.asarray(deposit_radii, dtype=float)
-        result = np.full(r_d.shape, np.nan)
-        infinite = np.isinf(r_d)
-        result[infinite] = r_d[infinite]
-        valid = infinite.copy()
-        for sign in (1.0, -1.0):
-            branch = self._branch(sign)
-            pick = np.isfinite(r_d) & (np.sign(r_d) == sign) & (np.abs(r_d) >= branch.r_d_min)
-            if np.any(pick):
-                result[pick] = sign * self._invert_on_branch(branch, np.abs(r_d[pick]), sign)
-                valid |= pick
-        return result, valid
-
-    def _invert_on_branch(self, branch: _Branch, target: np.ndarray, sign: float) -> np.ndarray:
-        log_target = np.log(target)
-        table = branch.log_r_d_table
-        k = np.clip(np.searchsorted(table, log_target), 1, table.size - 1)
-        lo, hi = branch.r_m_table[k - 1], branch.r_m_table[k]
-        beyond = log_target > table[-1]
-        hi = np.where(beyond, target + 2 * self._rig_length, hi)
-        lo = np.where(beyond, branch.r_m_table[-1], lo)
-        weight = np.clip((log_target - table[k - 1]) / (table[k] - table[k - 1]), 0.0, 1.0)
-        r = np.where(beyond, target, lo * (hi / lo) ** weight)
-        return self._safeguarded_newton(r, lo, hi, target, sign)
-
-    def _safeguarded_newton(
-        self, r: np.ndarray, lo: np.ndarray, hi: np.ndarray, target: np.ndarray, sign: float
-    ) -> np.ndarray:
-        """Newton on a monotonic bracket; a step leaving the bracket bisects instead.
-
-        Near the geometric limit dr_d/dr_m is unbounded and plain Newton stalls
-        against the bracket, so the bracket shrinks on every step and bisection
-        guarantees convergence there.
-        """
-        tolerance = 4 * np.finfo(float).eps * np.maximum(target, 1.0)
-        active = np.arange(r.size)
-        for _ in range(MAX_NEWTON_STEPS):
-            value, slope = _deposit_radius_slope(self.geometry, r[active], sign)
-            residual = value - target[active]
-            done = np.abs(residual) <= tolerance[active]
-            below = residual < 0
-            lo[active] = np.where(below, r[active], lo[active])
-            hi[active] = np.where(below, hi[active], r[active])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                step = r[active] - residual / slope
-            inside = (step > lo[active]) & (step < hi[active])
-            r[active] = np.where(
-                done, r[active], np.where(inside, step, 0.5 * (lo[active] + hi[active]))
-            )
-            active = active[~done]
-            if active.size == 0:
-                break
-        return r
-
-    @property
-    def _rig_length(self) -> float:
-        g = self.geometry
-        return g.d_p + g.d_tw + g.deposit_offset
+    def _reason(self, status: RadiusStatus, radius: float) -> str:
+        turn = "right" if math.copysign(1.0, radius) < 0 else "left"
+        minimum = f"the minimum laying radius {self._minimum[turn]:.6g} m of this geometry"
+        return {
+            RadiusStatus.NAN: "the radius is NaN",
+            RadiusStatus.ZERO: "a zero radius has no turn direction",
+            RadiusStatus.BELOW_MINIMUM: f"below {minimum} for a {turn} turn",
+            RadiusStatus.SPIN_ON_THE_SPOT: (
+                f"{minimum} for a {turn} turn needs turning on the spot (r_m = 0), "
+                "which no forward speed commands"
+            ),
+        }[status]
 
     def all_midpoint_radii(self, radius: float) -> list[float]:
-        """Every r_m (same turn direction) with this r_d, laying-branch solution first."""
-        r_d = float(radius)
-        if not math.isfinite(r_d) or r_d == 0.0:
-            self._check_scalar(r_d)
-            return [r_d]
-        sign = 1.0 if r_d > 0 else -1.0
-        target = abs(r_d)
-        branch = self._branch(sign)
-        roots = []
-        if target >= branch.r_d_min:
-            roots.append(abs(self.midpoint_radius(r_d)))
-        lower = max(self.geometric_limit, 1e-12)
-        if branch.r_min > lower:
-            grid = np.linspace(lower, branch.r_min, 2001)
-            gap = np.abs(deposit_radius(self.geometry, sign * grid)) - target
-            for i in np.nonzero(np.sign(gap[:-1]) * np.sign(gap[1:]) <= 0)[0]:
-                if gap[i] == 0.0:
-                    roots.append(float(grid[i]))
-                elif gap[i + 1] != 0.0:
-                    roots.append(
-                        brentq(
-                            lambda r: _deposit_radius_scalar(self.geometry, r, sign) - target,
-                            grid[i],
-                            grid[i + 1],
-                            xtol=1e-14,
-                        )
-                    )
-        if not roots:
-            self._check_scalar(r_d)
-        return [sign * r for r in roots]
+        """Every r_m (same turn direction) giving this r_d, the laying-branch one first.
+
+        The second root R_w = −s·d_t − √(r_d² − d_l²) exists only where the deposit
+        offset points at O (right turns for d_t > 0), for r_d up to z.
+        """
+        laying = self.midpoint_radius(radius)
+        if math.isinf(laying):
+            return [laying]
+        target = abs(float(radius))
+        sign = math.copysign(1.0, laying)
+        root = math.sqrt((target - self.geometry.d_l) * (target + self.geometry.d_l))
+        other_wheel = -sign * self.geometry.d_t - root
+        if root == 0.0 or other_wheel < self._spin_radius:
+            return [laying]
+        other = self._midpoint_from_wheel(other_wheel, _sqrt_or_nan)
+        return [laying, sign * other] if other > 0.0 else [laying]
 
 
 def wheel_radii(

@@ -79,32 +79,25 @@ def schedule_segments(
 ) -> WheelSchedule:
     """Wheel schedule laying dominoes every ``spacing`` metres along the deposit path.
 
-    With ``look_ahead`` the vehicle first drives straight for the rig length
-    (the deposit point, which starts that far behind the drive axle, lays a
-    straight lead-in) and steers each piece of the path when its drive axle,
-    not its deposit point, reaches it — the deposit point then follows the
-    path a rig length later instead of lagging every curve by that much.
+    Without ``look_ahead`` piece k is steered when the deposit point reaches it,
+    so every curvature change acts a rig length late at D. With ``look_ahead``
+    each piece is steered when the drive axle M reaches it (the path is
+    anchored at M's start, a rig length ahead of D), and a final straight of the
+    rig length lets the deposit point finish the last piece.
     """
-    if look_ahead:
-        segments = [*segments, Straight(rig_length(kinematics.geometry))]
     if not (forward_speed > 0 and math.isfinite(forward_speed)):
         raise PathError(f"forward speed must be a positive number of m/s, got {forward_speed}")
     if not (spacing > 0 and math.isfinite(spacing)):
         raise PathError(f"spacing must be a positive number of metres, got {spacing}")
+    if look_ahead:
+        segments = [*segments, Straight(rig_length(kinematics.geometry))]
     deposit_r = np.array(
         [math.inf if isinstance(s, Straight) else s.radius for s in segments], dtype=float
     )
     lengths = np.array([s.length for s in segments], dtype=float)
-    if np.any(~(lengths > 0)) or np.any(~np.isfinite(lengths)):
+    if not np.all((lengths > 0) & np.isfinite(lengths)):
         raise PathError("every segment needs a positive, finite length")
-    midpoint_r, valid = kinematics.midpoint_radii(deposit_r)
-    if not np.all(valid):
-        first = int(np.argmin(valid))
-        try:
-            kinematics.midpoint_radius(deposit_r[first])
-        except UnreachableRadiusError as error:
-            where = f"{float(lengths[:first].sum()):.3f} m along the path (segment {first})"
-            raise PathError(f"at {where}: {error}") from error
+    midpoint_r = _midpoint_radii_or_raise(kinematics, deposit_r, lengths)
     # Deposit point speed = v·|r_d|/|r_m| (rigid rotation about O); 1·v when straight.
     with np.errstate(invalid="ignore"):  # inf/inf on straights, replaced by 1
         ratio = np.where(np.isinf(deposit_r), 1.0, np.abs(deposit_r) / np.abs(midpoint_r))
@@ -121,6 +114,21 @@ def schedule_segments(
     )
 
 
+def _midpoint_radii_or_raise(
+    kinematics: LayerKinematics, deposit_radii: np.ndarray, lengths: np.ndarray
+) -> np.ndarray:
+    """r_m for every piece; the first unlayable piece is named by its distance along the path."""
+    inverse = kinematics.midpoint_radii(deposit_radii)
+    if not np.all(inverse.valid):
+        first = int(np.argmin(inverse.valid))
+        try:
+            kinematics.midpoint_radius(deposit_radii[first])
+        except UnreachableRadiusError as error:
+            where = f"{float(lengths[:first].sum()):.3f} m along the path (segment {first})"
+            raise PathError(f"at {where}: {error}") from error
+    return inverse.midpoint_radius
+
+
 def polyline_segments(
     points: np.ndarray, step: float = 0.01, smoothing: float = 0.0
 ) -> list[Segment]:
@@ -130,10 +138,14 @@ def polyline_segments(
     piece of ``step`` metres gets the spline's curvature at its middle.
     """
     points = np.asarray(points, dtype=float)
-    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 3:
-        raise PathError("a polyline needs at least three (x, y) points")
+    if points.ndim != 2 or points.shape[1] != 2:
+        raise PathError(f"a polyline is an (n, 2) array of points, got shape {points.shape}")
     if not np.all(np.isfinite(points)):
         raise PathError("polyline points must be finite")
+    repeated = np.concatenate([[False], np.all(np.diff(points, axis=0) == 0.0, axis=1)])
+    points = points[~repeated]  # a zero-length step has no direction for the spline
+    if len(points) < 3:
+        raise PathError("a polyline needs at least three distinct (x, y) points")
     tck, _ = splprep(points.T, s=smoothing, k=min(3, len(points) - 1))
     u = np.linspace(0.0, 1.0, 20001)
     dx, dy = splev(u, tck, der=1)
@@ -146,3 +158,22 @@ def polyline_segments(
     middle_curvature = np.interp(0.5 * (edges[1:] + edges[:-1]), arc_length, curvature)
     piece = arc_length[-1] / count
     return [Straight(piece) if abs(k) < 1e-9 else Arc(1.0 / k, piece) for k in middle_curvature]
+
+
+def trace_segments(segments: list[Segment], step: float = 0.005) -> np.ndarray:
+    """Points (n, 2) along the path, starting at the origin heading +x, every ≤ ``step`` m."""
+    position, heading = np.zeros(2), 0.0
+    points = [position]
+    for segment in segments:
+        s = np.linspace(0.0, segment.length, max(2, math.ceil(segment.length / step) + 1))[1:]
+        if isinstance(segment, Straight):
+            piece = position + np.outer(s, [math.cos(heading), math.sin(heading)])
+        else:
+            r = segment.radius
+            centre = position + r * np.array([-math.sin(heading), math.cos(heading)])
+            angle = heading + s / r
+            piece = centre + r * np.column_stack([np.sin(angle), -np.cos(angle)])
+            heading += segment.length / r
+        points.extend(piece)
+        position = piece[-1]
+    return np.array(points)

@@ -28,10 +28,16 @@ class SimulationResult:
     time: np.ndarray  # s, samples of the trajectory
     midpoint: np.ndarray  # (n, 2) m, M
     heading: np.ndarray  # (n,) rad, tractor
+    trolley_heading: np.ndarray  # (n,) rad, direction W → P
     trolley_wheel: np.ndarray  # (n, 2) m, W
     deposit_point: np.ndarray  # (n, 2) m, D
     deposits: np.ndarray  # (k, 2) m, laid dominoes
     deposit_times: np.ndarray  # (k,) s
+
+    @property
+    def trolley_angle(self) -> np.ndarray:
+        """Tractor heading − trolley heading [rad]: eq. (9)'s θ in a steady left turn, −θ right."""
+        return self.heading - self.trolley_heading
 
 
 def _points(geometry: VehicleGeometry, state: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -103,7 +109,10 @@ def simulate(
     initial_trolley_angle: float = 0.0,
     max_step: float = 0.05,
 ) -> SimulationResult:
-    """Integrate from M at the origin heading +x, trolley at ``initial_trolley_angle`` (rad).
+    """Integrate from M at the origin heading +x, the trolley heading ``initial_trolley_angle``.
+
+    The trolley's heading is the direction W → P [rad]: 0 is in line behind the
+    tractor, −θ of eq. (9) its steady state in a left turn, +θ in a right turn.
 
     ``command(t)`` gives (left, right) wheel angular velocities in rad/s. A domino
     is laid at the start and after every further ``spacing`` metres.
@@ -119,6 +128,7 @@ def simulate(
         time=solution.t,
         midpoint=solution.y[:2].T,
         heading=solution.y[2],
+        trolley_heading=solution.y[3],
         trolley_wheel=wheel.T,
         deposit_point=deposit.T,
         deposits=deposits.T,
