@@ -1,0 +1,563 @@
+"""Pick-and-place planning: coarse KTO moves, straight-line final approaches, TOPP-RA timing.
+
+Plan of a request (docs/PLANNER.md has the picture):
+
+1. *Ends.* For each grasp (the request's, or dombot_description.grasp's ranked list) solve
+   IK at the grasp and a straight vertical line up to ``pick_approach_distance`` above it,
+   IK-continued every ``waypoint_spacing``; check its clearances with the open fingers
+   (approach) and with the closed fingers holding the domino (lift). Then the same for the
+   place pose's symmetric equivalents (ranked so the gripper leans over the run's free
+   side), checked holding the domino (descent) and with released fingers (retreat).
+2. *Coarse moves* by KinematicTrajectoryOptimization: start → above the grasp (open
+   fingers), above the grasp → above the placement (holding the domino), seeded by the
+   straight joint line, then by a raised via configuration, then by perturbed ones;
+   every result is checked at dense samples before it is accepted.
+3. *Timing:* every piece is retimed by TOPP-RA and pieces join at rest. Segments:
+   open the gripper; approach and grasp (close); lift, transfer, descend (open); retreat.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import (
+    FINGER_SWAP,
+    PREGRASP_CLEARANCE,
+    RELEASE_CLEARANCE,
+    comes_from_above,
+    domino_in_tcp,
+    pick_grasps,
+    place_grasps,
+)
+from dombot_description.scenario import Scenario
+from dombot_planner import coarse
+from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.ik import PoseIK, straight_line
+from dombot_planner.request import PickPlaceRequest, check_request
+from dombot_planner.scene import (
+    HELD,
+    MOVING,
+    OBSTACLES,
+    PADS,
+    SELF,
+    STANDING,
+    TABLE,
+    TARGET,
+    ClearanceRules,
+    Scene,
+    ShadowPlants,
+)
+from dombot_planner.settings import PlannerSettings
+from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
+
+GRIPPER_NONE, GRIPPER_OPEN, GRIPPER_CLOSE = "none", "open", "close"
+MAX_JOINT_STEP = 0.1  # rad between line waypoints; more means the arm flips
+COARSE_CHECK_SAMPLES = 120  # dense clearance checks of each KTO result
+LINE_GRID_POINTS = 100  # TOPP-RA grid on a line (its end point is only loosely constrained)
+FREE_SIDE_RADIUS = 0.1  # m: standing dominoes this close decide the free side
+UP = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class SampledSegment:
+    """One executed segment: joint samples and the gripper event after it."""
+
+    label: str
+    times: np.ndarray
+    positions: np.ndarray  # samples × 7
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    gripper_after: str  # "none" | "open" | "close"
+    gripper_position: float
+
+
+@dataclass
+class Segment:
+    """A trajectory (pieces played in order, each from rest to rest) and a gripper event."""
+
+    label: str
+    pieces: list[TimedPath]
+    finger_opening: float  # m while this segment runs
+    gripper_after: str = GRIPPER_NONE
+    gripper_position: float = 0.0
+    gripper_effort: float = 0.0
+    start: np.ndarray | None = None  # for a segment without motion
+
+    @property
+    def duration(self) -> float:
+        return sum(piece.duration for piece in self.pieces)
+
+    def sample(self, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Times (from the segment start), positions, velocities, accelerations.
+
+        Each piece is sampled every ``period`` and at its end, so every rest point (piece
+        ends) is a sample.
+        """
+        if not self.pieces:
+            q = np.atleast_2d(self.start)
+            return np.zeros(1), q, np.zeros_like(q), np.zeros_like(q)
+        times, q, qd, qdd = [np.zeros(1)], [], [], []
+        offset = 0.0
+        first = self.pieces[0].sample(np.zeros(1))
+        q.append(first[0]), qd.append(first[1]), qdd.append(first[2])
+        for piece in self.pieces:
+            local = np.append(np.arange(period, piece.duration, period), piece.duration)
+            values = piece.sample(local)
+            times.append(offset + local)
+            q.append(values[0]), qd.append(values[1]), qdd.append(values[2])
+            offset += piece.duration
+        return np.concatenate(times), np.vstack(q), np.vstack(qd), np.vstack(qdd)
+
+
+@dataclass
+class Plan:
+    segments: list[Segment]
+    grasp_pose: RigidTransform  # TCP when the gripper closes
+    release_pose: RigidTransform  # TCP when it opens
+    held_in_tcp: RigidTransform  # the domino in the TCP frame while held
+    planning_time: float = 0.0
+    stage_times: dict[str, float] = field(default_factory=dict)
+    kto_attempts: dict[str, int] = field(default_factory=dict)
+
+    def sampled(self, period: float) -> list[SampledSegment]:
+        """The segments as executed: samples every ``period`` (and at every rest point)."""
+        result = []
+        for segment in self.segments:
+            times, q, qd, qdd = segment.sample(period)
+            result.append(
+                SampledSegment(
+                    segment.label,
+                    times,
+                    q,
+                    qd,
+                    qdd,
+                    segment.gripper_after,
+                    segment.gripper_position,
+                )
+            )
+        return result
+
+
+@dataclass
+class End:
+    """One end of the transfer: IK at the pose and the vertical line above it."""
+
+    tcp_pose: RigidTransform
+    line: np.ndarray  # waypoints from the pose (index 0) up to the approach height
+
+    @property
+    def above(self) -> np.ndarray:
+        return self.line[-1]
+
+
+def lift_directions(grasp: RigidTransform) -> list[np.ndarray]:
+    """Straight up, else 45° up and towards where the approach points horizontally.
+
+    A grasp leaning away from the arm base on the near side of the pile has the wrist
+    so close to the shoulder that lifting straight up runs into the elbow limit; the
+    tilted lift moves the wrist outwards instead (the open pads pass beside the domino).
+    """
+    horizontal = grasp.rotation().matrix()[:, 2] * [1.0, 1.0, 0.0]
+    norm = np.linalg.norm(horizontal)
+    if norm < 1e-6:
+        return [UP]
+    return [UP, (UP + horizontal / norm) / np.sqrt(2.0)]
+
+
+def _reasons(failures: Counter) -> str:
+    return ", ".join(f"{reason}: {count}" for reason, count in failures.most_common()) or "none"
+
+
+class Deadline:
+    def __init__(self, budget: float) -> None:
+        self.start = time.monotonic()
+        self.end = self.start + budget
+
+    def check(self, stage: str) -> None:
+        if time.monotonic() > self.end:
+            raise PlanningError(
+                ErrorCode.TIMEOUT, stage, f"time budget of {self.end - self.start:.2f} s used up"
+            )
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.start
+
+
+class PickPlacePlanner:
+    """Plans /plan_place requests; reuses shadow plants between requests (not thread-safe)."""
+
+    def __init__(self, scenario: Scenario, settings: PlannerSettings | None = None) -> None:
+        self.scenario = scenario
+        self.settings = settings or PlannerSettings()
+        self.plants = ShadowPlants(scenario)
+        plant = self.plants.get(DOMINO_SIZE[1]).plant
+        self.lower = plant.GetPositionLowerLimits()
+        self.upper = plant.GetPositionUpperLimits()
+        self.limits = JointLimits(
+            velocity=plant.GetVelocityUpperLimits() * self.settings.velocity_scale,
+            acceleration=np.full(plant.num_velocities(), self.settings.acceleration_limit),
+        )
+
+    # ------------------------------------------------------------------ rules
+    def coarse_rules(self, floor: float | None = None) -> ClearanceRules:
+        clearance = self.settings.coarse_clearance if floor is None else floor
+        rules = {(moving, other): clearance for moving in MOVING for other in OBSTACLES}
+        rules.update({(moving, SELF): self.settings.self_clearance for moving in MOVING})
+        return ClearanceRules(rules)
+
+    def fine_rules(self) -> ClearanceRules:
+        """Within the lines only pads and the held domino come near the table and dominoes."""
+        s = self.settings
+        rules = self.coarse_rules().minimum.copy()
+        rules.update(
+            {
+                (PADS, TABLE): s.pad_table_clearance,
+                (PADS, STANDING): s.fine_obstacle_clearance,
+                (PADS, TARGET): s.fine_obstacle_clearance,
+                (HELD, TABLE): -s.release_height - 1e-3,  # lies on the table at pick
+                (HELD, STANDING): s.fine_obstacle_clearance,
+            }
+        )
+        return ClearanceRules(rules)
+
+    # ------------------------------------------------------------------ entry point
+    def plan(self, request: PickPlaceRequest) -> Plan:
+        """A plan for ``request``; raises PlanningError with a code and the failing stage."""
+        check_request(request, self.settings)
+        budget = request.time_budget or self.settings.default_time_budget
+        deadline = Deadline(budget)
+        stage_times: dict[str, float] = {}
+        rng = np.random.default_rng(self.settings.seed)
+        closed = request.grasp_width or DOMINO_SIZE[1]
+        openings = {
+            "pregrasp": closed + 2 * PREGRASP_CLEARANCE,
+            "closed": closed,
+            "release": closed + 2 * RELEASE_CLEARANCE,
+        }
+        tcp = self.scenario.tcp_frame
+        approach = Scene(
+            self.plants.get(openings["pregrasp"]), tcp, request.standing, request.domino_pose
+        )
+        retreat = Scene(
+            self.plants.get(openings["release"]), tcp, request.standing, request.place_pose
+        )
+        start = request.start
+        self._check_start(approach, start)
+
+        tried = {"grasps": 0, "places": 0}
+        failures = {"grasp": Counter(), "place": Counter()}
+        ends = self._ends(request, approach, retreat, openings, rng, deadline, tried, failures)
+        for pick, place, transfer in ends:
+            stage_times.setdefault("ends", deadline.elapsed())
+            try:
+                plan = self._connect(
+                    request,
+                    start,
+                    pick,
+                    place,
+                    approach,
+                    transfer,
+                    retreat,
+                    openings,
+                    rng,
+                    deadline,
+                )
+            except PlanningError as error:
+                if error.code == ErrorCode.TIMEOUT:
+                    raise
+                last_error = error
+                continue
+            plan.planning_time = deadline.elapsed()
+            stage_times["total"] = plan.planning_time
+            plan.stage_times = stage_times
+            return plan
+        if tried["grasps"] == 0:
+            raise PlanningError(
+                ErrorCode.GRASP_UNREACHABLE,
+                "grasp",
+                f"no collision-free IK and approach line for any of "
+                f"{tried['grasp_candidates']} grasps ({_reasons(failures['grasp'])})",
+            )
+        if tried["places"] == 0:
+            raise PlanningError(
+                ErrorCode.PLACE_UNREACHABLE,
+                "place",
+                f"no collision-free IK and approach line for any of "
+                f"{tried['place_candidates']} place poses ({_reasons(failures['place'])})",
+            )
+        raise last_error
+
+    # ------------------------------------------------------------------ stages
+    def _check_start(self, scene: Scene, start: np.ndarray) -> None:
+        violations = self.coarse_rules(floor=0.0).violations(scene.clearance(start))
+        if violations:
+            raise PlanningError(
+                ErrorCode.INVALID_REQUEST, "start", f"start state in collision: {violations[0]}"
+            )
+
+    def _seeds(self, first: list[np.ndarray], rng: np.random.Generator) -> list[np.ndarray]:
+        middle, half = (self.lower + self.upper) / 2, 0.8 * (self.upper - self.lower) / 2
+        random = rng.uniform(middle - half, middle + half, (self.settings.ik_random_seeds, 7))
+        return [*first, self.scenario.home_position, *random]
+
+    def _ends(
+        self,
+        request: PickPlaceRequest,
+        approach: Scene,
+        retreat: Scene,
+        openings: dict[str, float],
+        rng: np.random.Generator,
+        deadline: Deadline,
+        tried: dict[str, int],
+        failures: dict[str, Counter],
+    ) -> Iterator[tuple[End, End, Scene]]:
+        """Pick and place ends that pass their checks, best candidates first."""
+        s = self.settings
+        if request.grasp_pose is not None:
+            grasps = [request.grasp_pose, request.grasp_pose @ FINGER_SWAP]
+        else:
+            grasps = [g.pose for g in pick_grasps(request.domino_pose) if comes_from_above(g.pose)]
+        tried["grasp_candidates"] = len(grasps)
+        release = RigidTransform(s.release_height * UP) @ request.place_pose
+        free = self._free_direction(request)
+        fine = self.fine_rules()
+        for grasp in grasps:
+            deadline.check("grasp")
+            held = domino_in_tcp(grasp, request.domino_pose)
+            transfer = Scene(
+                self.plants.get(openings["closed"]),
+                self.scenario.tcp_frame,
+                request.standing,
+                held_in_tcp=held,
+            )
+            pick = self._end(
+                grasp,
+                s.pick_approach_distance,
+                lift_directions(grasp),
+                [approach, transfer],
+                fine,
+                self._seeds([request.start], rng),
+                deadline,
+                failures["grasp"],
+            )
+            if pick is None:
+                continue
+            tried["grasps"] += 1
+            places = [p for p in place_grasps(release, held, free) if comes_from_above(p)]
+            tried["place_candidates"] = len(places)
+            for place_pose in places:
+                place = self._end(
+                    place_pose,
+                    s.place_approach_distance,
+                    [UP],
+                    [transfer, retreat],
+                    fine,
+                    self._seeds([pick.line[0], request.start], rng),
+                    deadline,
+                    failures["place"],
+                )
+                if place is not None:
+                    tried["places"] += 1
+                    yield pick, place, transfer
+
+    def _free_direction(self, request: PickPlaceRequest) -> np.ndarray:
+        """The side of the place pose (±its z) where standing dominoes are farthest."""
+        forward = request.place_pose.rotation().matrix()[:, 2]
+        centre = request.place_pose.translation()
+
+        def nearest(sign: float) -> float:
+            ahead = [
+                np.linalg.norm(p.translation() - centre)
+                for p in request.standing
+                if sign * (p.translation() - centre) @ forward > 0
+            ]
+            return min([FREE_SIDE_RADIUS, *ahead])
+
+        return forward if nearest(1.0) >= nearest(-1.0) else -forward
+
+    def _end(
+        self,
+        tcp_pose: RigidTransform,
+        distance: float,
+        directions: list[np.ndarray],
+        scenes: list[Scene],
+        rules: ClearanceRules,
+        seeds: list[np.ndarray],
+        deadline: Deadline,
+        failures: Counter,
+    ) -> End | None:
+        """IK at ``tcp_pose`` and a straight line away from it, clear in every scene.
+
+        ``directions`` are tried in order for the line; ``failures`` counts why seeds failed.
+        """
+        ik = PoseIK(scenes[0], tcp_pose.rotation())
+        target = tcp_pose.translation()
+        top_rules = self.coarse_rules(self.settings.coarse_clearance + 1e-3)
+        for seed in seeds:
+            deadline.check("ends")
+            q = ik.solve(target, seed, seed)
+            if q is None:
+                failures["no IK"] += 1
+                continue
+            if any(rules.violations(scene.clearance(q)) for scene in scenes):
+                failures["in collision at the pose"] += 1
+                continue
+            for direction in directions:
+                line = straight_line(
+                    ik,
+                    q,
+                    target,
+                    distance * direction,
+                    self.settings.waypoint_spacing,
+                    MAX_JOINT_STEP,
+                )
+                if line is None:
+                    failures["line leaves the reach"] += 1
+                elif any(top_rules.violations(scene.clearance(line[-1])) for scene in scenes):
+                    failures["line end too close"] += 1
+                elif any(
+                    rules.violations(scene.clearance(waypoint))
+                    for scene in scenes
+                    for waypoint in line[1:-1]
+                ):
+                    failures["line too close"] += 1
+                else:
+                    return End(tcp_pose, line)
+        return None
+
+    def _connect(
+        self,
+        request: PickPlaceRequest,
+        start: np.ndarray,
+        pick: End,
+        place: End,
+        approach: Scene,
+        transfer: Scene,
+        retreat: Scene,
+        openings: dict[str, float],
+        rng: np.random.Generator,
+        deadline: Deadline,
+    ) -> Plan:
+        """Coarse moves between the ends, retimed and assembled into segments."""
+        attempts: dict[str, int] = {}
+        to_pick = self._coarse(
+            "approach_grasp", approach, start, pick.above, rng, deadline, attempts
+        )
+        to_place = self._coarse(
+            "transfer", transfer, pick.above, place.above, rng, deadline, attempts
+        )
+        deadline.check("retiming")
+        s = self.settings
+        pick_down = self._line("descend_to_grasp", pick.line[::-1], approach)
+        pick_up = self._line("lift", pick.line, transfer)
+        place_down = self._line("descend_to_place", place.line[::-1], transfer)
+        place_up = self._line("retreat", place.line, retreat)
+        segments = [
+            Segment(
+                "open_gripper",
+                [],
+                openings["release"],
+                GRIPPER_OPEN,
+                openings["pregrasp"],
+                0.0,
+                start=start,
+            ),
+            Segment(
+                "approach_grasp",
+                [to_pick, pick_down],
+                openings["pregrasp"],
+                GRIPPER_CLOSE,
+                openings["closed"] - s.grip_squeeze,
+                s.grip_force,
+            ),
+            Segment(
+                "transfer",
+                [pick_up, to_place, place_down],
+                openings["closed"],
+                GRIPPER_OPEN,
+                openings["release"],
+                0.0,
+            ),
+            Segment("retreat", [place_up], openings["release"]),
+        ]
+        return Plan(
+            segments,
+            pick.tcp_pose,
+            place.tcp_pose,
+            domino_in_tcp(pick.tcp_pose, request.domino_pose),
+            kto_attempts=attempts,
+        )
+
+    def _line(self, label: str, waypoints: np.ndarray, scene: Scene) -> TimedPath:
+        spacing = self.settings.waypoint_spacing
+        distance = spacing * (len(waypoints) - 1)
+        path = line_path(waypoints, spacing)
+        timed = retime(
+            label,
+            path,
+            scene.plant,
+            self.limits,
+            fine=True,
+            tcp=scene.tcp,
+            tcp_speed=self.settings.approach_speed,
+            grid_points=LINE_GRID_POINTS,
+        )
+        if timed is None:
+            raise PlanningError(
+                ErrorCode.PLANNING_FAILED, label, f"TOPP-RA found no timing for {distance} m line"
+            )
+        return timed
+
+    def _coarse(
+        self,
+        label: str,
+        scene: Scene,
+        q_start: np.ndarray,
+        q_goal: np.ndarray,
+        rng: np.random.Generator,
+        deadline: Deadline,
+        attempts: dict[str, int],
+    ) -> TimedPath:
+        """A KTO move from ``q_start`` to ``q_goal`` that passes the dense clearance check."""
+        s = self.settings
+        ends = min(scene.minimum_distance(q_start), scene.minimum_distance(q_goal))
+        bound = min(s.coarse_clearance + s.coarse_margin, 0.9 * ends)
+        rules = self.coarse_rules(min(s.coarse_clearance, 0.9 * ends))
+        failure = "no attempt"
+        for attempt in range(s.kto_attempts):
+            deadline.check(label)
+            attempts[label] = attempt + 1
+            guess = coarse.initial_guess(scene, q_start, q_goal, attempt, s.kto_control_points, rng)
+            samples = s.kto_collision_samples * (1 + attempt // 2)
+            path = coarse.optimize(scene, q_start, q_goal, guess, bound, samples)
+            if path is None:
+                failure = "SNOPT found no feasible trajectory"
+                continue
+            violations = self._dense_violations(scene, path, rules)
+            if violations:
+                failure = f"too close between samples: {violations[0]}"
+                continue
+            timed = retime(label, path, scene.plant, self.limits)
+            if timed is not None:
+                return timed
+            failure = "TOPP-RA found no timing"
+        raise PlanningError(
+            ErrorCode.PLANNING_FAILED,
+            label,
+            f"KTO failed after {attempts.get(label, 0)} attempts ({failure})",
+        )
+
+    @staticmethod
+    def _dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:
+        for s in np.linspace(path.start_time(), path.end_time(), COARSE_CHECK_SAMPLES):
+            violations = rules.violations(scene.clearance(path.value(s).ravel()))
+            if violations:
+                return violations
+        return []
