@@ -40,6 +40,7 @@ from dombot_description import DOMINO_SIZE, PACKAGE_DIR
 
 GRASP_TILT = math.radians(63.0)
 TCP_IN_DOMINO = np.array([-0.019, 0.0, 0.00925])  # m, in the domino frame
+TOP_GRASP_HEIGHT = 0.007  # m: TCP above the centre in the top grasp (pad tips 1.75 mm up)
 PREGRASP_CLEARANCE = 0.008  # m per side between open pads and the domino at pick
 RELEASE_CLEARANCE = 0.005  # m per side when the fingers let go at place
 SYMMETRIES = (
@@ -124,6 +125,16 @@ def canonical_grasp() -> RigidTransform:
     return RigidTransform(RotationMatrix(rotation), TCP_IN_DOMINO)
 
 
+def top_grasp() -> RigidTransform:
+    """X_DG of the regrasp: straight down onto a flat domino, fingers across its width.
+
+    It cannot stand a domino up (the gripper would be horizontal at place); the planner
+    uses it only to turn a domino that lies where no tilted grasp reaches (docs/PLANNER.md).
+    """
+    rotation = np.column_stack([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])
+    return RigidTransform(RotationMatrix(rotation), [0.0, 0.0, TOP_GRASP_HEIGHT])
+
+
 @dataclass(frozen=True)
 class Grasp:
     """One way to hold a domino: TCP pose in world and the finger openings it needs."""
@@ -157,11 +168,16 @@ def comes_from_above(tcp_pose: RigidTransform) -> bool:
 
 
 def equivalent_grasps(
-    domino_pose: RigidTransform, size: tuple[float, float, float] = DOMINO_SIZE
+    domino_pose: RigidTransform,
+    size: tuple[float, float, float] = DOMINO_SIZE,
+    tcp_in_domino: RigidTransform | None = None,
 ) -> list[Grasp]:
-    """All 8 grasps holding a domino at ``domino_pose`` the canonical way (S, then F), unranked."""
+    """All 8 grasps holding a domino at ``domino_pose`` (S, then F), unranked.
+
+    ``tcp_in_domino``: the grasp X_DG (default: the canonical tilted grasp).
+    """
     width = float(size[1])
-    tcp_in_domino = canonical_grasp()
+    tcp_in_domino = canonical_grasp() if tcp_in_domino is None else tcp_in_domino
     return [
         Grasp(
             domino_pose @ RigidTransform(symmetry) @ tcp_in_domino @ swap,
@@ -187,6 +203,7 @@ def pick_grasps(
     domino_pose: RigidTransform,
     size: tuple[float, float, float] = DOMINO_SIZE,
     base_xy: tuple[float, float] = (0.0, 0.0),
+    tcp_in_domino: RigidTransform | None = None,
 ) -> list[Grasp]:
     """The grasps of a domino lying at ``domino_pose``, best first.
 
@@ -200,7 +217,8 @@ def pick_grasps(
         approach = grasp.approach
         return -approach[2] + 0.3 * float(_horizontal_unit(approach) @ outward)
 
-    return sorted(equivalent_grasps(domino_pose, size), key=lambda grasp: -round(score(grasp), 9))
+    grasps = equivalent_grasps(domino_pose, size, tcp_in_domino)
+    return sorted(grasps, key=lambda grasp: -round(score(grasp), 9))
 
 
 def domino_in_tcp(grasp_pose: RigidTransform, domino_pose: RigidTransform) -> RigidTransform:

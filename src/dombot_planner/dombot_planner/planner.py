@@ -18,13 +18,14 @@ Plan of a request (docs/PLANNER.md has the picture):
 
 from __future__ import annotations
 
+import math
 import time
 from collections import Counter
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import (
@@ -35,6 +36,7 @@ from dombot_description.grasp import (
     domino_in_tcp,
     pick_grasps,
     place_grasps,
+    top_grasp,
 )
 from dombot_description.scenario import Scenario
 from dombot_planner import coarse
@@ -59,7 +61,9 @@ from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
 
 GRIPPER_NONE, GRIPPER_OPEN, GRIPPER_CLOSE = "none", "open", "close"
 MAX_JOINT_STEP = 0.1  # rad between line waypoints; more means the arm flips
-COARSE_CHECK_SAMPLES = 120  # dense clearance checks of each KTO result
+COARSE_CHECK_SAMPLES = 120  # at least this many clearance checks of each KTO result ...
+CHECK_JOINT_STEP = 0.01  # rad ... and no joint moving more than this between them
+CHECK_MARGIN = 5e-4  # m the planner's own check adds to the required clearance
 LINE_GRID_POINTS = 100  # TOPP-RA grid on a line (its end point is only loosely constrained)
 FREE_SIDE_RADIUS = 0.1  # m: standing dominoes this close decide the free side
 UP = np.array([0.0, 0.0, 1.0])
@@ -125,6 +129,14 @@ class Plan:
     planning_time: float = 0.0
     stage_times: dict[str, float] = field(default_factory=dict)
     kto_attempts: dict[str, int] = field(default_factory=dict)
+    regrasped: bool = False  # the domino was turned in place first (two picks)
+
+    def final_positions(self) -> np.ndarray:
+        """Arm joint positions when the plan has been executed."""
+        last = self.segments[-1]
+        if not last.pieces:
+            return np.asarray(last.start)
+        return last.pieces[-1].sample(np.array([last.pieces[-1].duration]))[0][0]
 
     def sampled(self, period: float) -> list[SampledSegment]:
         """The segments as executed: samples every ``period`` (and at every rest point)."""
@@ -231,8 +243,66 @@ class PickPlacePlanner:
     def plan(self, request: PickPlaceRequest) -> Plan:
         """A plan for ``request``; raises PlanningError with a code and the failing stage."""
         check_request(request, self.settings)
-        budget = request.time_budget or self.settings.default_time_budget
-        deadline = Deadline(budget)
+        deadline = Deadline(request.time_budget or self.settings.default_time_budget)
+        try:
+            plan = self._plan(request, deadline)
+        except PlanningError as error:
+            if not (
+                error.code == ErrorCode.GRASP_UNREACHABLE
+                and request.grasp_pose is None
+                and self.settings.allow_regrasp
+            ):
+                raise
+            plan = self._plan_with_regrasp(request, deadline, error)
+        plan.planning_time = deadline.elapsed()
+        plan.stage_times["total"] = plan.planning_time
+        return plan
+
+    def _plan_with_regrasp(
+        self, request: PickPlaceRequest, deadline: Deadline, error: PlanningError
+    ) -> Plan:
+        """Turn the domino a quarter turn in place with the top grasp, then pick it again.
+
+        Where the domino lies along the radius close to the arm, no tilted grasp reaches it
+        (the wrist would come closer to the shoulder than the elbow allows); lying across
+        the radius it is reachable. A quarter turn is the only distinct one (a half turn is
+        a symmetry of the box).
+        """
+        domino = request.domino_pose
+        turned = RigidTransform(
+            RotationMatrix.MakeZRotation(math.pi / 2) @ domino.rotation(), domino.translation()
+        )
+        top = pick_grasps(domino, tcp_in_domino=top_grasp())[0].pose
+        try:
+            first = self._plan(replace(request, place_pose=turned, grasp_pose=top), deadline)
+            first_leg = deadline.elapsed()
+            second = self._plan(
+                replace(request, domino_pose=turned, start=first.final_positions()), deadline
+            )
+        except PlanningError as regrasp_error:
+            if regrasp_error.code == ErrorCode.TIMEOUT:
+                raise
+            raise PlanningError(
+                error.code,
+                error.stage,
+                f"{error.message}; turning it first failed too ({regrasp_error})",
+            ) from None
+        for segment in first.segments:
+            segment.label = f"regrasp_{segment.label}"
+        return Plan(
+            first.segments + second.segments,
+            second.grasp_pose,
+            second.release_pose,
+            second.held_in_tcp,
+            stage_times={"regrasp_leg": first_leg},
+            kto_attempts={
+                **{f"regrasp_{k}": v for k, v in first.kto_attempts.items()},
+                **second.kto_attempts,
+            },
+            regrasped=True,
+        )
+
+    def _plan(self, request: PickPlaceRequest, deadline: Deadline) -> Plan:
         stage_times: dict[str, float] = {}
         rng = np.random.default_rng(self.settings.seed)
         closed = request.grasp_width or DOMINO_SIZE[1]
@@ -274,8 +344,7 @@ class PickPlacePlanner:
                     raise
                 last_error = error
                 continue
-            plan.planning_time = deadline.elapsed()
-            stage_times["total"] = plan.planning_time
+            stage_times["coarse_and_timing"] = deadline.elapsed() - stage_times["ends"]
             plan.stage_times = stage_times
             return plan
         if tried["grasps"] == 0:
@@ -529,7 +598,7 @@ class PickPlacePlanner:
         s = self.settings
         ends = min(scene.minimum_distance(q_start), scene.minimum_distance(q_goal))
         bound = min(s.coarse_clearance + s.coarse_margin, 0.9 * ends)
-        rules = self.coarse_rules(min(s.coarse_clearance, 0.9 * ends))
+        rules = self.coarse_rules(min(s.coarse_clearance + CHECK_MARGIN, 0.9 * ends))
         failure = "no attempt"
         for attempt in range(s.kto_attempts):
             deadline.check(label)
@@ -556,8 +625,12 @@ class PickPlacePlanner:
 
     @staticmethod
     def _dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:
-        for s in np.linspace(path.start_time(), path.end_time(), COARSE_CHECK_SAMPLES):
-            violations = rules.violations(scene.clearance(path.value(s).ravel()))
+        """Rule violations at samples no more than CHECK_JOINT_STEP apart (any joint)."""
+        coarse = path.vector_values(np.linspace(path.start_time(), path.end_time(), 50))
+        travel = np.abs(np.diff(coarse, axis=1)).max(axis=0).sum()
+        count = max(COARSE_CHECK_SAMPLES, int(np.ceil(travel / CHECK_JOINT_STEP)))
+        for q in path.vector_values(np.linspace(path.start_time(), path.end_time(), count)).T:
+            violations = rules.violations(scene.clearance(q))
             if violations:
                 return violations
         return []

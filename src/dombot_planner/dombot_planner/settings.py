@@ -40,12 +40,13 @@ class PlannerSettings:
     workspace_reach: tuple[float, float] = (0.25, 0.85)  # m from the arm base axis
     workspace_height: tuple[float, float] = (-0.005, 0.35)  # m, domino centres
     seed: int = 0  # random IK seeds and KTO restarts
+    allow_regrasp: bool = True  # turn a domino no tilted grasp reaches, then pick it again
 
     def __post_init__(self) -> None:
         for field in fields(self):
             value = getattr(self, field.name)
             values = value if isinstance(value, tuple) else (value,)
-            if field.name == "seed":
+            if field.name in ("seed", "allow_regrasp"):
                 continue
             if not all(
                 isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)

@@ -13,7 +13,7 @@ joint position/velocity/acceleration limit use, and jumps between segments.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,8 +21,14 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 
+from dombot_description import DOMINO_SIZE
 from dombot_description.cell import add_cell, add_dominoes
-from dombot_description.grasp import SYMMETRIES
+from dombot_description.grasp import (
+    SYMMETRIES,
+    canonical_grasp,
+    equivalent_grasps,
+    top_grasp,
+)
 from dombot_description.scenario import Scenario
 from dombot_planner.planner import GRIPPER_CLOSE as CLOSE
 from dombot_planner.planner import GRIPPER_OPEN as OPEN
@@ -32,6 +38,7 @@ MAX_INTERPOLATION_STEP = 0.003  # rad per joint between checked configurations
 LINE_TOLERANCE = 1e-3  # m beyond the approach distance still counted as a final line
 ORIENTATION_TOLERANCE = 1e-3  # rad: the lines keep the target orientation exactly
 QUERY_DISTANCE = 0.05  # m
+DROP_HEIGHT = 0.002  # m: a domino released this close above the table falls onto it
 
 
 @dataclass
@@ -47,6 +54,25 @@ class Check:
 
     def min_clearance(self, phase: str, moving: str, obstacle: str) -> float:
         return self.clearance.get((phase, moving, obstacle), QUERY_DISTANCE)
+
+
+def dropped_onto_table(pose: RigidTransform) -> RigidTransform:
+    """Where a domino let go at ``pose`` comes to rest: straight down onto the table top
+    when its lowest corner is at most DROP_HEIGHT above it (the release height)."""
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+    lowest = (pose @ (signs * np.array(DOMINO_SIZE) / 2).T)[2].min()
+    if 0.0 < lowest <= DROP_HEIGHT:
+        return RigidTransform(pose.rotation(), pose.translation() - [0.0, 0.0, lowest])
+    return pose
+
+
+def defined_grasps(domino_pose: RigidTransform) -> list[RigidTransform]:
+    """Every grasp dombot_description.grasp defines for a domino at ``domino_pose``."""
+    return [
+        grasp.pose
+        for tcp_in_domino in (canonical_grasp(), top_grasp())
+        for grasp in equivalent_grasps(domino_pose, tcp_in_domino=tcp_in_domino)
+    ]
 
 
 def pose_error(actual: RigidTransform, wanted: RigidTransform) -> tuple[float, float]:
@@ -123,43 +149,57 @@ class TrajectoryChecker:
         self,
         segments: Sequence[SampledSegment],
         start: np.ndarray,
-        grasps: Sequence[RigidTransform],
         approach_distances: tuple[float, float],
+        grasps_for: Callable[[RigidTransform], Sequence[RigidTransform]] | None = None,
     ) -> Check:
-        """Check executed ``segments`` from ``start``; ``grasps``: acceptable grasp poses."""
+        """Check executed ``segments`` from ``start``.
+
+        ``approach_distances``: (pick, place) lengths of the final lines;
+        ``grasps_for(domino_pose)`` lists the acceptable TCP poses to grasp a domino lying
+        there (default: the canonical tilted or the top grasp, any symmetry).
+        """
+        grasps_for = grasps_for or defined_grasps
         result = Check()
         self._check_limits_and_joins(segments, start, result)
-        close_q, open_q = self._event_configurations(segments)
-        grasp_tcp = self.tcp_pose(close_q)
-        held_in_tcp = grasp_tcp.inverse() @ self.domino_pose
-        release_tcp = self.tcp_pose(open_q)
-        result.grasp_error = nearest_error(grasp_tcp, grasps)
-        held = release_tcp @ held_in_tcp
-        result.place_error = nearest_error(
-            held, [self.place_pose @ RigidTransform(s) for s in SYMMETRIES]
+        states, lines, grasp_errors, releases = self._follow_domino(
+            segments, grasps_for, approach_distances
         )
-        lines = [(grasp_tcp, approach_distances[0]), (release_tcp, approach_distances[1])]
-        state = "before_grasp"
-        opening = next(s.gripper_position for s in segments if s.gripper_after == OPEN)
-        for segment in segments:
+        result.grasp_error = max(grasp_errors, key=lambda e: e[0] + 0.01 * e[1])
+        symmetric = [self.place_pose @ RigidTransform(s) for s in SYMMETRIES]
+        result.place_error = nearest_error(releases[-1], symmetric)
+        for segment, (resting, held_in_tcp, opening) in zip(segments, states, strict=True):
             for q in self._densified(segment.positions):
                 tcp = self.tcp_pose(q)
-                self._set_scene(state, tcp @ held_in_tcp, opening)
+                self._set_scene(resting if held_in_tcp is None else tcp @ held_in_tcp, opening)
                 phase = "fine" if any(_near_target(tcp, t, d) for t, d in lines) else "coarse"
-                self._record(result, phase, holding=state == "held")
+                self._record(result, phase, holding=held_in_tcp is not None)
                 result.samples += 1
-            if segment.gripper_after == CLOSE:
-                state, opening = "held", self.closed_width  # the fingers stop on the domino
-            elif segment.gripper_after == OPEN:
-                opening = segment.gripper_position
-                state = "placed" if state == "held" else state
         return result
 
-    def _event_configurations(self, segments: Sequence[SampledSegment]):
-        close = next(s.positions[-1] for s in segments if s.gripper_after == CLOSE)
-        after_close = segments[[s.gripper_after for s in segments].index(CLOSE) + 1 :]
-        release = next(s.positions[-1] for s in after_close if s.gripper_after == OPEN)
-        return close, release
+    def _follow_domino(self, segments, grasps_for, approach_distances):
+        """Per segment: where the domino rests (or how it is held) and the finger opening.
+
+        Also the TCP poses of the final lines, the grasp errors and the release poses, all
+        from the executed configurations at the gripper events.
+        """
+        resting, held_in_tcp = self.domino_pose, None
+        opening = next(s.gripper_position for s in segments if s.gripper_after == OPEN)
+        states, lines, grasp_errors, releases = [], [], [], []
+        for segment in segments:
+            states.append((resting, held_in_tcp, opening))
+            tcp = self.tcp_pose(segment.positions[-1])
+            if segment.gripper_after == CLOSE:
+                grasp_errors.append(nearest_error(tcp, grasps_for(resting)))
+                held_in_tcp, resting = tcp.inverse() @ resting, None
+                opening = self.closed_width  # the fingers stop on the domino
+                lines.append((tcp, approach_distances[0]))
+            elif segment.gripper_after == OPEN:
+                opening = segment.gripper_position
+                if held_in_tcp is not None:
+                    releases.append(tcp @ held_in_tcp)
+                    resting, held_in_tcp = dropped_onto_table(releases[-1]), None
+                    lines.append((tcp, approach_distances[1]))
+        return states, lines, grasp_errors, releases
 
     def _check_limits_and_joins(self, segments, start, result: Check) -> None:
         previous = np.asarray(start, dtype=float)
@@ -185,9 +225,8 @@ class TrajectoryChecker:
             dense.append(a + fractions * (b - a))
         return np.vstack(dense)
 
-    def _set_scene(self, state: str, held_pose: RigidTransform, opening: float) -> None:
-        """Picked domino where it is in ``state``; fingers ``opening`` apart."""
-        pose = {"before_grasp": self.domino_pose, "held": held_pose}.get(state, self.place_pose)
+    def _set_scene(self, pose: RigidTransform, opening: float) -> None:
+        """The picked domino at ``pose``; fingers ``opening`` apart."""
         self.plant.SetFreeBodyPose(self.plant_context, self.domino_bodies[0], pose)
         for joint in self.fingers:
             joint.set_translation(self.plant_context, opening / 2.0)
