@@ -28,14 +28,22 @@ from collections import Counter
 import numpy as np
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import flat_pose, upright_pose
+from dombot_description.grasp import (
+    OrientedBox,
+    domino_in_tcp,
+    flat_pose,
+    gripper_geometry,
+    pick_grasps,
+    place_grasps,
+    upright_pose,
+)
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_planner.errors import PlanningError
 from dombot_planner.planner import PickPlacePlanner, Plan
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.timing import retime
-from dombot_planner.verify import TrajectoryChecker
+from dombot_planner.verify import Check, TrajectoryChecker
 
 SPACING_RATIO = 0.6
 RAISED_FRACTION = 0.2
@@ -53,6 +61,10 @@ class Case:
     domino: tuple[float, float, float]  # x, y, yaw
     place: tuple[float, float, float, float]  # x, y, heading, base height
     neighbours: tuple[int, ...]  # -1 behind, +1 ahead (along the run heading)
+
+    @property
+    def on_table(self) -> bool:
+        return self.place[3] == 0.0
 
     def place_pose(self):
         x, y, heading, base = self.place
@@ -84,6 +96,16 @@ def make_cases(scenario: Scenario, count: int, seed: int) -> list[Case]:
         neighbours = [(-1, 1), (-1, 1), (-1,), ()][index % 4]
         cases.append(Case(index, domino, (x, y, rng.uniform(-math.pi, math.pi), base), neighbours))
     return cases
+
+
+@dataclasses.dataclass
+class Row:
+    case: Case
+    planning_time: float
+    plan: Plan
+    check: Check
+    duration: float  # s of motion
+    optimal: float  # s, the same path's time-optimal duration
 
 
 def optimal_duration(plan: Plan, planner: PickPlacePlanner) -> float:
@@ -162,8 +184,7 @@ def run(args: argparse.Namespace) -> dict:
         )
         duration = sum(segment.duration for segment in plan.segments)
         optimal = optimal_duration(plan, planner) if args.optimal else math.nan
-        check.regrasped = plan.regrasped
-        rows.append((case, elapsed, check, duration, optimal))
+        rows.append(Row(case, elapsed, plan, check, duration, optimal))
         previous_end = plan.segments[-1].pieces[-1].sample(np.array([1e9]))[0][0]
         log(
             f"{case.index:3d} ok   {elapsed:.2f} s  coarse "
@@ -185,8 +206,8 @@ def coarse_min(check) -> float:
 
 def clearance_summary(rows, phase: str) -> dict[str, float]:
     result: dict[str, float] = {}
-    for _, _, check, _, _ in rows:
-        for (p, moving, other), value in check.clearance.items():
+    for row in rows:
+        for (p, moving, other), value in row.check.clearance.items():
             if p == phase:
                 key = f"{moving}-{other}"
                 result[key] = min(result.get(key, math.inf), value)
@@ -202,14 +223,18 @@ def pose_error_summary(errors: list[tuple[float, float]]) -> dict[str, float]:
 
 def summarise(args, settings, cases, times, failures, rows, load_before) -> dict:
     successes = len(rows)
-    ratios = [d / o for *_, d, o in rows if math.isfinite(o) and o > 0]
+    ratios = [r.duration / r.optimal for r in rows if math.isfinite(r.optimal) and r.optimal > 0]
+    checks = [row.check for row in rows]
     return {
         "benchmark": "planner",
         "pairs": len(cases),
         "seed": args.seed,
         "success_rate": successes / len(cases),
         "failures": dict(failures),
-        "regrasped": sum(1 for _, _, c, _, _ in rows if c.regrasped),
+        "regrasped": sum(1 for row in rows if row.plan.regrasped),
+        "kto_attempts": dict(
+            sorted(Counter(a for row in rows for a in row.plan.kto_attempts.values()).items())
+        ),
         "planning_time_s": {
             "p50": percentile(times, 50),
             "p95": percentile(times, 95),
@@ -219,24 +244,20 @@ def summarise(args, settings, cases, times, failures, rows, load_before) -> dict
             "coarse_moves": clearance_summary(rows, "coarse"),
             "final_approach_and_retreat": clearance_summary(rows, "fine"),
         },
-        "grasp_error_max": pose_error_summary([c.grasp_error for _, _, c, _, _ in rows]),
+        "grasp_error_max": pose_error_summary([c.grasp_error for c in checks]),
         "place_error_max": {
-            **pose_error_summary([c.place_error for _, _, c, _, _ in rows]),
+            **pose_error_summary([c.place_error for c in checks]),
             "note": f"includes the {settings.release_height * 1000} mm release height",
         },
         "joint_limits": {
-            "position_excess_rad": max(
-                (c.position_limit_excess for _, _, c, _, _ in rows), default=None
-            ),
-            "velocity_use_max": max((c.velocity_use for _, _, c, _, _ in rows), default=None),
-            "acceleration_use_max": max(
-                (c.acceleration_use for _, _, c, _, _ in rows), default=None
-            ),
-            "largest_jump_rad": max((c.largest_jump for _, _, c, _, _ in rows), default=None),
+            "position_excess_rad": max((c.position_limit_excess for c in checks), default=None),
+            "velocity_use_max": max((c.velocity_use for c in checks), default=None),
+            "acceleration_use_max": max((c.acceleration_use for c in checks), default=None),
+            "largest_jump_rad": max((c.largest_jump for c in checks), default=None),
         },
         "trajectory_duration_s": {
-            "p50": percentile([d for *_, d, _ in rows], 50),
-            "max": max((d for *_, d, _ in rows), default=None),
+            "p50": percentile([r.duration for r in rows], 50),
+            "max": max((r.duration for r in rows), default=None),
         },
         "duration_over_time_optimal": {
             "p50": percentile(ratios, 50),
@@ -249,19 +270,82 @@ def summarise(args, settings, cases, times, failures, rows, load_before) -> dict
     }
 
 
+def write_grasp_figure(path: str) -> None:
+    """Side views of the canonical grasp at pick and at place between two neighbours."""
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon
+    from scipy.spatial import ConvexHull
+
+    def draw(axis, box, **style) -> None:
+        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        corners = (box.pose @ (signs * box.size / 2).T).T[:, [0, 2]] * 1000
+        axis.add_patch(Polygon(corners[ConvexHull(corners).vertices], closed=True, **style))
+
+    def domino_box(pose):
+        return OrientedBox(pose, np.array(DOMINO_SIZE))
+
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4.8))
+    flat = flat_pose(0.0, 0.0, 0.0)
+    pick = pick_grasps(flat)[0]
+    upright = upright_pose(0.0, 0.0, 0.0)
+    held_in_tcp = domino_in_tcp(pick.pose, flat)
+    place = place_grasps(upright, held_in_tcp)[0]
+    step = SPACING_RATIO * DOMINO_SIZE[0]
+    neighbours = [upright_pose(s * step, 0.0, 0.0) for s in (-1, 1)]
+    views = [
+        (
+            axes[0],
+            pick.pose,
+            pick.pregrasp_opening,
+            [flat],
+            "pick: flat, gripper 63° from vertical",
+        ),
+        (
+            axes[1],
+            place,
+            pick.closed_opening,
+            [upright, *neighbours],
+            "place: between neighbours 28.8 mm away, 27°",
+        ),
+    ]
+    gripper = gripper_geometry()
+    for axis, tcp, opening, dominoes, title in views:
+        body = gripper.body_box_in_tcp()
+        draw(axis, OrientedBox(tcp @ body.pose, body.size), color="0.3", alpha=0.8)
+        for pad in gripper.pad_boxes_in_tcp(opening):
+            draw(axis, OrientedBox(tcp @ pad.pose, pad.size), color="tab:blue", alpha=0.6)
+        for index, pose in enumerate(dominoes):
+            colour = "tab:orange" if index == 0 else "wheat"
+            draw(axis, domino_box(pose), color=colour, ec="k", lw=0.8)
+        axis.axhline(0.0, color="saddlebrown", lw=3)
+        x, _, z = tcp.translation() * 1000
+        axis.plot(x, z, "r+", ms=12, mew=2)
+        axis.set(title=title, xlabel="world x [mm]", ylabel="world z [mm]", aspect="equal")
+        axis.set_xlim(*((-170, 50) if axis is axes[0] else (-60, 160)))
+        axis.set_ylim(-5, 170)
+        axis.grid(alpha=0.3)
+    figure.suptitle("dombot_description.grasp: pads (blue), gripper body (grey), TCP (+)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--count", type=int, default=200, help="pick/place pairs")
     parser.add_argument("--seed", type=int, default=2026, help="seed of the pair set")
     parser.add_argument("--time-budget", type=float, default=0.0, help="s; 0: default")
     parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
+    parser.add_argument("--figure", help="also write the grasp figure of docs/PLANNER.md here")
     parser.add_argument(
         "--no-optimal",
         dest="optimal",
         action="store_false",
         help="skip the time-optimal duration comparison",
     )
-    print(json.dumps(run(parser.parse_args()), indent=2))
+    args = parser.parse_args()
+    if args.figure:
+        write_grasp_figure(args.figure)
+    print(json.dumps(run(args), indent=2))
 
 
 if __name__ == "__main__":

@@ -543,7 +543,7 @@ class PickPlacePlanner:
                 [to_pick, pick_down],
                 openings["pregrasp"],
                 GRIPPER_CLOSE,
-                openings["closed"] - s.grip_squeeze,
+                0.0,
                 s.grip_force,
             ),
             Segment(

@@ -12,8 +12,8 @@ class PlannerSettings:
     pick_approach_distance: float = 0.06  # m above the grasp where the coarse move ends
     place_approach_distance: float = 0.07  # m above the placement (clears 48 mm neighbours)
     waypoint_spacing: float = 0.005  # m between IK waypoints on the lines
-    release_height: float = 0.0005  # m the domino is let go above its place pose
-    approach_speed: float = 0.08  # m/s TCP speed limit on the lines
+    release_height: float = 0.0002  # m the domino is let go above its place pose
+    approach_speed: float = 0.15  # m/s TCP speed limit on the lines
     # Clearances [m]: coarse moves keep everything this far from table and dominoes ...
     coarse_clearance: float = 0.005
     # ... and the optimizer enforces this much more at its samples (covers the gaps).
@@ -32,9 +32,9 @@ class PlannerSettings:
     velocity_scale: float = 1.0  # of the URDF joint velocity limits
     acceleration_limit: float = 3.0  # rad/s², every joint (not in the URDF; conservative)
     sample_period: float = 0.01  # s between published trajectory points
-    # Gripper commands.
-    grip_force: float = 20.0  # N squeeze limit
-    grip_squeeze: float = 0.002  # m the close command goes below the domino width
+    # Gripper: the close command aims at a fully closed gripper, so its force limit (not a
+    # position) sets the squeeze, as a WSG grasp command does.
+    grip_force: float = 40.0  # N
     # Requests.
     default_time_budget: float = 5.0  # s when the request says 0
     workspace_reach: tuple[float, float] = (0.25, 0.85)  # m from the arm base axis
