@@ -125,6 +125,16 @@ def canonical_grasp() -> RigidTransform:
     return RigidTransform(RotationMatrix(rotation), TCP_IN_DOMINO)
 
 
+def pregrasp_opening(width: float) -> float:
+    """Finger opening while approaching a domino ``width`` wide: PREGRASP_CLEARANCE per side."""
+    return width + 2.0 * PREGRASP_CLEARANCE
+
+
+def release_opening(width: float) -> float:
+    """Finger opening that lets go of a domino ``width`` wide: RELEASE_CLEARANCE per side."""
+    return width + 2.0 * RELEASE_CLEARANCE
+
+
 def top_grasp() -> RigidTransform:
     """X_DG of the regrasp: straight down onto a flat domino, fingers across its width.
 
@@ -150,8 +160,8 @@ class Grasp:
 
     @property
     def release_opening(self) -> float:
-        """Opening that lets go of the domino at place with RELEASE_CLEARANCE per side."""
-        return self.closed_opening + 2.0 * RELEASE_CLEARANCE
+        """Opening that lets go of the domino at place."""
+        return release_opening(self.closed_opening)
 
     def pad_boxes(self, opening: float | None = None) -> list[OrientedBox]:
         """Where the two pads are in world at ``opening`` (default: closed on the domino)."""
@@ -182,7 +192,7 @@ def equivalent_grasps(
         Grasp(
             domino_pose @ RigidTransform(symmetry) @ tcp_in_domino @ swap,
             width,
-            width + 2 * PREGRASP_CLEARANCE,
+            pregrasp_opening(width),
         )
         for swap in (RigidTransform(), FINGER_SWAP)
         for symmetry in SYMMETRIES

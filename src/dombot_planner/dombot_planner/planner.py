@@ -30,12 +30,12 @@ from pydrake.math import RigidTransform, RotationMatrix
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import (
     FINGER_SWAP,
-    PREGRASP_CLEARANCE,
-    RELEASE_CLEARANCE,
     comes_from_above,
     domino_in_tcp,
     pick_grasps,
     place_grasps,
+    pregrasp_opening,
+    release_opening,
     top_grasp,
 )
 from dombot_description.scenario import Scenario
@@ -127,7 +127,6 @@ class Plan:
     release_pose: RigidTransform  # TCP when it opens
     held_in_tcp: RigidTransform  # the domino in the TCP frame while held
     planning_time: float = 0.0
-    stage_times: dict[str, float] = field(default_factory=dict)
     kto_attempts: dict[str, int] = field(default_factory=dict)
     regrasped: bool = False  # the domino was turned in place first (two picks)
 
@@ -202,8 +201,34 @@ class Deadline:
         return time.monotonic() - self.start
 
 
+@dataclass
+class EndSearch:
+    """What the search for pick and place ends tried: the error when nothing was found."""
+
+    grasp_candidates: int = 0
+    place_candidates: int = 0
+    picks_found: int = 0
+    grasp_failures: Counter = field(default_factory=Counter)
+    place_failures: Counter = field(default_factory=Counter)
+
+    def error(self) -> PlanningError:
+        if self.picks_found == 0:
+            return PlanningError(
+                ErrorCode.GRASP_UNREACHABLE,
+                "grasp",
+                f"no collision-free IK and approach line for any of {self.grasp_candidates} "
+                f"grasps ({_reasons(self.grasp_failures)})",
+            )
+        return PlanningError(
+            ErrorCode.PLACE_UNREACHABLE,
+            "place",
+            f"no collision-free IK and approach line for any of {self.place_candidates} "
+            f"place poses ({_reasons(self.place_failures)})",
+        )
+
+
 class PickPlacePlanner:
-    """Plans /plan_place requests; reuses shadow plants between requests (not thread-safe)."""
+    """Plans /plan_place requests; keeps shadow plants between requests (not thread-safe)."""
 
     def __init__(self, scenario: Scenario, settings: PlannerSettings | None = None) -> None:
         self.scenario = scenario
@@ -217,8 +242,8 @@ class PickPlacePlanner:
             acceleration=np.full(plant.num_velocities(), self.settings.acceleration_limit),
         )
 
-    # ------------------------------------------------------------------ rules
     def coarse_rules(self, floor: float | None = None) -> ClearanceRules:
+        """Everything ``floor`` (default coarse_clearance) from the table and dominoes."""
         clearance = self.settings.coarse_clearance if floor is None else floor
         rules = {(moving, other): clearance for moving in MOVING for other in OBSTACLES}
         rules.update({(moving, SELF): self.settings.self_clearance for moving in MOVING})
@@ -239,13 +264,12 @@ class PickPlacePlanner:
         )
         return ClearanceRules(rules)
 
-    # ------------------------------------------------------------------ entry point
     def plan(self, request: PickPlaceRequest) -> Plan:
         """A plan for ``request``; raises PlanningError with a code and the failing stage."""
         check_request(request, self.settings)
         deadline = Deadline(request.time_budget or self.settings.default_time_budget)
         try:
-            plan = self._plan(request, deadline)
+            plan = RequestPlanning(self, request, deadline).plan()
         except PlanningError as error:
             if not (
                 error.code == ErrorCode.GRASP_UNREACHABLE
@@ -255,7 +279,6 @@ class PickPlacePlanner:
                 raise
             plan = self._plan_with_regrasp(request, deadline, error)
         plan.planning_time = deadline.elapsed()
-        plan.stage_times["total"] = plan.planning_time
         return plan
 
     def _plan_with_regrasp(
@@ -274,11 +297,10 @@ class PickPlacePlanner:
         )
         top = pick_grasps(domino, tcp_in_domino=top_grasp())[0].pose
         try:
-            first = self._plan(replace(request, place_pose=turned, grasp_pose=top), deadline)
-            first_leg = deadline.elapsed()
-            second = self._plan(
-                replace(request, domino_pose=turned, start=first.final_positions()), deadline
-            )
+            turn = replace(request, place_pose=turned, grasp_pose=top)
+            first = RequestPlanning(self, turn, deadline).plan()
+            pick_again = replace(request, domino_pose=turned, start=first.final_positions())
+            second = RequestPlanning(self, pick_again, deadline).plan()
         except PlanningError as regrasp_error:
             if regrasp_error.code == ErrorCode.TIMEOUT:
                 raise
@@ -294,7 +316,6 @@ class PickPlacePlanner:
             second.grasp_pose,
             second.release_pose,
             second.held_in_tcp,
-            stage_times={"regrasp_leg": first_leg},
             kto_attempts={
                 **{f"regrasp_{k}": v for k, v in first.kto_attempts.items()},
                 **second.kto_attempts,
@@ -302,149 +323,107 @@ class PickPlacePlanner:
             regrasped=True,
         )
 
-    def _plan(self, request: PickPlaceRequest, deadline: Deadline) -> Plan:
-        stage_times: dict[str, float] = {}
-        rng = np.random.default_rng(self.settings.seed)
-        closed = request.grasp_width or DOMINO_SIZE[1]
-        openings = {
-            "pregrasp": closed + 2 * PREGRASP_CLEARANCE,
-            "closed": closed,
-            "release": closed + 2 * RELEASE_CLEARANCE,
-        }
-        tcp = self.scenario.tcp_frame
-        approach = Scene(
-            self.plants.get(openings["pregrasp"]), tcp, request.standing, request.domino_pose
-        )
-        retreat = Scene(
-            self.plants.get(openings["release"]), tcp, request.standing, request.place_pose
-        )
-        start = request.start
-        self._check_start(approach, start)
 
-        tried = {"grasps": 0, "places": 0}
-        failures = {"grasp": Counter(), "place": Counter()}
-        ends = self._ends(request, approach, retreat, openings, rng, deadline, tried, failures)
-        for pick, place, transfer in ends:
-            stage_times.setdefault("ends", deadline.elapsed())
+class RequestPlanning:
+    """The planning of one request: its scenes, random seeds, deadline and search record."""
+
+    def __init__(
+        self, planner: PickPlacePlanner, request: PickPlaceRequest, deadline: Deadline
+    ) -> None:
+        self.planner, self.settings = planner, planner.settings
+        self.request, self.deadline = request, deadline
+        self.rng = np.random.default_rng(self.settings.seed)
+        closed = request.grasp_width or DOMINO_SIZE[1]
+        self.openings = {
+            "pregrasp": pregrasp_opening(closed),
+            "closed": closed,
+            "release": release_opening(closed),
+        }
+        self.approach = self._scene("pregrasp", target=request.domino_pose)
+        self.retreat = self._scene("release", target=request.place_pose)
+        self.search = EndSearch()
+
+    def _scene(self, opening: str, **dominoes) -> Scene:
+        shadow = self.planner.plants.get(self.openings[opening])
+        return Scene(shadow, self.planner.scenario.tcp_frame, self.request.standing, **dominoes)
+
+    def plan(self) -> Plan:
+        self._check_start()
+        connect_error = None
+        for pick, place, transfer in self._ends():
             try:
-                plan = self._connect(
-                    request,
-                    start,
-                    pick,
-                    place,
-                    approach,
-                    transfer,
-                    retreat,
-                    openings,
-                    rng,
-                    deadline,
-                )
+                return self._connect(pick, place, transfer)
             except PlanningError as error:
                 if error.code == ErrorCode.TIMEOUT:
                     raise
-                last_error = error
-                continue
-            stage_times["coarse_and_timing"] = deadline.elapsed() - stage_times["ends"]
-            plan.stage_times = stage_times
-            return plan
-        if tried["grasps"] == 0:
-            raise PlanningError(
-                ErrorCode.GRASP_UNREACHABLE,
-                "grasp",
-                f"no collision-free IK and approach line for any of "
-                f"{tried['grasp_candidates']} grasps ({_reasons(failures['grasp'])})",
-            )
-        if tried["places"] == 0:
-            raise PlanningError(
-                ErrorCode.PLACE_UNREACHABLE,
-                "place",
-                f"no collision-free IK and approach line for any of "
-                f"{tried['place_candidates']} place poses ({_reasons(failures['place'])})",
-            )
-        raise last_error
+                connect_error = error  # try the next pair of ends
+        raise connect_error or self.search.error()
 
-    # ------------------------------------------------------------------ stages
-    def _check_start(self, scene: Scene, start: np.ndarray) -> None:
-        violations = self.coarse_rules(floor=0.0).violations(scene.clearance(start))
+    # ------------------------------------------------------------------ ends
+    def _check_start(self) -> None:
+        clearance = self.approach.clearance(self.request.start)
+        violations = self.planner.coarse_rules(floor=0.0).violations(clearance)
         if violations:
             raise PlanningError(
                 ErrorCode.INVALID_REQUEST, "start", f"start state in collision: {violations[0]}"
             )
 
-    def _seeds(self, first: list[np.ndarray], rng: np.random.Generator) -> list[np.ndarray]:
-        middle, half = (self.lower + self.upper) / 2, 0.8 * (self.upper - self.lower) / 2
-        random = rng.uniform(middle - half, middle + half, (self.settings.ik_random_seeds, 7))
-        return [*first, self.scenario.home_position, *random]
+    def _seeds(self, first: list[np.ndarray]) -> list[np.ndarray]:
+        """IK seeds: ``first``, home, then seeded random configurations inside the limits."""
+        lower, upper = self.planner.lower, self.planner.upper
+        middle, half = (lower + upper) / 2, 0.8 * (upper - lower) / 2
+        count = self.settings.ik_random_seeds
+        random = self.rng.uniform(middle - half, middle + half, (count, len(lower)))
+        return [*first, self.planner.scenario.home_position, *random]
 
-    def _ends(
-        self,
-        request: PickPlaceRequest,
-        approach: Scene,
-        retreat: Scene,
-        openings: dict[str, float],
-        rng: np.random.Generator,
-        deadline: Deadline,
-        tried: dict[str, int],
-        failures: dict[str, Counter],
-    ) -> Iterator[tuple[End, End, Scene]]:
+    def _ends(self) -> Iterator[tuple[End, End, Scene]]:
         """Pick and place ends that pass their checks, best candidates first."""
-        s = self.settings
+        request, s = self.request, self.settings
         if request.grasp_pose is not None:
             grasps = [request.grasp_pose, request.grasp_pose @ FINGER_SWAP]
         else:
             grasps = [g.pose for g in pick_grasps(request.domino_pose) if comes_from_above(g.pose)]
-        tried["grasp_candidates"] = len(grasps)
+        self.search.grasp_candidates = len(grasps)
         release = RigidTransform(s.release_height * UP) @ request.place_pose
-        free = self._free_direction(request)
-        fine = self.fine_rules()
+        free = self._free_direction()
         for grasp in grasps:
-            deadline.check("grasp")
+            self.deadline.check("grasp")
             held = domino_in_tcp(grasp, request.domino_pose)
-            transfer = Scene(
-                self.plants.get(openings["closed"]),
-                self.scenario.tcp_frame,
-                request.standing,
-                held_in_tcp=held,
-            )
+            transfer = self._scene("closed", held_in_tcp=held)
             pick = self._end(
                 grasp,
                 s.pick_approach_distance,
                 lift_directions(grasp),
-                [approach, transfer],
-                fine,
-                self._seeds([request.start], rng),
-                deadline,
-                failures["grasp"],
+                [self.approach, transfer],
+                self._seeds([request.start]),
+                self.search.grasp_failures,
             )
             if pick is None:
                 continue
-            tried["grasps"] += 1
+            self.search.picks_found += 1
             places = [p for p in place_grasps(release, held, free) if comes_from_above(p)]
-            tried["place_candidates"] = len(places)
+            self.search.place_candidates = len(places)
             for place_pose in places:
                 place = self._end(
                     place_pose,
                     s.place_approach_distance,
                     [UP],
-                    [transfer, retreat],
-                    fine,
-                    self._seeds([pick.line[0], request.start], rng),
-                    deadline,
-                    failures["place"],
+                    [transfer, self.retreat],
+                    self._seeds([pick.line[0], request.start]),
+                    self.search.place_failures,
                 )
                 if place is not None:
-                    tried["places"] += 1
                     yield pick, place, transfer
 
-    def _free_direction(self, request: PickPlaceRequest) -> np.ndarray:
+    def _free_direction(self) -> np.ndarray:
         """The side of the place pose (±its z) where standing dominoes are farthest."""
-        forward = request.place_pose.rotation().matrix()[:, 2]
-        centre = request.place_pose.translation()
+        forward = self.request.place_pose.rotation().matrix()[:, 2]
+        centre = self.request.place_pose.translation()
 
         def nearest(sign: float) -> float:
             ahead = [
                 np.linalg.norm(p.translation() - centre)
-                for p in request.standing
+                for p in self.request.standing
                 if sign * (p.translation() - centre) @ forward > 0
             ]
             return min([FREE_SIDE_RADIUS, *ahead])
@@ -457,9 +436,7 @@ class PickPlacePlanner:
         distance: float,
         directions: list[np.ndarray],
         scenes: list[Scene],
-        rules: ClearanceRules,
         seeds: list[np.ndarray],
-        deadline: Deadline,
         failures: Counter,
     ) -> End | None:
         """IK at ``tcp_pose`` and a straight line away from it, clear in every scene.
@@ -468,9 +445,10 @@ class PickPlacePlanner:
         """
         ik = PoseIK(scenes[0], tcp_pose.rotation())
         target = tcp_pose.translation()
-        top_rules = self.coarse_rules(self.settings.coarse_clearance + 1e-3)
+        rules = self.planner.fine_rules()
+        top_rules = self.planner.coarse_rules(self.settings.coarse_clearance + 1e-3)
         for seed in seeds:
-            deadline.check("ends")
+            self.deadline.check("ends")
             q = ik.solve(target, seed, seed)
             if q is None:
                 failures["no IK"] += 1
@@ -501,33 +479,21 @@ class PickPlacePlanner:
                     return End(tcp_pose, line)
         return None
 
-    def _connect(
-        self,
-        request: PickPlaceRequest,
-        start: np.ndarray,
-        pick: End,
-        place: End,
-        approach: Scene,
-        transfer: Scene,
-        retreat: Scene,
-        openings: dict[str, float],
-        rng: np.random.Generator,
-        deadline: Deadline,
-    ) -> Plan:
+    # ------------------------------------------------------------------ connect
+    def _connect(self, pick: End, place: End, transfer: Scene) -> Plan:
         """Coarse moves between the ends, retimed and assembled into segments."""
         attempts: dict[str, int] = {}
-        to_pick = self._coarse(
-            "approach_grasp", approach, start, pick.above, rng, deadline, attempts
-        )
-        to_place = self._coarse(
-            "transfer", transfer, pick.above, place.above, rng, deadline, attempts
-        )
-        deadline.check("retiming")
-        s = self.settings
-        pick_down = self._line("descend_to_grasp", pick.line[::-1], approach)
-        pick_up = self._line("lift", pick.line, transfer)
-        place_down = self._line("descend_to_place", place.line[::-1], transfer)
-        place_up = self._line("retreat", place.line, retreat)
+        start = self.request.start
+        to_pick = self._coarse("approach_grasp", self.approach, start, pick.above, attempts)
+        to_place = self._coarse("transfer", transfer, pick.above, place.above, attempts)
+        self.deadline.check("retiming")
+        openings, force = self.openings, self.settings.grip_force
+        pieces = {
+            "down_to_grasp": self._line("descend_to_grasp", pick.line[::-1], self.approach),
+            "lift": self._line("lift", pick.line, transfer),
+            "down_to_place": self._line("descend_to_place", place.line[::-1], transfer),
+            "retreat": self._line("retreat", place.line, self.retreat),
+        }
         segments = [
             Segment(
                 "open_gripper",
@@ -535,52 +501,44 @@ class PickPlacePlanner:
                 openings["release"],
                 GRIPPER_OPEN,
                 openings["pregrasp"],
-                0.0,
                 start=start,
             ),
             Segment(
                 "approach_grasp",
-                [to_pick, pick_down],
+                [to_pick, pieces["down_to_grasp"]],
                 openings["pregrasp"],
                 GRIPPER_CLOSE,
                 0.0,
-                s.grip_force,
+                force,
             ),
             Segment(
                 "transfer",
-                [pick_up, to_place, place_down],
+                [pieces["lift"], to_place, pieces["down_to_place"]],
                 openings["closed"],
                 GRIPPER_OPEN,
                 openings["release"],
-                0.0,
             ),
-            Segment("retreat", [place_up], openings["release"]),
+            Segment("retreat", [pieces["retreat"]], openings["release"]),
         ]
-        return Plan(
-            segments,
-            pick.tcp_pose,
-            place.tcp_pose,
-            domino_in_tcp(pick.tcp_pose, request.domino_pose),
-            kto_attempts=attempts,
-        )
+        held_in_tcp = domino_in_tcp(pick.tcp_pose, self.request.domino_pose)
+        return Plan(segments, pick.tcp_pose, place.tcp_pose, held_in_tcp, kto_attempts=attempts)
 
     def _line(self, label: str, waypoints: np.ndarray, scene: Scene) -> TimedPath:
         spacing = self.settings.waypoint_spacing
-        distance = spacing * (len(waypoints) - 1)
-        path = line_path(waypoints, spacing)
         timed = retime(
             label,
-            path,
+            line_path(waypoints, spacing),
             scene.plant,
-            self.limits,
+            self.planner.limits,
             fine=True,
             tcp=scene.tcp,
             tcp_speed=self.settings.approach_speed,
             grid_points=LINE_GRID_POINTS,
         )
         if timed is None:
+            length = spacing * (len(waypoints) - 1)
             raise PlanningError(
-                ErrorCode.PLANNING_FAILED, label, f"TOPP-RA found no timing for {distance} m line"
+                ErrorCode.PLANNING_FAILED, label, f"TOPP-RA found no timing for a {length} m line"
             )
         return timed
 
@@ -590,30 +548,30 @@ class PickPlacePlanner:
         scene: Scene,
         q_start: np.ndarray,
         q_goal: np.ndarray,
-        rng: np.random.Generator,
-        deadline: Deadline,
         attempts: dict[str, int],
     ) -> TimedPath:
         """A KTO move from ``q_start`` to ``q_goal`` that passes the dense clearance check."""
         s = self.settings
         ends = min(scene.minimum_distance(q_start), scene.minimum_distance(q_goal))
         bound = min(s.coarse_clearance + s.coarse_margin, 0.9 * ends)
-        rules = self.coarse_rules(min(s.coarse_clearance + CHECK_MARGIN, 0.9 * ends))
+        rules = self.planner.coarse_rules(min(s.coarse_clearance + CHECK_MARGIN, 0.9 * ends))
         failure = "no attempt"
         for attempt in range(s.kto_attempts):
-            deadline.check(label)
+            self.deadline.check(label)
             attempts[label] = attempt + 1
-            guess = coarse.initial_guess(scene, q_start, q_goal, attempt, s.kto_control_points, rng)
+            guess = coarse.initial_guess(
+                scene, q_start, q_goal, attempt, s.kto_control_points, self.rng
+            )
             samples = s.kto_collision_samples * (1 + attempt // 2)
             path = coarse.optimize(scene, q_start, q_goal, guess, bound, samples)
             if path is None:
                 failure = "SNOPT found no feasible trajectory"
                 continue
-            violations = self._dense_violations(scene, path, rules)
+            violations = dense_violations(scene, path, rules)
             if violations:
                 failure = f"too close between samples: {violations[0]}"
                 continue
-            timed = retime(label, path, scene.plant, self.limits)
+            timed = retime(label, path, scene.plant, self.planner.limits)
             if timed is not None:
                 return timed
             failure = "TOPP-RA found no timing"
@@ -623,14 +581,14 @@ class PickPlacePlanner:
             f"KTO failed after {attempts.get(label, 0)} attempts ({failure})",
         )
 
-    @staticmethod
-    def _dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:
-        """Rule violations at samples no more than CHECK_JOINT_STEP apart (any joint)."""
-        coarse = path.vector_values(np.linspace(path.start_time(), path.end_time(), 50))
-        travel = np.abs(np.diff(coarse, axis=1)).max(axis=0).sum()
-        count = max(COARSE_CHECK_SAMPLES, int(np.ceil(travel / CHECK_JOINT_STEP)))
-        for q in path.vector_values(np.linspace(path.start_time(), path.end_time(), count)).T:
-            violations = rules.violations(scene.clearance(q))
-            if violations:
-                return violations
-        return []
+
+def dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:
+    """Rule violations at samples no more than CHECK_JOINT_STEP apart (any joint)."""
+    coarse_samples = path.vector_values(np.linspace(path.start_time(), path.end_time(), 50))
+    travel = np.abs(np.diff(coarse_samples, axis=1)).max(axis=0).sum()
+    count = max(COARSE_CHECK_SAMPLES, int(np.ceil(travel / CHECK_JOINT_STEP)))
+    for q in path.vector_values(np.linspace(path.start_time(), path.end_time(), count)).T:
+        violations = rules.violations(scene.clearance(q))
+        if violations:
+            return violations
+    return []

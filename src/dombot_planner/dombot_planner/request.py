@@ -13,7 +13,7 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import PREGRASP_CLEARANCE, gripper_geometry
+from dombot_description.grasp import gripper_geometry, pregrasp_opening
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.settings import PlannerSettings
 
@@ -83,9 +83,13 @@ def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
     if not (math.isfinite(request.time_budget) and request.time_budget >= 0):
         raise invalid("validation", f"time_budget must be >= 0 s, got {request.time_budget}")
     width = request.grasp_width
-    max_width = gripper_geometry().max_opening - 2 * PREGRASP_CLEARANCE
-    if not (math.isfinite(width) and 0.0 <= width <= max_width):
-        raise invalid("validation", f"grasp_width must be 0 (auto) or up to {max_width} m")
+    stroke = gripper_geometry().max_opening
+    if not (math.isfinite(width) and width >= 0.0 and pregrasp_opening(width) <= stroke):
+        raise invalid(
+            "validation",
+            f"grasp_width must be 0 (auto) or leave room to pre-grasp within the {stroke} m "
+            f"stroke, got {width}",
+        )
     for what, pose in (("domino_pose", request.domino_pose), ("place_pose", request.place_pose)):
         check_workspace(pose, what, settings)
     if request.grasp_pose is not None:

@@ -21,7 +21,6 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 
-from dombot_description import DOMINO_SIZE
 from dombot_description.cell import add_cell, add_dominoes
 from dombot_description.grasp import (
     SYMMETRIES,
@@ -33,6 +32,7 @@ from dombot_description.scenario import Scenario
 from dombot_planner.planner import GRIPPER_CLOSE as CLOSE
 from dombot_planner.planner import GRIPPER_OPEN as OPEN
 from dombot_planner.planner import SampledSegment
+from dombot_planner.request import box_corners
 
 MAX_INTERPOLATION_STEP = 0.003  # rad per joint between checked configurations
 LINE_TOLERANCE = 1e-3  # m beyond the approach distance still counted as a final line
@@ -59,8 +59,7 @@ class Check:
 def dropped_onto_table(pose: RigidTransform) -> RigidTransform:
     """Where a domino let go at ``pose`` comes to rest: straight down onto the table top
     when its lowest corner is at most DROP_HEIGHT above it (the release height)."""
-    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
-    lowest = (pose @ (signs * np.array(DOMINO_SIZE) / 2).T)[2].min()
+    lowest = box_corners(pose)[:, 2].min()
     if 0.0 < lowest <= DROP_HEIGHT:
         return RigidTransform(pose.rotation(), pose.translation() - [0.0, 0.0, lowest])
     return pose
