@@ -41,7 +41,7 @@ from dombot_sim.pile import BOUNDING_RADIUS
 @dataclass(frozen=True)
 class SleepSettings:
     enabled: bool = True
-    rest_motion: float = 2e-4  # m any point may move during the rest window
+    rest_motion: float = 5e-4  # m any point may move during the rest window
     rest_time: float = 0.25  # s
     moving_speed: float = 0.005  # m/s of a body's fastest point (bounding radius)
     wake_distance: float = 0.006  # m

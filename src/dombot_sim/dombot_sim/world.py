@@ -45,6 +45,7 @@ from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_look
 from dombot_sim.control import ArmCommandSource, ArmGains, GripperController, GripperSettings
 from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
 from dombot_sim.sleeping import SleepManager, SleepSettings
+from dombot_sim.trajectory import JointLimits
 
 CONTACT_APPROXIMATIONS = {
     "tamsi": DiscreteContactApproximation.kTamsi,
@@ -395,6 +396,16 @@ class CellWorld:
             position=np.concatenate([plant.GetPositions(context, m) for m in models]),
             velocity=np.concatenate([plant.GetVelocities(context, m) for m in models]),
             effort=effort,
+        )
+
+    def arm_limits(self) -> JointLimits:
+        """Position and velocity limits of the arm joints, in ``arm_joint_names`` order."""
+        joints = [self._plant.GetJointByName(name) for name in self.scenario.arm_joints]
+        return JointLimits(
+            names=self.scenario.arm_joints,
+            lower=np.array([j.position_lower_limits()[0] for j in joints]),
+            upper=np.array([j.position_upper_limits()[0] for j in joints]),
+            velocity=np.array([j.velocity_upper_limits()[0] for j in joints]),
         )
 
     def follow_trajectory(self, trajectory: PiecewisePolynomial) -> float:
