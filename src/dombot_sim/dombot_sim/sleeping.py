@@ -64,6 +64,7 @@ class SleepManager:
         self._dominoes = list(dominoes)
         self._joints = [_floating_joint(plant, body) for body in self._dominoes]
         self._settings = settings
+        self.enabled = settings.enabled
         self._static_ids = [
             g for b in static_bodies for g in plant.GetCollisionGeometriesForBody(b)
         ]
@@ -105,7 +106,7 @@ class SleepManager:
 
     def update(self, root: Context) -> None:
         """After a simulator step: wake sleepers near moving bodies, put resting ones to sleep."""
-        if not self._settings.enabled:
+        if not self.enabled:
             return
         plant_context = self._plant.GetMyMutableContextFromRoot(root)
         domino_moving = self._domino_moving(plant_context)

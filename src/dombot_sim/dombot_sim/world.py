@@ -47,6 +47,10 @@ from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
 from dombot_sim.sleeping import SleepManager, SleepSettings
 from dombot_sim.trajectory import JointLimits
 
+CONTACT_MODELS = {
+    "hydroelastic": ContactModel.kHydroelasticWithFallback,
+    "point": ContactModel.kPoint,  # ignores the hydroelastic properties; for comparison
+}
 CONTACT_APPROXIMATIONS = {
     "tamsi": DiscreteContactApproximation.kTamsi,
     "sap": DiscreteContactApproximation.kSap,
@@ -63,6 +67,7 @@ class WorldConfig:
     scenario_path: str | None = None  # None: dombot_description's default scenario
     time_step: float = 0.002  # s
     contact_approximation: str = "similar"
+    contact_model: str = "hydroelastic"
     cameras: bool = True
     meshcat: bool = False
     domino_capacity: int = 30  # bodies in the plant; a larger reset rebuilds it
@@ -79,6 +84,10 @@ class WorldConfig:
             raise ValueError(
                 f"contact_approximation must be one of {sorted(CONTACT_APPROXIMATIONS)}, "
                 f"got {self.contact_approximation!r}"
+            )
+        if self.contact_model not in CONTACT_MODELS:
+            raise ValueError(
+                f"contact_model must be one of {sorted(CONTACT_MODELS)}, got {self.contact_model!r}"
             )
         if self.domino_capacity < 0 or self.pour_wave_size < 1:
             raise ValueError("domino_capacity must be >= 0 and pour_wave_size >= 1")
@@ -139,7 +148,7 @@ class CellWorld:
         plant.set_discrete_contact_approximation(
             CONTACT_APPROXIMATIONS[config.contact_approximation]
         )
-        plant.set_contact_model(ContactModel.kHydroelasticWithFallback)
+        plant.set_contact_model(CONTACT_MODELS[config.contact_model])
         models = add_cell(plant, scenario)
         domino_models = add_dominoes(plant, capacity)
         # GetJointActuatorIndices(model_instance) is empty before Finalize: filter all of them.
@@ -293,6 +302,12 @@ class CellWorld:
             wall_time=wallclock.perf_counter() - started,
         )
 
+    def set_sleeping(self, enabled: bool) -> None:
+        """Turn sleeping on or off (off wakes every domino in use)."""
+        self._sleep.enabled = enabled
+        if not enabled:
+            self._sleep.wake(self._root, self._in_use)
+
     def settle(self, limit: float) -> bool:
         """Advance until the dominoes in use are at rest; False if still moving at ``limit`` s.
 
@@ -301,7 +316,7 @@ class CellWorld:
         """
         dt, deadline, rested = self.config.time_step, self.time + max(limit, 0.0), 0.0
         while self.time < deadline:
-            if self.config.sleep.enabled:
+            if self._sleep.enabled:
                 if self._sleep.all_asleep(self._in_use):
                     return True
             else:
