@@ -387,7 +387,7 @@ def run_arm_job(
         group.start("perception_node", node_command("dombot_perception", "perception_node", {}))
         group.start("planner_node", node_command("dombot_planner", "planner_node", {}))
         rclpy.init()
-        client = CellClient()
+        client = CellClient(watchdog=group.check)
         try:
             group.wait_until(lambda: client.ready(NEEDED_SERVICES), 600.0, "the nodes to be ready")
             log(

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Pose
@@ -37,10 +37,15 @@ class CallFailedError(RuntimeError):
 
 
 class CellClient:
-    """Blocking access to sim, perception and planner; ``close()`` when done."""
+    """Blocking access to sim, perception and planner; ``close()`` when done.
 
-    def __init__(self, name: str = "bringup") -> None:
+    ``watchdog`` is called while waiting for any answer; the bring-up passes its process
+    group's check, so a node that dies mid-call is reported at once, by name.
+    """
+
+    def __init__(self, name: str = "bringup", watchdog: Callable[[], None] = lambda: None) -> None:
         self.node = Node(name, parameter_overrides=[Parameter("use_sim_time", value=False)])
+        self._watchdog = watchdog
         self._clients = {n: self.node.create_client(t, n) for n, t in SERVICES.items()}
         self._trajectory = ActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
         self._gripper = ActionClient(self.node, GripperCommand, "/gripper_command")
@@ -147,12 +152,12 @@ class CellClient:
         result = handle.get_result_async()
         return self._wait(lambda: result.result() if result.done() else None, timeout, name).result
 
-    @staticmethod
-    def _wait(poll, timeout: float, what: str):
+    def _wait(self, poll, timeout: float, what: str):
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             value = poll()
             if value is not None:
                 return value
+            self._watchdog()
             time.sleep(0.01)
         raise CallFailedError(f"no answer from {what} within {timeout:.0f} s")
