@@ -39,7 +39,7 @@ from dombot_description.grasp import (
 )
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.planner import PickPlacePlanner, Plan
+from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.timing import retime
@@ -102,13 +102,13 @@ def make_cases(scenario: Scenario, count: int, seed: int) -> list[Case]:
 class Row:
     case: Case
     planning_time: float
-    plan: Plan
+    plan: PickPlacePlan
     check: Check
     duration: float  # s of motion
     optimal: float  # s, the same path's time-optimal duration
 
 
-def optimal_duration(plan: Plan, planner: PickPlacePlanner) -> float:
+def optimal_duration(plan: PickPlacePlan, planner: PickPlacePlanner) -> float:
     """Sum over pieces of the TOPP-RA duration on a finer grid (same path, same limits)."""
     total = 0.0
     plant = planner.plants.get(DOMINO_SIZE[1]).plant

@@ -26,7 +26,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from dombot_description.grasp import SYMMETRIES, flat_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.planner import GRIPPER_CLOSE, GRIPPER_OPEN, PickPlacePlanner
+from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.verify import nearest_error
