@@ -216,8 +216,10 @@ class RequestMotions:
             q = ik.solve(position, seed, seed)
             if q is None:
                 failures["no IK"] += 1
-            elif any(rules.violations(scene.clearance(q)) for scene, rules in checks):
-                failures["in collision at the pose"] += 1
+                continue
+            too_close = first_violation(q, checks)
+            if too_close:
+                failures[f"in collision at the pose ({too_close})"] += 1
             else:
                 yield q
 
@@ -238,14 +240,14 @@ class RequestMotions:
         line = straight_line(ik, q, start, offset, self.settings.waypoint_spacing, MAX_JOINT_STEP)
         if line is None:
             return None, "line leaves the reach"
-        scenes = [scene for scene, _ in checks]
-        if end_rules is not None and any(
-            end_rules.violations(scene.clearance(line[-1])) for scene in scenes
-        ):
-            return None, "line end too close"
-        interior = line[1:-1] if end_rules is not None else line[1:]
-        if any(rules.violations(scene.clearance(w)) for scene, rules in checks for w in interior):
-            return None, "line too close"
+        if end_rules is not None:
+            too_close = first_violation(line[-1], [(scene, end_rules) for scene, _ in checks])
+            if too_close:
+                return None, f"line end too close ({too_close})"
+        for waypoint in line[1:-1] if end_rules is not None else line[1:]:
+            too_close = first_violation(waypoint, checks)
+            if too_close:
+                return None, f"line too close ({too_close})"
         return line, ""
 
     def timed_line(
@@ -308,6 +310,15 @@ class RequestMotions:
             label,
             f"KTO failed after {attempts.get(label, 0)} attempts ({failure})",
         )
+
+
+def first_violation(q: np.ndarray, checks: Sequence[Check]) -> str:
+    """The pair of classes (e.g. "pads–standing") first found too close at ``q``, or ""."""
+    for scene, rules in checks:
+        violations = rules.violations(scene.clearance(q))
+        if violations:
+            return violations[0].split(" ")[0]
+    return ""
 
 
 def dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:

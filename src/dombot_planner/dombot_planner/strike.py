@@ -49,7 +49,9 @@ from dombot_planner.scene import PADS, STANDING, TARGET, Scene
 
 CLOSED = 0.0  # m: the pads touch
 CLOSED_TOLERANCE = 0.001  # m: a start opening up to this needs no close command
-COLLISION_REASONS = ("in collision", "too close")
+# The pads' path is the same for every arm configuration and pusher orientation: if it
+# is too close to the table or a domino, the strike itself is blocked, not the arm.
+PUSHER_BLOCKED = ("pads–table", "pads–standing", "pads–target")
 
 
 def pusher_corners() -> np.ndarray:
@@ -133,8 +135,8 @@ class StrikeSearch:
     failures: Counter = field(default_factory=Counter)
 
     def error(self) -> PlanningError:
-        collided = all(any(r in why for r in COLLISION_REASONS) for why in self.failures)
-        code = ErrorCode.PLACE_IN_COLLISION if collided else ErrorCode.PLACE_UNREACHABLE
+        blocked = any(pair in why for pair in PUSHER_BLOCKED for why in self.failures)
+        code = ErrorCode.PLACE_IN_COLLISION if blocked else ErrorCode.PLACE_UNREACHABLE
         return PlanningError(
             code,
             "strike",
