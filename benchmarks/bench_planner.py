@@ -204,10 +204,10 @@ def coarse_min(check) -> float:
     )
 
 
-def clearance_summary(rows, phase: str) -> dict[str, float]:
+def clearance_summary(checks: list[Check], phase: str) -> dict[str, float]:
     result: dict[str, float] = {}
-    for row in rows:
-        for (p, moving, other), value in row.check.clearance.items():
+    for check in checks:
+        for (p, moving, other), value in check.clearance.items():
             if p == phase:
                 key = f"{moving}-{other}"
                 result[key] = min(result.get(key, math.inf), value)
@@ -241,8 +241,8 @@ def summarise(args, settings, cases, times, failures, rows, load_before) -> dict
             "max": max(times) if times else None,
         },
         "min_clearance_mm": {
-            "coarse_moves": clearance_summary(rows, "coarse"),
-            "final_approach_and_retreat": clearance_summary(rows, "fine"),
+            "coarse_moves": clearance_summary(checks, "coarse"),
+            "final_approach_and_retreat": clearance_summary(checks, "fine"),
         },
         "grasp_error_max": pose_error_summary([c.grasp_error for c in checks]),
         "place_error_max": {
