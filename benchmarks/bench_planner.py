@@ -270,16 +270,19 @@ def summarise(args, settings, cases, times, failures, rows, load_before) -> dict
     }
 
 
-def write_grasp_figure(path: str) -> None:
-    """Side views of the canonical grasp at pick and at place between two neighbours."""
-    import matplotlib.pyplot as plt
+def draw(axis, box: OrientedBox, **style) -> None:
+    """A box's outline seen along world y (x–z plane, mm) on a matplotlib axis."""
     from matplotlib.patches import Polygon
     from scipy.spatial import ConvexHull
 
-    def draw(axis, box, **style) -> None:
-        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
-        corners = (box.pose @ (signs * box.size / 2).T).T[:, [0, 2]] * 1000
-        axis.add_patch(Polygon(corners[ConvexHull(corners).vertices], closed=True, **style))
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+    corners = (box.pose @ (signs * box.size / 2).T).T[:, [0, 2]] * 1000
+    axis.add_patch(Polygon(corners[ConvexHull(corners).vertices], closed=True, **style))
+
+
+def write_grasp_figure(path: str) -> None:
+    """Side views of the canonical grasp at pick and at place between two neighbours."""
+    import matplotlib.pyplot as plt
 
     def domino_box(pose):
         return OrientedBox(pose, np.array(DOMINO_SIZE))

@@ -25,16 +25,17 @@ import time
 from collections import Counter
 
 import numpy as np
-from bench_planner import clearance_summary, log, percentile
+from bench_planner import clearance_summary, draw, log, percentile
 from bench_planner_execution import gripper_event, plan_force, track
+from pydrake.math import RigidTransform
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import release_opening, upright_pose
+from dombot_description.grasp import OrientedBox, gripper_geometry, release_opening, upright_pose
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_planner.errors import PlanningError
 from dombot_planner.request import StrikeRequest
 from dombot_planner.settings import PlannerSettings
-from dombot_planner.strike import StrikePlan, StrikePlanner
+from dombot_planner.strike import CLOSED, StrikePlan, StrikePlanner, pusher_rotations, strike_pose
 from dombot_planner.verify import StrikeCheck, StrikeChecker
 from dombot_sim.world import CellWorld, WorldConfig
 
@@ -139,6 +140,55 @@ def summary(values: list[float], scale: float = 1.0) -> dict:
     return {"min": min(finite, default=None), "max": max(finite, default=None)}
 
 
+def write_strike_figure(path: str, settings: PlannerSettings) -> None:
+    """Side view of a run and the closed gripper at the top of the descent, the strike pose
+    and the end of the push (the planner's own geometry, no arm)."""
+    import matplotlib.pyplot as plt
+
+    run = Run(0, (0.0, 0.0), 0.0, 3).poses()
+    start = strike_pose(
+        run[0],
+        pusher_rotations(np.array([1.0, 0.0, 0.0]))[0],
+        settings.strike_height,
+        settings.strike_standoff,
+    )
+    push = settings.strike_standoff + settings.push_distance
+    gripper = gripper_geometry()
+    figure, axis = plt.subplots(figsize=(7, 6))
+    for shift, alpha in (
+        ((0.0, 0.0, settings.strike_approach_height), 0.2),
+        ((0.0, 0.0, 0.0), 0.8),
+        ((push, 0.0, 0.0), 0.4),
+    ):
+        tcp = RigidTransform(np.array(shift)) @ start
+        body = gripper.body_box_in_tcp()
+        draw(axis, OrientedBox(tcp @ body.pose, body.size), color="0.3", alpha=alpha)
+        for pad in gripper.pad_boxes_in_tcp(CLOSED):
+            draw(axis, OrientedBox(tcp @ pad.pose, pad.size), color="tab:blue", alpha=alpha)
+    for index, pose in enumerate(run):
+        colour = "tab:orange" if index == 0 else "wheat"
+        draw(axis, OrientedBox(pose, np.array(DOMINO_SIZE)), color=colour, ec="k", lw=0.8)
+    axis.axhline(0.0, color="saddlebrown", lw=3)
+    axis.axhline(settings.strike_height * DOMINO_SIZE[0] * 1000, color="tab:red", lw=0.6, ls=":")
+    axis.annotate(
+        "",
+        xy=(push * 1000 - 20, 40),
+        xytext=(-20, 40),
+        arrowprops={"arrowstyle": "->", "color": "tab:red"},
+    )
+    axis.set(
+        title="strike: descent top (faint), strike pose, push end (dominoes where they stood)",
+        xlabel="along the run [mm]",
+        ylabel="height [mm]",
+        aspect="equal",
+    )
+    axis.set_xlim(-60, 90)
+    axis.set_ylim(-5, 215)
+    axis.grid(alpha=0.3)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--count", type=int, default=100, help="runs to plan")
@@ -148,9 +198,12 @@ def main() -> None:
     parser.add_argument("--push-speed", type=float, default=0.0, help="m/s; 0: default")
     parser.add_argument("--time-budget", type=float, default=0.0, help="s; 0: default")
     parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
+    parser.add_argument("--figure", help="also write the strike figure of docs/PLANNER.md here")
     args = parser.parse_args()
     scenario = load_scenario()
     settings = PlannerSettings(**json.loads(args.settings or "{}"))
+    if args.figure:
+        write_strike_figure(args.figure, settings)
     planner = StrikePlanner(scenario, settings)
     load_before = os.getloadavg()
     times, failures, checks, durations, executed = [], Counter(), [], [], []
@@ -195,7 +248,7 @@ def main() -> None:
         "benchmark": "strike",
         "runs": args.count,
         "seed": args.seed,
-        "success_rate": len(checks) / args.count,
+        "success_rate": len(checks) / args.count if args.count else None,
         "failures": dict(failures),
         "planning_time_s": {
             "p50": percentile(times, 50),

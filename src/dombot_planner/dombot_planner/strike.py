@@ -28,6 +28,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
@@ -49,6 +50,7 @@ from dombot_planner.scene import PADS, STANDING, TARGET, Scene
 
 CLOSED = 0.0  # m: the pads touch
 CLOSED_TOLERANCE = 0.001  # m: a start opening up to this needs no close command
+PUSHER_TILT = math.radians(30.0)  # sideways lean of the pusher where upright is out of reach
 # The pads' path is the same for every arm configuration and pusher orientation: if it
 # is too close to the table or a domino, the strike itself is blocked, not the arm.
 PUSHER_BLOCKED = ("pads–table", "pads–standing", "pads–target")
@@ -72,13 +74,26 @@ def push_direction(domino_pose: RigidTransform) -> np.ndarray:
 
 
 def pusher_rotations(direction: np.ndarray) -> list[RotationMatrix]:
-    """Fingers pointing down; the fingers close across, then along the push direction."""
+    """TCP orientations for a push along ``direction``, the preferred first.
+
+    Fingers pointing straight down, closing across then along the push; then the same
+    leaning PUSHER_TILT to either side of the push (a turn about it, so the pads' front
+    stays square to the domino): near the arm base the wrist then comes far enough from the
+    shoulder for the elbow, which a vertical pusher closer than ~0.40 m from the base axis
+    does not allow.
+    """
     across = np.cross(UP, direction)
     down = -UP
-    return [
+    vertical = [
         RotationMatrix(np.column_stack([np.cross(y, down), y, down]))
         for y in (across, -across, direction, -direction)
     ]
+    tilted = [
+        RotationMatrix(AngleAxis(angle, direction)) @ rotation
+        for angle in (PUSHER_TILT, -PUSHER_TILT)
+        for rotation in vertical
+    ]
+    return vertical + tilted
 
 
 def strike_pose(
@@ -181,35 +196,45 @@ class StrikePlanning(RequestMotions):
 
     def _lines(self) -> Iterator[Lines]:
         """Strike poses whose descent, push and retreat lines keep their clearances."""
-        s, rules, failures = self.settings, self.rules, self.search.failures
+        s = self.settings
         rotations = pusher_rotations(self.direction)
         self.search.orientations = len(rotations)
-        descent = s.strike_approach_height * UP
-        push = self.push_length * self.direction
+        checks = [(self.run, self.rules["descent"])]
         for rotation in rotations:
             pose = strike_pose(
                 self.request.domino_pose, rotation, s.strike_height, s.strike_standoff
             )
-            ik, at = PoseIK(self.run, rotation), pose.translation()
-            checks = [(self.run, rules["descent"])]
-            for q in self.clear_solutions(ik, at, self.seeds([self.start]), checks, failures):
-                down, why = self.clear_line(ik, q, at, descent, checks, rules["top"])
-                if down is None:
-                    failures[f"descent {why}"] += 1
-                    continue
-                pushed, why = self.clear_line(ik, q, at, push, [(self.run, rules["push"])])
-                if pushed is None:
-                    failures[f"push {why}"] += 1
-                    continue
-                back = [(self.after, rules["retreat"])]
-                up, why = self.clear_line(
-                    ik, pushed[-1], at + push, descent - push, back, rules["top"]
-                )
-                if up is None:
-                    failures[f"retreat {why}"] += 1
-                    continue
-                yield Lines(pose, down[::-1], pushed, up)
-                break  # another seed gives the same pose: next orientation
+            ik = PoseIK(self.run, rotation)
+            seeds = self.seeds([self.start])
+            for q in self.clear_solutions(
+                ik, pose.translation(), seeds, checks, self.search.failures
+            ):
+                lines = self._lines_at(ik, q, pose)
+                if lines is not None:
+                    yield lines
+                    break  # other seeds give the same pusher path: next orientation
+
+    def _lines_at(self, ik: PoseIK, q: np.ndarray, pose: RigidTransform) -> Lines | None:
+        """The three lines from ``q`` at the strike ``pose``; None if one is blocked."""
+        at, rules = pose.translation(), self.rules
+        descent = self.settings.strike_approach_height * UP
+        push = self.push_length * self.direction
+        down, why = self.clear_line(
+            ik, q, at, descent, [(self.run, rules["descent"])], rules["top"]
+        )
+        if down is None:
+            return self._blocked("descent", why)
+        pushed, why = self.clear_line(ik, q, at, push, [(self.run, rules["push"])])
+        if pushed is None:
+            return self._blocked("push", why)
+        back = [(self.after, rules["retreat"])]
+        up, why = self.clear_line(ik, pushed[-1], at + push, descent - push, back, rules["top"])
+        if up is None:
+            return self._blocked("retreat", why)
+        return Lines(pose, down[::-1], pushed, up)
+
+    def _blocked(self, line: str, why: str) -> None:
+        self.search.failures[f"{line} {why}"] += 1
 
     def _connect(self, lines: Lines) -> StrikePlan:
         """The coarse approach to the top of the descent, retimed into segments."""
