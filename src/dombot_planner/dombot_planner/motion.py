@@ -206,10 +206,13 @@ class RequestMotions:
         seeds: Sequence[np.ndarray],
         checks: Sequence[Check],
         failures: Counter,
+        fixed_pairs: tuple[str, ...] = (),
     ) -> Iterator[np.ndarray]:
         """IK solutions for the TCP at ``position`` (one per seed) that pass ``checks``.
 
-        ``failures`` counts why seeds gave none.
+        ``failures`` counts why seeds gave none. ``fixed_pairs`` (e.g. "pads–standing"):
+        distances that every configuration reaching the pose shares; one of them too
+        close ends the search.
         """
         for seed in seeds:
             self.deadline.check("ends")
@@ -218,10 +221,12 @@ class RequestMotions:
                 failures["no IK"] += 1
                 continue
             too_close = first_violation(q, checks)
-            if too_close:
-                failures[f"in collision at the pose ({too_close})"] += 1
-            else:
+            if not too_close:
                 yield q
+                continue
+            failures[f"in collision at the pose ({too_close})"] += 1
+            if too_close in fixed_pairs:
+                return
 
     def clear_line(
         self,

@@ -56,6 +56,11 @@ PUSHER_TILT = math.radians(30.0)  # sideways lean of the pusher where upright is
 PUSHER_BLOCKED = ("pads–table", "pads–standing", "pads–target")
 
 
+def blocks_pusher(why: str) -> bool:
+    """A failure reason that names the pads against the table or a domino."""
+    return any(pair in why for pair in PUSHER_BLOCKED)
+
+
 def pusher_corners() -> np.ndarray:
     """Corners (16 × 3, TCP frame) of the closed pads: the pusher."""
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
@@ -150,7 +155,7 @@ class StrikeSearch:
     failures: Counter = field(default_factory=Counter)
 
     def error(self) -> PlanningError:
-        blocked = any(pair in why for pair in PUSHER_BLOCKED for why in self.failures)
+        blocked = any(blocks_pusher(why) for why in self.failures)
         code = ErrorCode.PLACE_IN_COLLISION if blocked else ErrorCode.PLACE_UNREACHABLE
         return PlanningError(
             code,
@@ -206,16 +211,19 @@ class StrikePlanning(RequestMotions):
             )
             ik = PoseIK(self.run, rotation)
             seeds = self.seeds([self.start])
-            for q in self.clear_solutions(
-                ik, pose.translation(), seeds, checks, self.search.failures
-            ):
+            failures = self.search.failures
+            at = pose.translation()
+            for q in self.clear_solutions(ik, at, seeds, checks, failures, PUSHER_BLOCKED):
                 lines = self._lines_at(ik, q, pose)
-                if lines is not None:
+                if isinstance(lines, Lines):
                     yield lines
                     break  # other seeds give the same pusher path: next orientation
+                failures[lines] += 1
+                if blocks_pusher(lines):
+                    break  # so would every other seed
 
-    def _lines_at(self, ik: PoseIK, q: np.ndarray, pose: RigidTransform) -> Lines | None:
-        """The three lines from ``q`` at the strike ``pose``; None if one is blocked."""
+    def _lines_at(self, ik: PoseIK, q: np.ndarray, pose: RigidTransform) -> Lines | str:
+        """The three lines from ``q`` at the strike ``pose``, or why one is blocked."""
         at, rules = pose.translation(), self.rules
         descent = self.settings.strike_approach_height * UP
         push = self.push_length * self.direction
@@ -223,18 +231,15 @@ class StrikePlanning(RequestMotions):
             ik, q, at, descent, [(self.run, rules["descent"])], rules["top"]
         )
         if down is None:
-            return self._blocked("descent", why)
+            return f"descent {why}"
         pushed, why = self.clear_line(ik, q, at, push, [(self.run, rules["push"])])
         if pushed is None:
-            return self._blocked("push", why)
+            return f"push {why}"
         back = [(self.after, rules["retreat"])]
         up, why = self.clear_line(ik, pushed[-1], at + push, descent - push, back, rules["top"])
         if up is None:
-            return self._blocked("retreat", why)
+            return f"retreat {why}"
         return Lines(pose, down[::-1], pushed, up)
-
-    def _blocked(self, line: str, why: str) -> None:
-        self.search.failures[f"{line} {why}"] += 1
 
     def _connect(self, lines: Lines) -> StrikePlan:
         """The coarse approach to the top of the descent, retimed into segments."""
