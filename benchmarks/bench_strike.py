@@ -111,7 +111,9 @@ def execute(world: CellWorld, run: Run, planner: StrikePlanner, request: StrikeR
         gripper_event(world, segment, plan_force(plan, segment.label))
     world.advance(TOPPLE_WAIT)
     tilts = [math.degrees(tilt(d.X_WD)) for d in world.domino_truth()[: run.count]]
+    approach = plan.strike_pose.rotation().matrix()[:, 2]
     return {
+        "pusher_lean_deg": round(math.degrees(math.acos(-approach[2])), 1),
         "moved_before_push_mm": moved * 1000,
         "tilted_before_push_deg": math.degrees(tilted),
         "tilts_deg": [round(t, 1) for t in tilts],
@@ -279,6 +281,7 @@ def main() -> None:
                 (r["tilted_before_push_deg"] for r in executed), default=None
             ),
             "wall_s_per_run": percentile([r["wall_s"] for r in executed], 50),
+            "with_leaning_pusher": sum(r["pusher_lean_deg"] > 1.0 for r in executed),
             "rows": executed,
         },
         "settings": dataclasses.asdict(settings),

@@ -32,6 +32,7 @@ MAX_JOINT_STEP = 0.1  # rad between line waypoints; more means the arm flips
 COARSE_CHECK_SAMPLES = 120  # at least this many clearance checks of each KTO result ...
 CHECK_JOINT_STEP = 0.01  # rad ... and no joint moving more than this between them
 CHECK_MARGIN = 5e-4  # m the planner's own check adds to the required clearance
+LIMIT_SAMPLES = 10  # per line piece, for the joint limit check of its spline
 LINE_GRID_POINTS = 100  # TOPP-RA grid on a line (its end point is only loosely constrained)
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -245,6 +246,8 @@ class RequestMotions:
         line = straight_line(ik, q, start, offset, self.settings.waypoint_spacing, MAX_JOINT_STEP)
         if line is None:
             return None, "line leaves the reach"
+        if not self._spline_within_limits(line):
+            return None, "line leaves the joint limits"
         if end_rules is not None:
             too_close = first_violation(line[-1], [(scene, end_rules) for scene, _ in checks])
             if too_close:
@@ -254,6 +257,14 @@ class RequestMotions:
             if too_close:
                 return None, f"line too close ({too_close})"
         return line, ""
+
+    def _spline_within_limits(self, waypoints: np.ndarray) -> bool:
+        """The executed spline through the waypoints (each within the limits) may
+        overshoot a joint limit between two of them; checked at LIMIT_SAMPLES per piece."""
+        path = line_path(waypoints, self.settings.waypoint_spacing)
+        times = np.linspace(0.0, path.end_time(), LIMIT_SAMPLES * (len(waypoints) - 1) + 1)
+        q = path.vector_values(times).T
+        return bool(np.all(q >= self.planner.lower) and np.all(q <= self.planner.upper))
 
     def timed_line(
         self, label: str, waypoints: np.ndarray, scene: Scene, tcp_speed: float | None = None

@@ -119,7 +119,6 @@ def strike_pose(
 @dataclass(kw_only=True)
 class StrikePlan(Plan):
     strike_pose: RigidTransform  # TCP where the push begins
-    push: np.ndarray  # TCP travel of the push [m, world]
     closes_gripper: bool = False  # the plan closes the fingers first
 
 
@@ -270,7 +269,6 @@ class StrikePlanning(RequestMotions):
         return StrikePlan(
             segments,
             strike_pose=lines.strike_pose,
-            push=self.push_length * self.direction,
             closes_gripper=closes,
             kto_attempts=attempts,
         )
