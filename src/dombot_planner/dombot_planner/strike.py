@@ -3,8 +3,8 @@
 The closed fingers are one blunt pusher (two 16 × 8 mm pads side by side, 60 mm long),
 pointing down. Plan of a request:
 
-1. *Strike pose.* For each pusher orientation (the gripper body across or along the run,
-   either finger first), the TCP pose that puts the fingertips at ``strike_height`` of the
+1. *Strike pose.* For each pusher orientation (``pusher_rotations``: straight down, then
+   leaning sideways), the TCP pose that puts the fingertips at ``strike_height`` of the
    domino's height and the pads ``strike_standoff`` behind its back face (behind = against
    its body z, the direction it topples). IK there, then three straight TCP lines at that
    orientation: the descent from ``strike_approach_height`` above (clear of everything by
@@ -13,8 +13,8 @@ pointing down. Plan of a request:
    where the descent began (the struck domino has gone forward).
 2. *Approach* by KTO from the start to the top of the descent, fingers closed, clear of
    the table and every domino of the run by ``coarse_clearance``.
-3. *Timing* by TOPP-RA: the push at ``push_speed`` (the pads reach it within the
-   standoff), the descent and the retreat at ``approach_speed``.
+3. *Timing* by TOPP-RA: the push at ``push_speed`` (up to ~0.1 m/s the pads reach it
+   within the standoff), the descent and the retreat at ``approach_speed``.
 
 Segments: ``close_gripper`` (only if the start may have the fingers open), ``approach``,
 ``push``, ``retreat``.
