@@ -131,7 +131,7 @@ class SimNode(Node):
             "scenario": "",
             "domino_count": 30,
             "seed": 0,
-            "time_step": 0.002,
+            "time_step": 0.001,
             "contact_approximation": "similar",
             "real_time_factor": 1.0,
             "joint_state_rate": 100.0,
@@ -255,7 +255,7 @@ class SimNode(Node):
                 now = self.world.time
                 self._publish_state(now)
                 if rates.cameras > 0.0 and now >= next_camera and self.world.camera_names:
-                    self._publish_cameras(self.world.render())
+                    self._publish_cameras(self.world.render(labels=False))
                     next_camera = now + 1.0 / rates.cameras
                 if rates.ground_truth > 0.0 and now >= next_truth:
                     self._publish_truth(now)

@@ -65,7 +65,7 @@ WAVE_FALL_TIME = 0.35  # s simulated between pour waves
 @dataclass(frozen=True)
 class WorldConfig:
     scenario_path: str | None = None  # None: dombot_description's default scenario
-    time_step: float = 0.002  # s
+    time_step: float = 0.001  # s
     contact_approximation: str = "similar"
     contact_model: str = "hydroelastic"
     cameras: bool = True
@@ -487,16 +487,17 @@ class CellWorld:
     def camera_names(self) -> tuple[str, ...]:
         return tuple(self._sensors)
 
-    def render(self, names: Sequence[str] | None = None) -> dict[str, CameraFrame]:
-        """Colour, depth and labels of the named cameras (default: all), rendered now."""
+    def render(
+        self, names: Sequence[str] | None = None, labels: bool = True
+    ) -> dict[str, CameraFrame]:
+        """Colour, depth and (if ``labels``) label images of the named cameras, rendered now."""
         if not self._sensors:
             raise RuntimeError("this world was built without cameras (WorldConfig.cameras=False)")
         frames = {}
         for name in names or self._sensors:
             sensor, spec = self._sensors[name]
-            frames[name] = render(
-                sensor, spec, sensor.GetMyContextFromRoot(self._root), self._label_lookup
-            )
+            context = sensor.GetMyContextFromRoot(self._root)
+            frames[name] = render(sensor, spec, context, self._label_lookup, labels)
         return frames
 
 
