@@ -1,0 +1,150 @@
+"""Fit the known domino box (48 x 24 x 7.5 mm) to one domino's fused surface points.
+
+A minimal bounding box of a partial surface is easily turned the wrong way (the
+paper's Fig. 12). Here the box's size is known, so the fit only has to decide which
+of the three faces the camera sees most of and how the box is turned in that face's
+plane: the dominant normal direction gives the face's normal, the minimum-area
+rectangle of the points projected on that face gives the in-plane axes, and the
+face whose size best matches the rectangle says which body axis the normal is. A
+robust least-squares fit of the point-to-box distance then refines all six degrees
+of freedom. The box always lies behind the visible surface, seen from the cameras.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial import ConvexHull, QhullError
+from scipy.spatial.transform import Rotation
+
+from dombot_perception.domino_model import (
+    DOMINO_SIZE,
+    HALF_SIZE,
+    box_signed_distance,
+    dominant_face,
+)
+
+
+@dataclass(frozen=True)
+class BoxFitConfig:
+    size_tolerance: float = 0.004  # m: observed extents may exceed the domino's by this
+    max_fit_points: int = 400  # points used by the least-squares refinement (subsampled)
+    loss_scale: float = 0.001  # m: residuals beyond this count less (soft L1)
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class BoxFit:
+    X_WD: np.ndarray  # 4x4, body axes in the fit's own order (canonical signs come later)
+    fit_error: float  # RMS point-to-box distance [m]
+    extents: np.ndarray  # observed extents of the points along body x, y, z [m]
+
+
+class BoxFitError(ValueError):
+    """Too few or degenerate points to fit a box."""
+
+
+def fit_domino_box(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) -> BoxFit:
+    """Pose of the domino whose visible surface is ``points`` (normals face the camera)."""
+    if points.shape[0] < 10:
+        raise BoxFitError(f"{points.shape[0]} points are too few for a box fit")
+    initial = initial_pose(points, normals, config)
+    rng = np.random.default_rng(config.seed)
+    sample = points
+    if points.shape[0] > config.max_fit_points:
+        sample = points[rng.choice(points.shape[0], config.max_fit_points, replace=False)]
+    pose = _refine(initial, sample, config.loss_scale)
+    body = (points - pose[:3, 3]) @ pose[:3, :3]
+    residuals = box_signed_distance(body)
+    extents = body.max(axis=0) - body.min(axis=0)
+    return BoxFit(pose, float(np.sqrt(np.mean(residuals**2))), extents)
+
+
+def initial_pose(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) -> np.ndarray:
+    """Box pose from the dominant face and its minimum-area rectangle."""
+    face = dominant_face(normals)
+    normal = normals[face].mean(axis=0)
+    normal /= np.linalg.norm(normal)
+    u, v = _plane_basis(normal)
+    planar = np.column_stack([points @ u, points @ v])
+    center_2d, long_2d, dims_2d = min_area_rectangle(planar)
+    face_axis = _which_face(dims_2d, config.size_tolerance)
+    in_plane = [axis for axis in range(3) if axis != face_axis]  # longer body axis first
+    rotation = np.zeros((3, 3))
+    rotation[:, face_axis] = normal
+    rotation[:, in_plane[0]] = long_2d[0] * u + long_2d[1] * v
+    rotation[:, in_plane[1]] = np.cross(rotation[:, (in_plane[1] + 1) % 3],
+                                        rotation[:, (in_plane[1] + 2) % 3])
+    face_offset = np.median(points[face] @ normal)
+    center = (
+        center_2d[0] * u + center_2d[1] * v + (face_offset - HALF_SIZE[face_axis]) * normal
+    )
+    pose = np.eye(4)
+    pose[:3, :3] = rotation
+    pose[:3, 3] = center
+    return pose
+
+
+def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centre, unit long-side direction and (long, short) sides of the smallest rectangle."""
+    try:
+        hull = planar[ConvexHull(planar).vertices]
+    except (QhullError, ValueError) as error:
+        raise BoxFitError(f"points are degenerate in the face plane: {error}") from None
+    edges = np.roll(hull, -1, axis=0) - hull
+    angles = np.unique(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2))
+    cos, sin = np.cos(angles), np.sin(angles)
+    axes_x = np.stack([cos, sin], axis=1)
+    axes_y = np.stack([-sin, cos], axis=1)
+    px, py = hull @ axes_x.T, hull @ axes_y.T
+    width = px.max(axis=0) - px.min(axis=0)
+    height = py.max(axis=0) - py.min(axis=0)
+    best = np.argmin(width * height)
+    mid_x = (px[:, best].max() + px[:, best].min()) / 2
+    mid_y = (py[:, best].max() + py[:, best].min()) / 2
+    center = mid_x * axes_x[best] + mid_y * axes_y[best]
+    if width[best] >= height[best]:
+        return center, axes_x[best], np.array([width[best], height[best]])
+    return center, axes_y[best], np.array([height[best], width[best]])
+
+
+def _which_face(dims_2d: np.ndarray, tolerance: float) -> int:
+    """Body axis normal to the face whose (long, short) sides best explain ``dims_2d``.
+
+    Sides longer than the face's cost a lot (they cannot be); shorter ones cost a
+    little (that part of the face is hidden).
+    """
+    costs = []
+    for axis in range(3):
+        face_dims = np.sort(np.delete(DOMINO_SIZE, axis))[::-1]
+        excess = np.maximum(dims_2d - face_dims - tolerance, 0.0)
+        shortfall = np.maximum(face_dims - dims_2d, 0.0)
+        costs.append(100.0 * np.sum(excess**2) + np.sum(shortfall**2))
+    return int(np.argmin(costs))
+
+
+def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(normal, helper)
+    u /= np.linalg.norm(u)
+    return u, np.cross(normal, u)
+
+
+def _refine(initial: np.ndarray, points: np.ndarray, loss_scale: float) -> np.ndarray:
+    """Least-squares point-to-box-surface fit, 6 DoF, started at ``initial``."""
+    rotation0, p0 = initial[:3, :3], initial[:3, 3]
+    local = (points - p0) @ rotation0  # points in the initial body frame
+
+    def residuals(params: np.ndarray) -> np.ndarray:
+        delta = Rotation.from_rotvec(params[:3]).as_matrix()
+        return box_signed_distance((local - params[3:]) @ delta)
+
+    result = least_squares(residuals, np.zeros(6), loss="soft_l1", f_scale=loss_scale,
+                           x_scale=np.array([0.05, 0.05, 0.05, 0.002, 0.002, 0.002]))
+    delta = Rotation.from_rotvec(result.x[:3]).as_matrix()
+    pose = np.eye(4)
+    pose[:3, :3] = rotation0 @ delta
+    pose[:3, 3] = p0 + rotation0 @ result.x[3:]
+    return pose

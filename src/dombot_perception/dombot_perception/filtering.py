@@ -1,0 +1,53 @@
+"""Throw away points and boxes that cannot be one whole, well-seen domino.
+
+Points: open3d's radius outlier removal drops points with too few neighbours (stray
+pixels from another domino at a mask's border). Boxes: a fit is kept only when its
+points lie on the box surface (RMS error), do not spill beyond the domino's size
+(two dominoes in one mask) and cover enough of the largest visible face to pin the
+pose down (a domino mostly hidden under others is left for a later cycle). The
+paper filtered by box volume instead; a one-sided surface has almost no volume, so
+the observed extents are the better test.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+
+from dombot_perception.box_fit import BoxFit
+from dombot_perception.domino_model import DOMINO_SIZE
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    outlier_radius: float = 0.003  # m
+    outlier_min_neighbours: int = 6
+    max_fit_error: float = 0.0015  # m RMS
+    size_tolerance: float = 0.005  # m: observed extents beyond the domino's by more: reject
+    min_coverage: float = 0.6  # of the domino's length and width (or length and thickness)
+    min_points: int = 40
+
+
+def remove_outliers(points: np.ndarray, config: FilterConfig) -> np.ndarray:
+    """Indices of the points that have enough neighbours within the radius (open3d)."""
+    if points.shape[0] == 0:
+        return np.zeros(0, dtype=int)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    _, kept = cloud.remove_radius_outlier(config.outlier_min_neighbours, config.outlier_radius)
+    return np.asarray(kept, dtype=int)
+
+
+def rejection_reason(fit: BoxFit, num_points: int, config: FilterConfig) -> str | None:
+    """Why this box is not a trustworthy domino, or None to keep it."""
+    if num_points < config.min_points:
+        return f"only {num_points} points"
+    if fit.fit_error > config.max_fit_error:
+        return f"fit error {fit.fit_error * 1000:.1f} mm"
+    if np.any(fit.extents > DOMINO_SIZE + config.size_tolerance):
+        return f"extents {np.round(fit.extents * 1000, 1)} mm exceed one domino"
+    coverage = np.sort(fit.extents / DOMINO_SIZE)[::-1][:2]
+    if coverage[1] < config.min_coverage:
+        return f"only {coverage[1]:.0%} of a face seen"
+    return None

@@ -1,0 +1,171 @@
+"""Default segmentation backend: depth geometry alone, no learned weights.
+
+Dominoes are boxes, so each one's visible surface is a set of planar faces meeting at
+convex edges, while two different dominoes meet at a depth jump (one occludes the
+other) or at a concave crease (one rests on the other). Neighbouring pixels are
+linked when neither happens; linked regions are the masks. Dominoes lying side by
+side at the same height form one coplanar region with no crease at all: a region
+larger than one domino is split by k-means into as many parts as its area holds
+dominoes (see ``split_oversized``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.cluster.vq import kmeans2
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from dombot_perception.backprojection import backproject, image_normals, valid_depth
+from dombot_perception.domino_model import DOMINO_SIZE, dominant_face, face_areas
+from dombot_perception.frames import CameraView
+
+
+@dataclass(frozen=True)
+class WorkRegion:
+    """Where dominoes can be: a vertical cylinder above the table (world frame)."""
+
+    center: tuple[float, float] = (0.55, -0.30)
+    radius: float = 0.16  # m
+    min_height: float = 0.0015  # m above the table: below this is the table itself
+    max_height: float = 0.12  # m: above this is the arm, not the pile
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        with np.errstate(invalid="ignore"):
+            radial = np.hypot(points[..., 0] - self.center[0], points[..., 1] - self.center[1])
+            return (
+                (radial < self.radius)
+                & (points[..., 2] > self.min_height)
+                & (points[..., 2] < self.max_height)
+            )
+
+
+@dataclass(frozen=True)
+class GeometricSegmenterConfig:
+    region: WorkRegion = field(default_factory=WorkRegion)
+    depth_range: tuple[float, float] = (0.1, 2.0)  # m
+    max_step: float = 0.0025  # m: neighbour distance above this (or 3.5 px) is a depth jump
+    max_step_pixels: float = 3.5
+    max_normal_angle: float = 25.0  # deg: smoother than this is one face
+    convex_margin: float = 1e-5  # m: (p-q).(n_p-n_q) above this is a convex edge
+    min_pixels: int = 25
+    oversize_margin: float = 0.008  # m beyond the domino's extents means several dominoes
+    seed: int = 0
+
+
+class GeometricSegmenter:
+    """Masks from depth discontinuities and concave creases; see the module docstring."""
+
+    name = "geometric"
+
+    def __init__(self, config: GeometricSegmenterConfig | None = None) -> None:
+        self.config = config or GeometricSegmenterConfig()
+
+    def segment(self, view: CameraView) -> list[np.ndarray]:
+        """Flat pixel indices of each mask, one per domino candidate."""
+        config = self.config
+        points = backproject(view.depth, view.K, view.X_WC)
+        valid = valid_depth(view.depth, config.depth_range) & config.region.contains(points)
+        if valid.sum() < config.min_pixels:
+            return []
+        normals = image_normals(points, view.X_WC[:3, 3])
+        valid &= np.isfinite(normals[..., 0])
+        pixel_size = np.where(valid, view.depth, 0.0) / view.K[0, 0]
+        components = _linked_components(points, normals, valid, pixel_size, config)
+        flat_points = points.reshape(-1, 3)
+        flat_normals = normals.reshape(-1, 3)
+        surface_areas = _surface_areas(flat_points, flat_normals, pixel_size.ravel(), view)
+        masks: list[np.ndarray] = []
+        for pixels in components:
+            masks.extend(
+                split_oversized(
+                    pixels,
+                    flat_points[pixels],
+                    flat_normals[pixels],
+                    surface_areas[pixels],
+                    config.oversize_margin,
+                    config.seed,
+                )
+            )
+        return [mask for mask in masks if mask.size >= config.min_pixels]
+
+
+def _linked_components(
+    points: np.ndarray,
+    normals: np.ndarray,
+    valid: np.ndarray,
+    pixel_size: np.ndarray,
+    config: GeometricSegmenterConfig,
+) -> list[np.ndarray]:
+    """Connected regions of pixels linked right/down when on the same convex surface."""
+    height, width = valid.shape
+    index = np.arange(height * width).reshape(height, width)
+    cos_limit = np.cos(np.radians(config.max_normal_angle))
+    sources, targets = [], []
+    for here, there in (
+        ((slice(None), slice(0, -1)), (slice(None), slice(1, None))),
+        ((slice(0, -1), slice(None)), (slice(1, None), slice(None))),
+    ):
+        p, q = points[here], points[there]
+        n_p, n_q = normals[here], normals[there]
+        both = valid[here] & valid[there]
+        gap = np.linalg.norm(p - q, axis=-1)
+        limit = np.maximum(config.max_step, config.max_step_pixels * pixel_size[here])
+        smooth = np.einsum("hwk,hwk->hw", n_p, n_q) > cos_limit
+        convex = np.einsum("hwk,hwk->hw", p - q, n_p - n_q) > config.convex_margin
+        with np.errstate(invalid="ignore"):
+            linked = both & (gap < limit) & (smooth | convex)
+        sources.append(index[here][linked])
+        targets.append(index[there][linked])
+    source = np.concatenate(sources)
+    target = np.concatenate(targets)
+    graph = coo_matrix(
+        (np.ones(source.size, dtype=np.int8), (source, target)), shape=(height * width,) * 2
+    )
+    _, labels = connected_components(graph, directed=False)
+    labels = np.where(valid.ravel(), labels, -1)
+    order = np.argsort(labels, kind="stable")
+    sorted_labels = labels[order]
+    starts = np.flatnonzero(np.diff(sorted_labels, prepend=-2))
+    groups = np.split(order, starts[1:])
+    return [group for group in groups if labels[group[0]] >= 0]
+
+
+def _surface_areas(
+    points: np.ndarray, normals: np.ndarray, pixel_size: np.ndarray, view: CameraView
+) -> np.ndarray:
+    """Area [m^2] of the surface patch each pixel sees: its footprint over the view cosine."""
+    rays = points - view.X_WC[:3, 3]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cosine = np.abs(np.einsum("nk,nk->n", normals, rays)) / np.linalg.norm(rays, axis=1)
+        return pixel_size**2 / np.maximum(cosine, 0.2)
+
+
+def split_oversized(
+    pixels: np.ndarray,
+    points: np.ndarray,
+    normals: np.ndarray,
+    surface_areas: np.ndarray,
+    margin: float,
+    seed: int,
+) -> list[np.ndarray]:
+    """Split a region too big for one domino into k parts, k = its largest face's area
+    over a domino's largest face (48 x 24 mm), by seeded k-means on the 3-D points."""
+    if points.shape[0] < 8 or not _too_big(points, margin):
+        return [pixels]
+    face = dominant_face(normals)
+    count = int(np.clip(np.round(surface_areas[face].sum() / face_areas().max()), 2, 6))
+    _, assignment = kmeans2(points - points.mean(axis=0), count, minit="++", seed=seed)
+    return [pixels[assignment == k] for k in range(count) if np.any(assignment == k)]
+
+
+def _too_big(points: np.ndarray, margin: float) -> bool:
+    """Principal extents beyond the domino's own (longest first)."""
+    centred = points - points.mean(axis=0)
+    _, _, axes = np.linalg.svd(centred, full_matrices=False)
+    projected = centred @ axes.T
+    extents = projected.max(axis=0) - projected.min(axis=0)
+    limits = np.sort(DOMINO_SIZE)[::-1] + margin
+    return bool(np.any(extents[:2] > limits[:2]))

@@ -1,0 +1,167 @@
+"""RGB-D views in, ranked domino detections out: every stage in order, each timed.
+
+segmentation -> back-projection (+ outlier removal) -> multi-camera fusion -> box fit
+-> filtering -> canonical frame -> grasp scoring. Each stage lives in its own
+module; this one only wires them and records how long each took and why anything
+was dropped, so a caller can show it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from dombot_perception.backprojection import backproject, image_normals, valid_depth
+from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.canonical import canonical_pose, posture
+from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
+from dombot_perception.frames import CameraView, Detection
+from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
+from dombot_perception.geometric_segmentation import WorkRegion
+from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
+from dombot_perception.segmentation import Segmenter
+
+STAGES = ("segmentation", "backprojection", "fusion", "box_fit", "scoring")
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    region: WorkRegion = field(default_factory=WorkRegion)
+    depth_range: tuple[float, float] = (0.1, 2.0)
+    fusion: FusionConfig = field(default_factory=FusionConfig)
+    box_fit: BoxFitConfig = field(default_factory=BoxFitConfig)
+    filtering: FilterConfig = field(default_factory=FilterConfig)
+    scoring: GraspScoringConfig = field(default_factory=GraspScoringConfig)
+    duplicate_distance: float = 0.012  # m: boxes closer than this are one domino seen twice
+    max_scene_points: int = 30000  # obstacle points kept for the clearance check
+    seed: int = 0
+
+
+@dataclass
+class PipelineResult:
+    detections: list[Detection]  # best grasp first
+    timings: dict[str, float]  # s per stage
+    masks: dict[str, list[np.ndarray]]  # per camera, for debug images
+    rejected: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+class PerceptionPipeline:
+    def __init__(self, segmenter: Segmenter, config: PipelineConfig | None = None) -> None:
+        self.segmenter = segmenter
+        self.config = config or PipelineConfig()
+
+    def run(self, views: list[CameraView]) -> PipelineResult:
+        """Detect dominoes in ``views`` (one frame per camera, same instant)."""
+        timings = dict.fromkeys(STAGES, 0.0)
+        result = PipelineResult([], timings, {})
+        usable = []
+        for view in views:
+            problem = view.check()
+            if problem:
+                result.warnings.append(problem)
+            else:
+                usable.append(view)
+        if not usable:
+            result.warnings.append("no usable camera view")
+            return result
+        with _timed(timings, "segmentation"):
+            result.masks = {view.name: self.segmenter.segment(view) for view in usable}
+        with _timed(timings, "backprojection"):
+            clouds, scene = self._mask_clouds(usable, result.masks)
+        if not clouds:
+            result.warnings.append("nothing above the table in the work region")
+            return result
+        with _timed(timings, "fusion"):
+            fused = fuse(clouds, self.config.fusion)
+        with _timed(timings, "box_fit"):
+            detections = self._fit(fused, result.rejected)
+        with _timed(timings, "scoring"):
+            result.detections = score_detections(detections, scene, self.config.scoring)
+        return result
+
+    def _mask_clouds(
+        self, views: list[CameraView], masks: dict[str, list[np.ndarray]]
+    ) -> tuple[list[MaskCloud], np.ndarray]:
+        """Each mask's outlier-free points and normals, and every seen point for clearance."""
+        config = self.config
+        clouds, scene = [], []
+        for view in views:
+            points = backproject(view.depth, view.K, view.X_WC)
+            normals = image_normals(points, view.X_WC[:3, 3]).reshape(-1, 3)
+            valid = valid_depth(view.depth, config.depth_range) & config.region.contains(points)
+            points = points.reshape(-1, 3)
+            scene.append(points[valid.ravel()])
+            usable = valid.ravel() & np.isfinite(normals[:, 0])
+            for pixels in masks[view.name]:
+                pixels = pixels[usable[pixels]]
+                kept = remove_outliers(points[pixels], config.filtering)
+                if kept.size:
+                    pixels = pixels[kept]
+                    clouds.append(MaskCloud(view.name, pixels, points[pixels], normals[pixels]))
+        scene_points = np.concatenate(scene) if scene else np.zeros((0, 3))
+        if scene_points.shape[0] > config.max_scene_points:
+            rng = np.random.default_rng(config.seed)
+            pick = rng.choice(scene_points.shape[0], config.max_scene_points, replace=False)
+            scene_points = scene_points[pick]
+        return clouds, scene_points
+
+    def _fit(self, fused: list[FusedCloud], rejected: list[str]) -> list[Detection]:
+        """Box-fit each fused cloud, merge duplicates, drop what fails the filters."""
+        detections = [d for d in (self._fit_one(cloud, rejected) for cloud in fused) if d]
+        return self._merge_duplicates(detections, rejected)
+
+    def _fit_one(self, cloud: FusedCloud, rejected: list[str]) -> Detection | None:
+        points, normals = cloud.points, cloud.normals
+        try:
+            fit = fit_domino_box(points, normals, self.config.box_fit)
+        except BoxFitError as error:
+            rejected.append(str(error))
+            return None
+        reason = rejection_reason(fit, points.shape[0], self.config.filtering)
+        if reason:
+            rejected.append(f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}")
+            return None
+        pose = canonical_pose(fit.X_WD)
+        return Detection(
+            X_WD=pose,
+            size=np.abs(pose[:3, :3].T @ fit.X_WD[:3, :3]) @ fit.extents,
+            posture=posture(pose[:3, :3]),
+            fit_error=fit.fit_error,
+            num_points=points.shape[0],
+            cameras=cloud.cameras,
+            points=points,
+        )
+
+    def _merge_duplicates(
+        self, detections: list[Detection], rejected: list[str]
+    ) -> list[Detection]:
+        """Keep one box per domino: of boxes whose centres nearly coincide, the best supported."""
+        if len(detections) < 2:
+            return detections
+        centres = np.array([d.X_WD[:3, 3] for d in detections])
+        order = np.argsort([-d.num_points for d in detections])
+        tree = cKDTree(centres)
+        dropped = np.zeros(len(detections), dtype=bool)
+        for index in order:
+            if dropped[index]:
+                continue
+            for other in tree.query_ball_point(centres[index], self.config.duplicate_distance):
+                if other != index and not dropped[other]:
+                    dropped[other] = True
+                    rejected.append(f"duplicate of the box at {np.round(centres[index], 3)}")
+        return [d for d, drop in zip(detections, dropped, strict=True) if not drop]
+
+
+@contextmanager
+def _timed(timings: dict[str, float], stage: str) -> Iterator[None]:
+    start = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[stage] += time.perf_counter() - start
