@@ -1,0 +1,95 @@
+"""RGB-D cameras from the scenario: Drake RgbdSensor systems rendered by VTK (headless).
+
+Each camera renders colour (rgb8), depth aligned to colour (float32 metres) and a label
+image; the label image is what perception's training and evaluation use as ground truth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import (
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    MakeRenderEngineVtk,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+    SceneGraph,
+)
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import Context, DiagramBuilder
+from pydrake.systems.sensors import CameraInfo, RgbdSensor
+
+from dombot_description.scenario import CameraSpec
+
+RENDERER = "dombot_vtk"
+NEAR_CLIP = 0.01  # m, colour camera
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    """One rendered frame set of one camera (images share the pixel grid)."""
+
+    name: str
+    time: float  # simulated seconds
+    rgb: np.ndarray  # (H, W, 3) uint8
+    depth: np.ndarray  # (H, W) float32 metres; NaN where there is no return
+    label: np.ndarray  # (H, W) int32: domino index, or -1 for anything else
+    K: np.ndarray  # 3x3 pinhole intrinsics
+    X_WC: np.ndarray  # 4x4 pose of the optical frame (z forward, x right, y down) in world
+
+
+def add_renderer(scene_graph: SceneGraph) -> None:
+    if not scene_graph.HasRenderer(RENDERER):
+        scene_graph.AddRenderer(RENDERER, MakeRenderEngineVtk(RenderEngineVtkParams()))
+
+
+def add_camera(builder: DiagramBuilder, scene_graph: SceneGraph, spec: CameraSpec) -> RgbdSensor:
+    """An RgbdSensor fixed at the scenario's pose; its body frame is the optical frame."""
+    intrinsics = CameraInfo(spec.width, spec.height, spec.fov_y)
+    near, far = spec.depth_range
+    core = RenderCameraCore(
+        RENDERER, intrinsics, ClippingRange(NEAR_CLIP, far + 1.0), RigidTransform()
+    )
+    depth_core = RenderCameraCore(RENDERER, intrinsics, ClippingRange(near, far), RigidTransform())
+    sensor = RgbdSensor(
+        parent_id=scene_graph.world_frame_id(),
+        X_PB=RigidTransform(spec.pose()),
+        color_camera=ColorRenderCamera(core, False),
+        depth_camera=DepthRenderCamera(depth_core, DepthRange(near, far)),
+    )
+    sensor.set_name(spec.name)
+    builder.AddSystem(sensor)
+    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+    return sensor
+
+
+def label_lookup(label_to_domino: dict[int, int]) -> np.ndarray:
+    """Table from Drake render label (0..32767, reserved values included) to domino index or -1."""
+    table = np.full(32768, -1, dtype=np.int32)
+    for render_label, domino in label_to_domino.items():
+        table[render_label] = domino
+    return table
+
+
+def render(
+    sensor: RgbdSensor, spec: CameraSpec, context: Context, lookup: np.ndarray
+) -> CameraFrame:
+    """Evaluate the sensor's image ports at ``context`` (the sensor's own context)."""
+    rgba = sensor.color_image_output_port().Eval(context).data
+    depth = np.array(sensor.depth_image_32F_output_port().Eval(context).data[:, :, 0], copy=True)
+    depth[~np.isfinite(depth) | (depth <= 0.0)] = np.nan
+    raw_label = sensor.label_image_output_port().Eval(context).data[:, :, 0]
+    label = lookup[np.clip(raw_label, 0, lookup.size - 1)]
+    return CameraFrame(
+        name=spec.name,
+        time=context.get_time(),
+        rgb=np.array(rgba[:, :, :3], copy=True),
+        depth=depth.astype(np.float32),
+        label=label,
+        K=spec.intrinsics,
+        X_WC=spec.pose(),
+    )

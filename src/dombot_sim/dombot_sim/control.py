@@ -1,0 +1,158 @@
+"""The cell's controllers, as a real cell has them: a joint trajectory follower for the arm
+and a position-controlled gripper with a force limit.
+
+* Arm: the commanded trajectory gives the desired joint state and acceleration; the
+  plant's built-in joint PD controllers (solved implicitly by Drake's discrete contact
+  solver, so stiff gains stay stable) track it, and an inverse-dynamics feedforward
+  (gravity, Coriolis, inertia of the arm and gripper at the desired state) does the
+  rest, like the iiwa's own joint impedance controller with gravity compensation.
+* Gripper: the two fingers move together (a WSG 50 drives both from one motor): a PD on
+  the opening with the force clamped to the command's limit, the target moving at
+  the gripper's speed limit, and a stiff PD keeping the fingers symmetric. Closing on
+  a domino therefore squeezes it with the limit force, as the paper's "close fully and
+  squeeze" does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from pydrake.trajectories import PiecewisePolynomial
+
+
+@dataclass(frozen=True)
+class ArmGains:
+    """Joint stiffness [N·m/rad] and damping [N·m·s/rad] of the arm's position control."""
+
+    stiffness: tuple[float, ...] = (4000.0, 4000.0, 2000.0, 2000.0, 800.0, 400.0, 400.0)
+    damping: tuple[float, ...] = (200.0, 200.0, 100.0, 100.0, 40.0, 20.0, 20.0)
+
+
+@dataclass(frozen=True)
+class GripperSettings:
+    """WSG 50-class gripper: opening gains, speed and force limits."""
+
+    opening_stiffness: float = 2000.0  # N/m per finger
+    opening_damping: float = 20.0  # N·s/m
+    centering_stiffness: float = 4000.0  # N/m, keeps the fingers symmetric
+    centering_damping: float = 20.0
+    speed: float = 0.1  # m/s, rate of the opening target
+    max_force: float = 80.0  # N per finger, the hardware's limit
+    default_force: float = 20.0  # N when a command asks for 0
+
+
+class ArmCommandSource(LeafSystem):
+    """Desired arm state and acceleration from the current command.
+
+    The command is a joint-space trajectory starting at a given simulated time, or a
+    position to hold. It lives on the system (not in the context) because the world
+    replaces it between simulator steps, as a robot driver does.
+    """
+
+    def __init__(self, home: np.ndarray) -> None:
+        super().__init__()
+        self._dofs = len(home)
+        self._hold = np.asarray(home, dtype=float)
+        self._trajectory: PiecewisePolynomial | None = None
+        self._start = 0.0
+        self.DeclareVectorOutputPort("desired_state", 2 * self._dofs, self._calc_state)
+        self.DeclareVectorOutputPort("desired_acceleration", self._dofs, self._calc_acceleration)
+
+    def hold(self, position: np.ndarray) -> None:
+        self._hold = np.asarray(position, dtype=float)
+        self._trajectory = None
+
+    def follow(self, trajectory: PiecewisePolynomial, start_time: float) -> None:
+        """Track ``trajectory`` (time from 0) from simulated ``start_time``, then hold its end."""
+        self._trajectory = trajectory
+        self._start = start_time
+        self._hold = trajectory.value(trajectory.end_time()).ravel()
+
+    @property
+    def end_time(self) -> float:
+        """Simulated time at which the current command ends (its start when holding)."""
+        if self._trajectory is None:
+            return self._start
+        return self._start + self._trajectory.end_time()
+
+    def desired(self, time: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, v, a) commanded at simulated ``time``; outside the trajectory, hold at rest."""
+        trajectory = self._trajectory
+        local = time - self._start
+        if trajectory is None or not trajectory.start_time() <= local <= trajectory.end_time():
+            if trajectory is not None and local < trajectory.start_time():
+                return trajectory.value(trajectory.start_time()).ravel(), *self._rest()
+            return self._hold.copy(), *self._rest()
+        return (
+            trajectory.value(local).ravel(),
+            trajectory.EvalDerivative(local, 1).ravel(),
+            trajectory.EvalDerivative(local, 2).ravel(),
+        )
+
+    def _rest(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(self._dofs), np.zeros(self._dofs)
+
+    def _calc_state(self, context: Context, output: BasicVector) -> None:
+        q, v, _ = self.desired(context.get_time())
+        output.SetFromVector(np.concatenate([q, v]))
+
+    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self.desired(context.get_time())[2])
+
+
+class GripperController(LeafSystem):
+    """Finger forces from the finger state: opening PD with a force limit, fingers centred.
+
+    Finger joint convention (dombot_description): each coordinate is that finger's
+    distance from the centre line, so the opening is their sum and a positive force opens.
+    """
+
+    def __init__(self, settings: GripperSettings, initial_opening: float) -> None:
+        super().__init__()
+        self.settings = settings
+        self._goal = initial_opening
+        self._force_limit = settings.default_force
+        self._ramp_start_opening = initial_opening
+        self._ramp_start_time = 0.0
+        self.DeclareVectorInputPort("finger_state", 4)
+        self.DeclareVectorOutputPort("finger_force", 2, self._calc_force)
+
+    def command(self, opening: float, max_force: float, now: float, current_opening: float) -> None:
+        """Move towards ``opening`` [m] at the speed limit, squeezing with at most ``max_force``."""
+        self._goal = opening
+        self._force_limit = min(max_force or self.settings.default_force, self.settings.max_force)
+        self._ramp_start_opening = current_opening
+        self._ramp_start_time = now
+
+    @property
+    def goal(self) -> float:
+        return self._goal
+
+    @property
+    def force_limit(self) -> float:
+        return self._force_limit
+
+    def reference(self, time: float) -> float:
+        """The opening target at ``time``: a ramp from the command's start at the speed limit."""
+        travel = self.settings.speed * max(time - self._ramp_start_time, 0.0)
+        delta = self._goal - self._ramp_start_opening
+        return self._ramp_start_opening + np.sign(delta) * min(travel, abs(delta))
+
+    def opening_force(self, time: float, state: np.ndarray) -> float:
+        """Force per finger along the opening (negative squeezes), clamped to the limit."""
+        s = self.settings
+        opening, opening_rate = state[0] + state[1], state[2] + state[3]
+        force = s.opening_stiffness * (self.reference(time) - opening) - s.opening_damping * (
+            opening_rate
+        )
+        return float(np.clip(force, -self._force_limit, self._force_limit))
+
+    def _calc_force(self, context: Context, output: BasicVector) -> None:
+        s = self.settings
+        state = self.get_input_port().Eval(context)
+        opening_force = self.opening_force(context.get_time(), state)
+        asymmetry, asymmetry_rate = state[0] - state[1], state[2] - state[3]
+        centering = -s.centering_stiffness * asymmetry - s.centering_damping * asymmetry_rate
+        output.SetFromVector([opening_force + centering, opening_force - centering])

@@ -1,0 +1,239 @@
+"""Put dominoes at rest to sleep, and wake them when something moves near them.
+
+A settled pile of compliant (hydroelastic) dominoes costs as much to simulate as a
+falling one: every contact patch is recomputed each step although nothing moves.
+Physics engines for games and robotics solve this with *sleeping*; Drake has none, so
+this module adds it with two Drake mechanisms:
+
+* a sleeping domino's floating joint is **locked** (its velocity is zero and it leaves
+  the dynamics), and
+* collisions among sleeping dominoes and the table are **filtered** (a transient
+  collision-filter declaration on the SceneGraph context), so their contact patches are
+  not computed at all.
+
+A domino falls asleep once it has stayed within ``rest_motion`` metres (any point of it)
+of where it was for ``rest_time`` seconds while nothing moving is within ``wake_distance``
+of it and no robot part is that close. A displacement window, not an instantaneous speed,
+decides: a slowly tipping domino keeps moving away from its anchor and stays awake, while
+sub-millimetre contact jitter does not keep a whole pile awake. A body *moves* when some
+point of it is faster than ``moving_speed``; a sleeper wakes as soon as a moving body (an
+awake domino, the arm or the gripper) comes within ``wake_distance``, checked after every
+simulator step. Contacts between an awake body and a
+sleeping one are always computed, so a sleeper is a solid support until it wakes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Body
+from pydrake.systems.framework import Context
+
+from dombot_sim.pile import BOUNDING_RADIUS
+
+
+@dataclass(frozen=True)
+class SleepSettings:
+    enabled: bool = True
+    rest_motion: float = 2e-4  # m any point may move during the rest window
+    rest_time: float = 0.25  # s
+    moving_speed: float = 0.005  # m/s of a body's fastest point (bounding radius)
+    wake_distance: float = 0.006  # m
+
+
+class SleepManager:
+    """Tracks which dominoes sleep; call ``update`` between simulator steps."""
+
+    def __init__(
+        self,
+        plant: MultibodyPlant,
+        scene_graph: SceneGraph,
+        dominoes: Sequence[Body],
+        robot_bodies: Sequence[Body],
+        static_bodies: Sequence[Body],
+        settings: SleepSettings,
+    ) -> None:
+        self._plant = plant
+        self._scene_graph = scene_graph
+        self._dominoes = list(dominoes)
+        self._joints = [_floating_joint(plant, body) for body in self._dominoes]
+        self._settings = settings
+        self._static_ids = [
+            g for b in static_bodies for g in plant.GetCollisionGeometriesForBody(b)
+        ]
+        self._owner: dict[object, tuple[str, int]] = {}
+        for index, body in enumerate(self._dominoes):
+            for geometry in plant.GetCollisionGeometriesForBody(body):
+                self._owner[geometry] = ("domino", index)
+        self._robot = list(robot_bodies)
+        for index, body in enumerate(self._robot):
+            for geometry in plant.GetCollisionGeometriesForBody(body):
+                self._owner[geometry] = ("robot", index)
+        self._asleep = np.zeros(len(self._dominoes), dtype=bool)
+        self._anchor: list[RigidTransform | None] = [None] * len(self._dominoes)
+        self._anchor_time = np.zeros(len(self._dominoes))
+        self._filter_id = None
+
+    @property
+    def asleep(self) -> np.ndarray:
+        """Boolean per domino (a copy)."""
+        return self._asleep.copy()
+
+    def sleep(self, root: Context, indices: Sequence[int]) -> None:
+        """Put these dominoes to sleep now (e.g. parked ones), whatever their motion."""
+        plant_context = self._plant.GetMyMutableContextFromRoot(root)
+        for index in indices:
+            self._set_asleep(plant_context, index, True)
+        self._refresh_filter(root)
+
+    def wake(self, root: Context, indices: Sequence[int]) -> None:
+        """Wake these dominoes now (e.g. before moving them by hand)."""
+        plant_context = self._plant.GetMyMutableContextFromRoot(root)
+        for index in indices:
+            if self._asleep[index]:
+                self._set_asleep(plant_context, index, False)
+        self._refresh_filter(root)
+
+    def wake_all(self, root: Context) -> None:
+        self.wake(root, [int(i) for i in np.flatnonzero(self._asleep)])
+
+    def update(self, root: Context) -> None:
+        """After a simulator step: wake sleepers near moving bodies, put resting ones to sleep."""
+        if not self._settings.enabled:
+            return
+        plant_context = self._plant.GetMyMutableContextFromRoot(root)
+        domino_moving = self._domino_moving(plant_context)
+        robot_moving = self._robot_moving(plant_context)
+        near_moving, near_robot = self._neighbourhood(root, domino_moving, robot_moving)
+        changed = False
+        for index in np.flatnonzero(self._asleep & near_moving):
+            self._set_asleep(plant_context, int(index), False)
+            changed = True
+        resting = self._resting(plant_context, root.get_time())
+        ready = resting & ~self._asleep & ~near_moving & ~near_robot
+        for index in np.flatnonzero(ready):
+            self._set_asleep(plant_context, int(index), True)
+            changed = True
+        if changed:
+            self._refresh_filter(root)
+
+    def all_asleep(self, indices: Sequence[int]) -> bool:
+        return bool(np.all(self._asleep[list(indices)]))
+
+    def moving(self, root: Context, indices: Sequence[int]) -> bool:
+        """Is any of these dominoes moving (see ``moving_speed``)?"""
+        plant_context = self._plant.GetMyContextFromRoot(root)
+        return any(
+            self.point_speed(plant_context, self._dominoes[i]) > self._settings.moving_speed
+            for i in indices
+        )
+
+    def point_speed(self, plant_context: Context, body: Body) -> float:
+        """Upper bound of the speed of any point of a domino-sized body [m/s]."""
+        velocity = body.EvalSpatialVelocityInWorld(plant_context)
+        return float(
+            np.linalg.norm(velocity.translational())
+            + np.linalg.norm(velocity.rotational()) * BOUNDING_RADIUS
+        )
+
+    def _domino_moving(self, plant_context: Context) -> np.ndarray:
+        return np.array(
+            [
+                not asleep and self.point_speed(plant_context, body) > self._settings.moving_speed
+                for body, asleep in zip(self._dominoes, self._asleep, strict=True)
+            ],
+            dtype=bool,
+        )
+
+    def _robot_moving(self, plant_context: Context) -> np.ndarray:
+        return np.array(
+            [
+                np.linalg.norm(body.EvalSpatialVelocityInWorld(plant_context).translational())
+                > self._settings.moving_speed
+                for body in self._robot
+            ],
+            dtype=bool,
+        )
+
+    def _resting(self, plant_context: Context, now: float) -> np.ndarray:
+        """Per awake domino: has it stayed near its anchor pose for the rest time?
+
+        The anchor moves to the current pose whenever the domino leaves its neighbourhood.
+        """
+        resting = np.zeros(len(self._dominoes), dtype=bool)
+        for index in np.flatnonzero(~self._asleep):
+            pose = self._dominoes[index].EvalPoseInWorld(plant_context)
+            anchor = self._anchor[index]
+            if anchor is None or _displacement(anchor, pose) > self._settings.rest_motion:
+                self._anchor[index] = pose
+                self._anchor_time[index] = now
+            resting[index] = now - self._anchor_time[index] >= self._settings.rest_time
+        return resting
+
+    def _neighbourhood(
+        self, root: Context, domino_moving: np.ndarray, robot_moving: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per domino: is a moving body within the wake distance? is any robot body?"""
+        near_moving = np.zeros(len(self._dominoes), dtype=bool)
+        near_robot = np.zeros(len(self._dominoes), dtype=bool)
+        query = self._scene_graph.get_query_output_port().Eval(
+            self._scene_graph.GetMyContextFromRoot(root)
+        )
+        for pair in query.ComputeSignedDistancePairwiseClosestPoints(self._settings.wake_distance):
+            a, b = self._owner.get(pair.id_A), self._owner.get(pair.id_B)
+            for this, other in ((a, b), (b, a)):
+                if this is None or this[0] != "domino" or other is None:
+                    continue
+                kind, index = other
+                if kind == "robot":
+                    near_robot[this[1]] = True
+                    near_moving[this[1]] |= robot_moving[index]
+                else:
+                    near_moving[this[1]] |= domino_moving[index]
+        return near_moving, near_robot
+
+    def _set_asleep(self, plant_context: Context, index: int, asleep: bool) -> None:
+        joint = self._joints[index]
+        if asleep:
+            joint.Lock(plant_context)
+            joint.set_angular_velocity(plant_context, np.zeros(3))
+            joint.set_translational_velocity(plant_context, np.zeros(3))
+        else:
+            joint.Unlock(plant_context)
+        self._asleep[index] = asleep
+        self._anchor[index] = None
+
+    def _refresh_filter(self, root: Context) -> None:
+        manager = self._scene_graph.collision_filter_manager(
+            self._scene_graph.GetMyMutableContextFromRoot(root)
+        )
+        if self._filter_id is not None:
+            manager.RemoveDeclaration(self._filter_id)
+            self._filter_id = None
+        sleeping = [
+            geometry
+            for index in np.flatnonzero(self._asleep)
+            for geometry in self._plant.GetCollisionGeometriesForBody(self._dominoes[index])
+        ]
+        if sleeping:
+            declaration = CollisionFilterDeclaration().ExcludeWithin(
+                GeometrySet(sleeping + self._static_ids)
+            )
+            self._filter_id = manager.ApplyTransient(declaration)
+
+
+def _displacement(a: RigidTransform, b: RigidTransform) -> float:
+    """Upper bound of how far any point of a domino moved between poses ``a`` and ``b``."""
+    angle = (a.rotation().inverse() @ b.rotation()).ToAngleAxis().angle()
+    return float(np.linalg.norm(a.translation() - b.translation()) + angle * BOUNDING_RADIUS)
+
+
+def _floating_joint(plant: MultibodyPlant, body: Body):
+    """The floating joint Drake gave a free body (one per domino model instance)."""
+    (index,) = plant.GetJointIndices(body.model_instance())
+    return plant.get_joint(index)

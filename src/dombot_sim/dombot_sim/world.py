@@ -1,0 +1,442 @@
+"""The simulated DOM-BOT cell: Drake physics, controllers, cameras and a pile of dominoes.
+
+This is the ROS-free core that ``sim_node`` exposes; tests, benchmarks and the
+perception harness use it directly::
+
+    world = CellWorld(WorldConfig(cameras=True))
+    world.reset(domino_count=30, seed=7)        # pour a seeded pile and let it settle
+    frames = world.render()                     # {camera: CameraFrame}
+    world.follow_trajectory(trajectory)         # PiecewisePolynomial of the 7 arm joints
+    world.command_gripper(opening=0.0, max_force=20.0)
+    world.advance(2.0)
+    world.domino_truth()                        # ground truth, for evaluation only
+
+Physics choices (measured in docs/SIM.md): discrete plant with a 2 ms step and the
+"similar" convex contact approximation; dominoes are compliant hydroelastic boxes on a
+rigid hydroelastic table and rigid pads (pressure patches instead of single contact
+points, so dominoes rest flat, stand still and are held without pivoting); resting
+dominoes sleep (``sleeping.py``).
+"""
+
+from __future__ import annotations
+
+import time as wallclock
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.math import SpatialVelocity
+from pydrake.multibody.plant import (
+    AddMultibodyPlantSceneGraph,
+    ContactModel,
+    DiscreteContactApproximation,
+)
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamics
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.trajectories import PiecewisePolynomial
+
+from dombot_description.cell import add_cell, add_dominoes, build_shadow_plant
+from dombot_description.scenario import Scenario, load_scenario
+from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_lookup, render
+from dombot_sim.control import ArmCommandSource, ArmGains, GripperController, GripperSettings
+from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
+from dombot_sim.sleeping import SleepManager, SleepSettings
+
+CONTACT_APPROXIMATIONS = {
+    "tamsi": DiscreteContactApproximation.kTamsi,
+    "sap": DiscreteContactApproximation.kSap,
+    "similar": DiscreteContactApproximation.kSimilar,
+    "lagged": DiscreteContactApproximation.kLagged,
+}
+GRIPPER_OPEN = 0.10  # m, opening after a reset
+UPRIGHT_TOLERANCE = np.radians(10.0)  # body x this close to vertical counts as upright
+WAVE_FALL_TIME = 0.35  # s simulated between pour waves
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    scenario_path: str | None = None  # None: dombot_description's default scenario
+    time_step: float = 0.002  # s
+    contact_approximation: str = "similar"
+    cameras: bool = True
+    meshcat: bool = False
+    domino_capacity: int = 30  # bodies in the plant; a larger reset rebuilds it
+    settle_limit: float = 10.0  # s simulated: a pile still moving after this is reported
+    pour_wave_size: int = 6
+    sleep: SleepSettings = field(default_factory=SleepSettings)
+    arm_gains: ArmGains = field(default_factory=ArmGains)
+    gripper: GripperSettings = field(default_factory=GripperSettings)
+
+    def __post_init__(self) -> None:
+        if not self.time_step > 0.0:
+            raise ValueError(f"time_step must be positive, got {self.time_step}")
+        if self.contact_approximation not in CONTACT_APPROXIMATIONS:
+            raise ValueError(
+                f"contact_approximation must be one of {sorted(CONTACT_APPROXIMATIONS)}, "
+                f"got {self.contact_approximation!r}"
+            )
+        if self.domino_capacity < 0 or self.pour_wave_size < 1:
+            raise ValueError("domino_capacity must be >= 0 and pour_wave_size >= 1")
+
+
+@dataclass(frozen=True)
+class ResetReport:
+    domino_count: int
+    seed: int
+    settle_time: float  # s simulated from the first pour until everything was at rest
+    settled: bool  # False: still moving at settle_limit
+    wall_time: float  # s
+
+
+@dataclass(frozen=True)
+class DominoTruth:
+    index: int
+    name: str
+    X_WD: np.ndarray  # 4x4
+    velocity: np.ndarray  # [wx, wy, wz, vx, vy, vz] in world
+    upright: bool
+    asleep: bool
+    in_use: bool  # False: parked off the table
+
+
+@dataclass(frozen=True)
+class JointStateSample:
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+@dataclass(frozen=True)
+class GripperState:
+    opening: float  # m
+    opening_rate: float  # m/s
+    force: float  # N per finger along the opening; negative squeezes
+    goal: float
+    force_limit: float
+
+
+class CellWorld:
+    """One simulated cell. Not thread-safe: drive it from one thread."""
+
+    def __init__(self, config: WorldConfig | None = None, scenario: Scenario | None = None):
+        self.config = config or WorldConfig()
+        self.scenario = scenario or load_scenario(self.config.scenario_path)
+        self.meshcat = Meshcat() if self.config.meshcat else None
+        self._in_use: list[int] = []
+        self._build(self.config.domino_capacity)
+
+    # ------------------------------------------------------------------ construction
+    def _build(self, capacity: int) -> None:
+        config, scenario = self.config, self.scenario
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=config.time_step)
+        plant.set_discrete_contact_approximation(
+            CONTACT_APPROXIMATIONS[config.contact_approximation]
+        )
+        plant.set_contact_model(ContactModel.kHydroelasticWithFallback)
+        models = add_cell(plant, scenario)
+        domino_models = add_dominoes(plant, capacity)
+        for actuator_index in plant.GetJointActuatorIndices(models.arm):
+            actuator = plant.get_mutable_joint_actuator(actuator_index)
+            joint = scenario.arm_joints.index(actuator.joint().name())
+            actuator.set_controller_gains(
+                PdControllerGains(
+                    p=config.arm_gains.stiffness[joint], d=config.arm_gains.damping[joint]
+                )
+            )
+        plant.Finalize()
+
+        self._control_model = build_shadow_plant(scenario, grasp_opening=GRIPPER_OPEN)
+        arm_source = builder.AddSystem(ArmCommandSource(scenario.home_position))
+        feedforward = builder.AddSystem(InverseDynamics(self._control_model.plant))
+        builder.Connect(arm_source.GetOutputPort("desired_state"), feedforward.get_input_port(0))
+        builder.Connect(
+            arm_source.GetOutputPort("desired_acceleration"), feedforward.get_input_port(1)
+        )
+        builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(models.arm))
+        builder.Connect(
+            arm_source.GetOutputPort("desired_state"),
+            plant.get_desired_state_input_port(models.arm),
+        )
+        gripper = builder.AddSystem(GripperController(config.gripper, GRIPPER_OPEN))
+        builder.Connect(plant.get_state_output_port(models.gripper), gripper.get_input_port())
+        builder.Connect(gripper.get_output_port(), plant.get_actuation_input_port(models.gripper))
+
+        self._sensors = {}
+        if config.cameras:
+            add_renderer(scene_graph)
+            for spec in scenario.cameras:
+                self._sensors[spec.name] = (add_camera(builder, scene_graph, spec), spec)
+        if self.meshcat is not None:
+            MeshcatVisualizer.AddToBuilder(
+                builder, scene_graph, self.meshcat, MeshcatVisualizerParams(role=Role.kIllustration)
+            )
+
+        self._diagram = builder.Build()
+        self._plant, self._scene_graph, self._models = plant, scene_graph, models
+        self._arm_source, self._gripper = arm_source, gripper
+        self._domino_bodies = [plant.GetBodyByName("domino", m) for m in domino_models]
+        self._domino_names = [plant.GetModelInstanceName(m) for m in domino_models]
+        self._label_lookup = label_lookup(
+            {int(body.index()): i for i, body in enumerate(self._domino_bodies)}
+        )
+        robot_bodies = [
+            plant.get_body(b)
+            for model in (models.arm, models.gripper)
+            for b in plant.GetBodyIndices(model)
+        ]
+        table_bodies = [plant.get_body(b) for b in plant.GetBodyIndices(models.table)]
+        self._sleep = SleepManager(
+            plant, scene_graph, self._domino_bodies, robot_bodies, table_bodies, config.sleep
+        )
+        self._simulator = Simulator(self._diagram)
+        self._root = self._simulator.get_mutable_context()
+        self._plant_context = plant.GetMyMutableContextFromRoot(self._root)
+        self._capacity = capacity
+        self._go_home()
+        self._park(range(capacity))
+        self._simulator.Initialize()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def time(self) -> float:
+        return self._root.get_time()
+
+    @property
+    def domino_count(self) -> int:
+        """Dominoes in the cell (the rest are parked)."""
+        return len(self._in_use)
+
+    @property
+    def arm_joint_names(self) -> tuple[str, ...]:
+        return self.scenario.arm_joints
+
+    def meshcat_url(self) -> str | None:
+        return self.meshcat.web_url() if self.meshcat is not None else None
+
+    def _go_home(self) -> None:
+        plant, context = self._plant, self._plant_context
+        plant.SetPositions(context, self._models.arm, self.scenario.home_position)
+        plant.SetVelocities(context, self._models.arm, np.zeros(7))
+        plant.SetPositions(context, self._models.gripper, [GRIPPER_OPEN / 2] * 2)
+        plant.SetVelocities(context, self._models.gripper, np.zeros(2))
+        self._arm_source.hold(self.scenario.home_position)
+        self._gripper.command(GRIPPER_OPEN, 0.0, self.time, GRIPPER_OPEN)
+
+    def _park(self, indices: Sequence[int]) -> None:
+        for index in indices:
+            self._set_pose(index, parking_pose(index))
+        self._sleep.sleep(self._root, list(indices))
+
+    def _set_pose(self, index: int, pose: np.ndarray | RigidTransform) -> None:
+        body = self._domino_bodies[index]
+        self._plant.SetFreeBodyPose(self._plant_context, body, _transform(pose))
+        self._plant.SetFreeBodySpatialVelocity(
+            self._plant_context, body, SpatialVelocity(np.zeros(3), np.zeros(3))
+        )
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, duration: float) -> None:
+        """Simulate ``duration`` seconds (rounded to whole steps), updating sleepers each step."""
+        self.advance_to(self.time + duration)
+
+    def advance_to(self, target: float) -> None:
+        dt = self.config.time_step
+        steps = round((target - self.time) / dt)
+        for _ in range(max(steps, 0)):
+            self._simulator.AdvanceTo(self.time + dt)
+            self._sleep.update(self._root)
+
+    # ------------------------------------------------------------------ dominoes
+    def reset(self, domino_count: int, seed: int) -> ResetReport:
+        """Arm home, gripper open, then pour ``domino_count`` dominoes (seeded) and settle them."""
+        if domino_count < 0:
+            raise ValueError(f"domino_count must be >= 0, got {domino_count}")
+        started = wallclock.perf_counter()
+        if domino_count > self._capacity:
+            self._build(domino_count)
+        self._sleep.wake_all(self._root)
+        self._go_home()
+        self._park(range(self._capacity))
+        self._in_use = list(range(domino_count))
+        rng = np.random.default_rng(seed)
+        settings = PourSettings(
+            center=tuple(self.scenario.pile_center),
+            radius=self.scenario.pile_radius,
+            wave_size=self.config.pour_wave_size,
+        )
+        pour_start = self.time
+        next_index = 0
+        for size in wave_sizes(domino_count, settings.wave_size):
+            poses = pour_wave(rng, size, settings, self._pile_top())
+            wave = list(range(next_index, next_index + size))
+            self._sleep.wake(self._root, wave)
+            for index, pose in zip(wave, poses, strict=True):
+                self._set_pose(index, pose)
+            next_index += size
+            self.advance(WAVE_FALL_TIME)
+        settled = self.settle(self.config.settle_limit - (self.time - pour_start))
+        return ResetReport(
+            domino_count=domino_count,
+            seed=seed,
+            settle_time=self.time - pour_start,
+            settled=settled,
+            wall_time=wallclock.perf_counter() - started,
+        )
+
+    def settle(self, limit: float) -> bool:
+        """Advance until the dominoes in use are at rest; False if still moving at ``limit`` s.
+
+        At rest means asleep with sleeping on, and no domino point faster than the sleep
+        settings' moving speed for their rest time with it off.
+        """
+        dt, deadline, rested = self.config.time_step, self.time + max(limit, 0.0), 0.0
+        while self.time < deadline:
+            if self.config.sleep.enabled:
+                if self._sleep.all_asleep(self._in_use):
+                    return True
+            else:
+                moving = self._sleep.moving(self._root, self._in_use)
+                rested = 0.0 if moving else rested + dt
+                if rested >= self.config.sleep.rest_time:
+                    return True
+            self.advance(dt)
+        return False
+
+    def _pile_top(self) -> float:
+        heights = [
+            self._domino_bodies[i].EvalPoseInWorld(self._plant_context).translation()[2]
+            for i in self._in_use
+            if not self._is_parked(i)
+        ]
+        return max(heights, default=0.0)
+
+    def _is_parked(self, index: int) -> bool:
+        return bool(
+            self._domino_bodies[index].EvalPoseInWorld(self._plant_context).translation()[2] < -0.2
+        )
+
+    def set_domino_poses(self, poses: Mapping[int, np.ndarray | RigidTransform]) -> None:
+        """Put dominoes exactly at these poses (at rest); every other domino is parked.
+
+        Indices beyond the capacity rebuild the plant. Useful for tests and for building
+        scenes by hand.
+        """
+        needed = max(poses, default=-1) + 1
+        if needed > self._capacity:
+            self._build(needed)
+        self._sleep.wake_all(self._root)
+        self._park(range(self._capacity))
+        self._sleep.wake(self._root, list(poses))
+        for index, pose in poses.items():
+            self._set_pose(index, pose)
+        self._in_use = sorted(poses)
+
+    def domino_truth(self) -> list[DominoTruth]:
+        """Every domino in the plant (parked ones have ``in_use`` False)."""
+        asleep = self._sleep.asleep
+        truths = []
+        for index, body in enumerate(self._domino_bodies):
+            pose = body.EvalPoseInWorld(self._plant_context)
+            velocity = body.EvalSpatialVelocityInWorld(self._plant_context)
+            x_axis = pose.rotation().matrix()[:, 0]
+            truths.append(
+                DominoTruth(
+                    index=index,
+                    name=self._domino_names[index],
+                    X_WD=pose.GetAsMatrix4(),
+                    velocity=np.concatenate([velocity.rotational(), velocity.translational()]),
+                    upright=bool(abs(x_axis[2]) >= np.cos(UPRIGHT_TOLERANCE)),
+                    asleep=bool(asleep[index]),
+                    in_use=index in self._in_use,
+                )
+            )
+        return truths
+
+    # ------------------------------------------------------------------ robot
+    def joint_state(self) -> JointStateSample:
+        """Arm joints then finger joints: positions [rad | m], velocities, measured efforts."""
+        plant, context = self._plant, self._plant_context
+        models = (self._models.arm, self._models.gripper)
+        effort = np.concatenate(
+            [plant.get_net_actuation_output_port(m).Eval(context) for m in models]
+        )
+        return JointStateSample(
+            names=self.scenario.arm_joints + self.scenario.gripper_joints,
+            position=np.concatenate([plant.GetPositions(context, m) for m in models]),
+            velocity=np.concatenate([plant.GetVelocities(context, m) for m in models]),
+            effort=effort,
+        )
+
+    def follow_trajectory(self, trajectory: PiecewisePolynomial) -> float:
+        """Start tracking ``trajectory`` (arm joints, time from 0) now; returns its end time."""
+        if trajectory.rows() != 7 or trajectory.cols() != 1:
+            raise ValueError(
+                f"need a 7x1 joint trajectory, got {trajectory.rows()}x{trajectory.cols()}"
+            )
+        self._arm_source.follow(trajectory, self.time)
+        return self._arm_source.end_time
+
+    def hold_arm(self, position: np.ndarray | None = None) -> None:
+        """Hold ``position`` (default: where the arm is now)."""
+        if position is None:
+            position = self._plant.GetPositions(self._plant_context, self._models.arm)
+        self._arm_source.hold(np.asarray(position, dtype=float))
+
+    def desired_arm_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the arm controller is tracking now: (q, v, a)."""
+        return self._arm_source.desired(self.time)
+
+    def command_gripper(self, opening: float, max_force: float = 0.0) -> None:
+        """Move the fingers to ``opening`` [m] at the speed limit; squeeze with ``max_force`` N."""
+        stroke = self.gripper_stroke
+        if not (np.isfinite(opening) and 0.0 <= opening <= stroke):
+            raise ValueError(f"gripper opening must be within 0–{stroke:.3f} m, got {opening}")
+        if not (np.isfinite(max_force) and max_force >= 0.0):
+            raise ValueError(f"gripper max_force must be >= 0, got {max_force}")
+        self._gripper.command(opening, max_force, self.time, self.gripper_state().opening)
+
+    @property
+    def gripper_stroke(self) -> float:
+        """Largest opening [m]: both fingers at their upper limit."""
+        finger = self._plant.GetJointByName(self.scenario.gripper_joints[0])
+        return 2.0 * float(finger.position_upper_limits()[0])
+
+    def gripper_state(self) -> GripperState:
+        state = self._plant.GetPositionsAndVelocities(self._plant_context, self._models.gripper)
+        return GripperState(
+            opening=float(state[0] + state[1]),
+            opening_rate=float(state[2] + state[3]),
+            force=self._gripper.opening_force(self.time, state),
+            goal=self._gripper.goal,
+            force_limit=self._gripper.force_limit,
+        )
+
+    # ------------------------------------------------------------------ cameras
+    @property
+    def camera_names(self) -> tuple[str, ...]:
+        return tuple(self._sensors)
+
+    def render(self, names: Sequence[str] | None = None) -> dict[str, CameraFrame]:
+        """Colour, depth and labels of the named cameras (default: all), rendered now."""
+        if not self._sensors:
+            raise RuntimeError("this world was built without cameras (WorldConfig.cameras=False)")
+        frames = {}
+        for name in names or self._sensors:
+            sensor, spec = self._sensors[name]
+            frames[name] = render(
+                sensor, spec, sensor.GetMyContextFromRoot(self._root), self._label_lookup
+            )
+        return frames
+
+
+def _transform(pose: np.ndarray | RigidTransform) -> RigidTransform:
+    if isinstance(pose, RigidTransform):
+        return pose
+    matrix = np.asarray(pose, dtype=float)
+    return RigidTransform(RotationMatrix(matrix[:3, :3]), matrix[:3, 3])
