@@ -12,8 +12,12 @@ HALF_SIZE = DOMINO_SIZE / 2.0
 # The box looks the same after a half turn about any body axis: the four proper
 # rotations of its symmetry group (identity, Rx(pi), Ry(pi), Rz(pi)).
 SYMMETRIES = np.array(
-    [np.diag([1.0, 1.0, 1.0]), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]),
-     np.diag([-1.0, -1.0, 1.0])]
+    [
+        np.diag([1.0, 1.0, 1.0]),
+        np.diag([1.0, -1.0, -1.0]),
+        np.diag([-1.0, 1.0, -1.0]),
+        np.diag([-1.0, -1.0, 1.0]),
+    ]
 )
 
 
@@ -31,12 +35,14 @@ def box_signed_distance(points_body: np.ndarray, half_size: np.ndarray = HALF_SI
     return outside + inside
 
 
-def dominant_face(normals: np.ndarray, cos_limit: float = 0.94, samples: int = 200) -> np.ndarray:
-    """Mask of the normals that agree with the most common normal direction."""
-    step = max(1, normals.shape[0] // samples)
-    candidates = normals[::step]
-    support = (candidates @ normals.T > cos_limit).sum(axis=1)
-    return normals @ candidates[np.argmax(support)] > cos_limit
+def dominant_face(normals: np.ndarray, cos_limit: float = 0.94, samples: int = 120) -> np.ndarray:
+    """Mask of the normals that agree with the most common normal direction.
+
+    Votes among an evenly strided subset (deterministic, cheap: samples^2 products).
+    """
+    voters = normals[:: max(1, normals.shape[0] // samples)]
+    support = (voters @ voters.T > cos_limit).sum(axis=1)
+    return normals @ voters[np.argmax(support)] > cos_limit
 
 
 def orientation_error(estimated: np.ndarray, truth: np.ndarray) -> float:

@@ -26,8 +26,10 @@ class FilterConfig:
     outlier_min_neighbours: int = 6
     max_fit_error: float = 0.0015  # m RMS
     size_tolerance: float = 0.005  # m: observed extents beyond the domino's by more: reject
-    min_coverage: float = 0.6  # of the domino's length and width (or length and thickness)
+    min_coverage: float = 0.85  # of the domino's length, and of its width or thickness
     min_points: int = 40
+    min_inlier_fraction: float = 0.75  # of the cloud on the fitted box's surface
+    table_tolerance: float = 0.002  # m: a box reaching deeper into the table is wrong
 
 
 def remove_outliers(points: np.ndarray, config: FilterConfig) -> np.ndarray:
@@ -47,7 +49,13 @@ def rejection_reason(fit: BoxFit, num_points: int, config: FilterConfig) -> str 
         return f"fit error {fit.fit_error * 1000:.1f} mm"
     if np.any(fit.extents > DOMINO_SIZE + config.size_tolerance):
         return f"extents {np.round(fit.extents * 1000, 1)} mm exceed one domino"
-    coverage = np.sort(fit.extents / DOMINO_SIZE)[::-1][:2]
-    if coverage[1] < config.min_coverage:
-        return f"only {coverage[1]:.0%} of a face seen"
+    if fit.inlier_fraction < config.min_inlier_fraction:
+        return f"only {fit.inlier_fraction:.0%} of the points on the box"
+    coverage = np.minimum(fit.extents / DOMINO_SIZE, 1.0)
+    seen = min(coverage[0], max(coverage[1], coverage[2]))
+    if seen < config.min_coverage:
+        return f"only {seen:.0%} of a large face seen"
+    lowest = fit.X_WD[2, 3] - np.abs(fit.X_WD[2, :3]) @ (DOMINO_SIZE / 2.0)
+    if lowest < -config.table_tolerance:
+        return f"box reaches {-lowest * 1000:.1f} mm into the table"
     return None

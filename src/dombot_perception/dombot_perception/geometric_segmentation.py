@@ -11,41 +11,20 @@ dominoes (see ``split_oversized``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from dombot_perception.backprojection import backproject, image_normals, valid_depth
+from dombot_perception.backprojection import OrganisedCloud
 from dombot_perception.domino_model import DOMINO_SIZE, dominant_face, face_areas
 from dombot_perception.frames import CameraView
 
 
 @dataclass(frozen=True)
-class WorkRegion:
-    """Where dominoes can be: a vertical cylinder above the table (world frame)."""
-
-    center: tuple[float, float] = (0.55, -0.30)
-    radius: float = 0.16  # m
-    min_height: float = 0.0015  # m above the table: below this is the table itself
-    max_height: float = 0.12  # m: above this is the arm, not the pile
-
-    def contains(self, points: np.ndarray) -> np.ndarray:
-        with np.errstate(invalid="ignore"):
-            radial = np.hypot(points[..., 0] - self.center[0], points[..., 1] - self.center[1])
-            return (
-                (radial < self.radius)
-                & (points[..., 2] > self.min_height)
-                & (points[..., 2] < self.max_height)
-            )
-
-
-@dataclass(frozen=True)
 class GeometricSegmenterConfig:
-    region: WorkRegion = field(default_factory=WorkRegion)
-    depth_range: tuple[float, float] = (0.1, 2.0)  # m
     max_step: float = 0.0025  # m: neighbour distance above this (or 3.5 px) is a depth jump
     max_step_pixels: float = 3.5
     max_normal_angle: float = 25.0  # deg: smoother than this is one face
@@ -63,43 +42,34 @@ class GeometricSegmenter:
     def __init__(self, config: GeometricSegmenterConfig | None = None) -> None:
         self.config = config or GeometricSegmenterConfig()
 
-    def segment(self, view: CameraView) -> list[np.ndarray]:
+    def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
         """Flat pixel indices of each mask, one per domino candidate."""
         config = self.config
-        points = backproject(view.depth, view.K, view.X_WC)
-        valid = valid_depth(view.depth, config.depth_range) & config.region.contains(points)
-        if valid.sum() < config.min_pixels:
+        if cloud is None or cloud.valid.sum() < config.min_pixels:
             return []
-        normals = image_normals(points, view.X_WC[:3, 3])
-        valid &= np.isfinite(normals[..., 0])
-        pixel_size = np.where(valid, view.depth, 0.0) / view.K[0, 0]
-        components = _linked_components(points, normals, valid, pixel_size, config)
-        flat_points = points.reshape(-1, 3)
-        flat_normals = normals.reshape(-1, 3)
-        surface_areas = _surface_areas(flat_points, flat_normals, pixel_size.ravel(), view)
+        components = _linked_components(cloud, config)
+        flat_points = cloud.points.reshape(-1, 3)
+        flat_normals = cloud.normals.reshape(-1, 3)
+        surface_areas = _surface_areas(
+            flat_points, flat_normals, cloud.pixel_size.ravel(), view.X_WC[:3, 3]
+        )
         masks: list[np.ndarray] = []
         for pixels in components:
-            masks.extend(
-                split_oversized(
-                    pixels,
-                    flat_points[pixels],
-                    flat_normals[pixels],
-                    surface_areas[pixels],
-                    config.oversize_margin,
-                    config.seed,
-                )
+            parts = split_oversized(
+                pixels,
+                flat_points[pixels],
+                flat_normals[pixels],
+                surface_areas[pixels],
+                config.oversize_margin,
+                config.seed,
             )
-        return [mask for mask in masks if mask.size >= config.min_pixels]
+            masks.extend(cloud.full_index(part) for part in parts if part.size >= config.min_pixels)
+        return masks
 
 
-def _linked_components(
-    points: np.ndarray,
-    normals: np.ndarray,
-    valid: np.ndarray,
-    pixel_size: np.ndarray,
-    config: GeometricSegmenterConfig,
-) -> list[np.ndarray]:
-    """Connected regions of pixels linked right/down when on the same convex surface."""
+def _linked_components(cloud: OrganisedCloud, config: GeometricSegmenterConfig) -> list[np.ndarray]:
+    """Connected regions of crop pixels linked right/down when on the same convex surface."""
+    points, normals, valid, pixel_size = cloud.points, cloud.normals, cloud.valid, cloud.pixel_size
     height, width = valid.shape
     index = np.arange(height * width).reshape(height, width)
     cos_limit = np.cos(np.radians(config.max_normal_angle))
@@ -134,10 +104,10 @@ def _linked_components(
 
 
 def _surface_areas(
-    points: np.ndarray, normals: np.ndarray, pixel_size: np.ndarray, view: CameraView
+    points: np.ndarray, normals: np.ndarray, pixel_size: np.ndarray, camera_position: np.ndarray
 ) -> np.ndarray:
     """Area [m^2] of the surface patch each pixel sees: its footprint over the view cosine."""
-    rays = points - view.X_WC[:3, 3]
+    rays = points - camera_position
     with np.errstate(invalid="ignore", divide="ignore"):
         cosine = np.abs(np.einsum("nk,nk->n", normals, rays)) / np.linalg.norm(rays, axis=1)
         return pixel_size**2 / np.maximum(cosine, 0.2)

@@ -38,7 +38,11 @@ TERMS = ("flatness", "clearance", "uncovered", "height", "reach")
 class GraspScoringConfig:
     weights: dict[str, float] = field(
         default_factory=lambda: {
-            "flatness": 1.0, "clearance": 2.0, "uncovered": 1.0, "height": 0.5, "reach": 1.0,
+            "flatness": 1.0,
+            "clearance": 2.0,
+            "uncovered": 1.0,
+            "height": 0.5,
+            "reach": 1.0,
         }
     )
     good_clearance: float = 0.004  # m: clearance term saturates at 1 here

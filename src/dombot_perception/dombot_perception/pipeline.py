@@ -16,16 +16,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from dombot_perception.backprojection import backproject, image_normals, valid_depth
+from dombot_description.scenario import Scenario
+from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
 from dombot_perception.canonical import canonical_pose, posture
 from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
-from dombot_perception.geometric_segmentation import WorkRegion
 from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
-from dombot_perception.segmentation import Segmenter
+from dombot_perception.segmentation import Segmenter, make_segmenter
 
+PILE_MARGIN = 0.12  # m around the pile disc where dominoes may have slid
 STAGES = ("segmentation", "backprojection", "fusion", "box_fit", "scoring")
 
 
@@ -38,7 +39,7 @@ class PipelineConfig:
     filtering: FilterConfig = field(default_factory=FilterConfig)
     scoring: GraspScoringConfig = field(default_factory=GraspScoringConfig)
     duplicate_distance: float = 0.012  # m: boxes closer than this are one domino seen twice
-    max_scene_points: int = 30000  # obstacle points kept for the clearance check
+    max_scene_points: int = 15000  # obstacle points kept for the clearance check
     seed: int = 0
 
 
@@ -70,15 +71,23 @@ class PerceptionPipeline:
         if not usable:
             result.warnings.append("no usable camera view")
             return result
-        with _timed(timings, "segmentation"):
-            result.masks = {view.name: self.segmenter.segment(view) for view in usable}
         with _timed(timings, "backprojection"):
-            clouds, scene = self._mask_clouds(usable, result.masks)
-        if not clouds:
-            result.warnings.append("nothing above the table in the work region")
+            clouds = {
+                view.name: organised_cloud(view, self.config.region, self.config.depth_range)
+                for view in usable
+            }
+        with _timed(timings, "segmentation"):
+            result.masks = {
+                view.name: self.segmenter.segment(view, clouds[view.name]) for view in usable
+            }
+        with _timed(timings, "backprojection"):
+            mask_clouds = self._mask_clouds(clouds, result.masks)
+            scene = self._scene_points(clouds)
+        if not mask_clouds:
+            result.warnings.append("no domino-like surface above the table in the work region")
             return result
         with _timed(timings, "fusion"):
-            fused = fuse(clouds, self.config.fusion)
+            fused = fuse(mask_clouds, self.config.fusion)
         with _timed(timings, "box_fit"):
             detections = self._fit(fused, result.rejected)
         with _timed(timings, "scoring"):
@@ -86,30 +95,38 @@ class PerceptionPipeline:
         return result
 
     def _mask_clouds(
-        self, views: list[CameraView], masks: dict[str, list[np.ndarray]]
-    ) -> tuple[list[MaskCloud], np.ndarray]:
-        """Each mask's outlier-free points and normals, and every seen point for clearance."""
-        config = self.config
-        clouds, scene = [], []
-        for view in views:
-            points = backproject(view.depth, view.K, view.X_WC)
-            normals = image_normals(points, view.X_WC[:3, 3]).reshape(-1, 3)
-            valid = valid_depth(view.depth, config.depth_range) & config.region.contains(points)
-            points = points.reshape(-1, 3)
-            scene.append(points[valid.ravel()])
-            usable = valid.ravel() & np.isfinite(normals[:, 0])
-            for pixels in masks[view.name]:
-                pixels = pixels[usable[pixels]]
-                kept = remove_outliers(points[pixels], config.filtering)
+        self, clouds: dict[str, OrganisedCloud | None], masks: dict[str, list[np.ndarray]]
+    ) -> list[MaskCloud]:
+        """Each mask's points and normals (from its camera's organised cloud), outliers removed."""
+        result = []
+        for name, cloud in clouds.items():
+            if cloud is None:
+                continue
+            points = cloud.points.reshape(-1, 3)
+            normals = cloud.normals.reshape(-1, 3)
+            valid = cloud.valid.ravel()
+            size = valid.size
+            for pixels in masks[name]:
+                local = cloud.crop_index(pixels)
+                inside = (local >= 0) & (local < size)
+                pixels, local = pixels[inside], local[inside]
+                usable = valid[local]
+                pixels, local = pixels[usable], local[usable]
+                kept = remove_outliers(points[local], self.config.filtering)
                 if kept.size:
-                    pixels = pixels[kept]
-                    clouds.append(MaskCloud(view.name, pixels, points[pixels], normals[pixels]))
-        scene_points = np.concatenate(scene) if scene else np.zeros((0, 3))
-        if scene_points.shape[0] > config.max_scene_points:
-            rng = np.random.default_rng(config.seed)
-            pick = rng.choice(scene_points.shape[0], config.max_scene_points, replace=False)
-            scene_points = scene_points[pick]
-        return clouds, scene_points
+                    result.append(
+                        MaskCloud(name, pixels[kept], points[local[kept]], normals[local[kept]])
+                    )
+        return result
+
+    def _scene_points(self, clouds: dict[str, OrganisedCloud | None]) -> np.ndarray:
+        """Every point seen in the work region (all cameras), subsampled, for clearance checks."""
+        seen = [cloud.valid_points() for cloud in clouds.values() if cloud is not None]
+        scene = np.concatenate(seen) if seen else np.zeros((0, 3))
+        if scene.shape[0] > self.config.max_scene_points:
+            rng = np.random.default_rng(self.config.seed)
+            scene = scene[rng.choice(scene.shape[0], self.config.max_scene_points, replace=False)]
+        return scene
 
     def _fit(self, fused: list[FusedCloud], rejected: list[str]) -> list[Detection]:
         """Box-fit each fused cloud, merge duplicates, drop what fails the filters."""
@@ -165,3 +182,29 @@ def _timed(timings: dict[str, float], stage: str) -> Iterator[None]:
         yield
     finally:
         timings[stage] += time.perf_counter() - start
+
+
+def config_for_scenario(scenario: Scenario) -> PipelineConfig:
+    """Work region around the scenario's pile and reach hint from its build reach."""
+    region = WorkRegion(
+        center=(float(scenario.pile_center[0]), float(scenario.pile_center[1])),
+        radius=scenario.pile_radius + PILE_MARGIN,
+    )
+    depth_range = scenario.cameras[0].depth_range if scenario.cameras else (0.1, 2.0)
+    return PipelineConfig(
+        region=region,
+        depth_range=depth_range,
+        scoring=GraspScoringConfig(reach=scenario.build_reach),
+    )
+
+
+def build_pipeline(
+    scenario: Scenario,
+    backend: str = "geometric",
+    config: PipelineConfig | None = None,
+    **backend_options: object,
+) -> PerceptionPipeline:
+    """A pipeline for ``scenario`` whose segmenter works in the same region and depth range."""
+    config = config or config_for_scenario(scenario)
+    segmenter = make_segmenter(backend, **backend_options)
+    return PerceptionPipeline(segmenter, config)

@@ -10,6 +10,7 @@ from typing import Protocol
 
 import numpy as np
 
+from dombot_perception.backprojection import OrganisedCloud
 from dombot_perception.frames import CameraView
 from dombot_perception.geometric_segmentation import GeometricSegmenter, GeometricSegmenterConfig
 
@@ -19,8 +20,12 @@ BACKENDS = ("geometric", "sam")
 class Segmenter(Protocol):
     name: str
 
-    def segment(self, view: CameraView) -> list[np.ndarray]:
-        """Flat pixel indices (row * width + col) of each mask."""
+    def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
+        """Flat pixel indices (row * width + col) of each mask.
+
+        ``cloud`` is the view back-projected and cropped to the work region (None when
+        nothing there is seen); backends that use depth geometry read it, others ignore it.
+        """
 
 
 class SegmenterError(ValueError):
