@@ -5,8 +5,9 @@ convex edges, while two different dominoes meet at a depth jump (one occludes th
 other) or at a concave crease (one rests on the other). Neighbouring pixels are
 linked when neither happens; linked regions are the masks. Dominoes lying side by
 side at the same height form one coplanar region with no crease at all: a region
-larger than one domino is split by k-means into as many parts as its area holds
-dominoes (see ``split_oversized``).
+larger than one domino is split into as many parts as its area holds dominoes:
+k-means first, then boxes of the domino's size fitted to the parts claim the points
+on their surfaces (see ``split_oversized``).
 """
 
 from __future__ import annotations
@@ -19,8 +20,16 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dombot_perception.backprojection import OrganisedCloud
-from dombot_perception.domino_model import DOMINO_SIZE, dominant_face, face_areas
+from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.domino_model import (
+    DOMINO_SIZE,
+    box_signed_distance,
+    dominant_face,
+    face_areas,
+)
 from dombot_perception.frames import CameraView
+
+SPLIT_ROUNDS = 3  # box-fit / reassign rounds when splitting a region
 
 
 @dataclass(frozen=True)
@@ -128,7 +137,37 @@ def split_oversized(
     face = dominant_face(normals)
     count = int(np.clip(np.round(surface_areas[face].sum() / face_areas().max()), 2, 6))
     _, assignment = kmeans2(points - points.mean(axis=0), count, minit="++", seed=seed)
+    assignment = _assign_to_boxes(points, normals, assignment, count)
     return [pixels[assignment == k] for k in range(count) if np.any(assignment == k)]
+
+
+def _assign_to_boxes(
+    points: np.ndarray, normals: np.ndarray, assignment: np.ndarray, count: int
+) -> np.ndarray:
+    """Refine a k-means split with the domino's shape: fit a box to each part, give each
+    point to the box whose surface it lies on, repeat until nothing moves.
+
+    k-means cuts between centroids; dominoes side by side are cut along their edges.
+    """
+    config = BoxFitConfig(max_fit_points=120, iterations=8)
+    for _ in range(SPLIT_ROUNDS):
+        distances = np.full((count, points.shape[0]), np.inf)
+        for k in range(count):
+            part = assignment == k
+            if part.sum() < 10:
+                continue
+            try:
+                pose = fit_domino_box(points[part], normals[part], config).X_WD
+            except BoxFitError:
+                continue
+            distances[k] = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
+        if not np.all(np.isfinite(distances.min(axis=0))):
+            return assignment
+        updated = distances.argmin(axis=0)
+        if np.array_equal(updated, assignment):
+            break
+        assignment = updated
+    return assignment
 
 
 def _too_big(points: np.ndarray, margin: float) -> bool:
