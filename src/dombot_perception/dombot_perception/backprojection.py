@@ -44,6 +44,7 @@ def backproject(depth: np.ndarray, intrinsics: np.ndarray, camera_pose: np.ndarr
     height, width = depth.shape
     v, u = np.mgrid[0:height, 0:width]
     z = depth.astype(np.float64)
+    z[~np.isfinite(z)] = np.nan  # inf would turn into NaN with a warning below
     x = z * (u - intrinsics[0, 2]) / intrinsics[0, 0]
     y = z * (v - intrinsics[1, 2]) / intrinsics[1, 1]
     points_c = np.stack([x, y, z], axis=-1)

@@ -30,7 +30,7 @@ from dombot_description.grasp import (
 )
 from dombot_perception.domino_model import DOMINO_SIZE, HALF_SIZE, orientation_error
 from dombot_perception.frames import Detection
-from dombot_perception.grasp_scoring import grasp_clearance
+from dombot_perception.grasp_scoring import grasp_clearance, pads_above_table
 
 CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
 
@@ -152,6 +152,8 @@ def grasp_succeeds(
     if not _holds(grasp_pose, true_pose, config):
         return False
     grasp = Grasp(grasp_pose, float(DOMINO_SIZE[1]), detection.grasp_width)
+    if not pads_above_table(grasp, 0.0):
+        return False
     obstacles = true_obstacle_points(truths, truth_index)
     return grasp_clearance(grasp, obstacles, approach_distance=0.05) > config.min_true_clearance
 

@@ -31,6 +31,7 @@ from dombot_description.grasp import Grasp, comes_from_above, pick_grasps
 from dombot_perception.domino_model import HALF_SIZE, box_signed_distance
 from dombot_perception.frames import Detection
 
+FREE_SPACE = 0.05  # m: clearance reported when no neighbour is nearer
 TERMS = ("flatness", "clearance", "uncovered", "height", "reach")
 
 
@@ -48,6 +49,7 @@ class GraspScoringConfig:
     good_clearance: float = 0.004  # m: clearance term saturates at 1 here
     min_clearance: float = 0.0015  # m: less is a predicted collision (pose error budget)
     approach_distance: float = 0.05  # m: pads sweep this far back along the approach
+    min_table_clearance: float = 0.0  # m: pads lower than this above the table: infeasible
     own_surface: float = 0.002  # m: points this close to the domino's box are its own
     cover_height: float = 0.002  # m above the top face: a point there lies on the domino
     max_cover_points: int = 15  # points on top that make the domino count as covered
@@ -112,38 +114,51 @@ def weighted_geometric_mean(terms: dict[str, float], weights: dict[str, float]) 
 def best_grasp(
     domino_pose: np.ndarray, obstacles: np.ndarray, config: GraspScoringConfig
 ) -> GraspChoice:
-    """The first of ``pick_grasps``' order that clears everything, else the clearest one."""
+    """The first of ``pick_grasps``' order that clears every neighbour, else the clearest one.
+
+    Only grasps that come from above and keep the pads above the table are considered;
+    with none, the clearance is -1 (unpickable).
+    """
     candidates = pick_grasps(RigidTransform(domino_pose), base_xy=config.base_xy)
-    choices = [
-        GraspChoice(grasp, grasp_clearance(grasp, obstacles, config.approach_distance))
+    feasible = [
+        grasp
         for grasp in candidates
-        if comes_from_above(grasp.pose)
+        if comes_from_above(grasp.pose) and pads_above_table(grasp, config.min_table_clearance)
     ]
-    if not choices:
+    if not feasible:
         return GraspChoice(candidates[0], -1.0)
-    for choice in choices:
+    choices = []
+    for grasp in feasible:
+        choice = GraspChoice(grasp, grasp_clearance(grasp, obstacles, config.approach_distance))
         if choice.clearance >= config.min_clearance:
             return choice
+        choices.append(choice)
     return max(choices, key=lambda choice: choice.clearance)
 
 
 def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: float) -> float:
-    """Smallest distance [m] from the open pads' approach sweep to any obstacle or the table."""
-    clearances = []
+    """Smallest distance [m] from the open pads, swept back along the approach, to any
+    obstacle point; ``FREE_SPACE`` when nothing is nearer."""
+    clearance = FREE_SPACE
     for box in grasp.pad_boxes(grasp.pregrasp_opening):
+        if obstacles.shape[0] == 0:
+            break
         rotation = box.pose.rotation().matrix()  # pad z is the approach direction
-        clearances.append(_lowest_corner(rotation, box.pose.translation(), box.size / 2.0))
-        if obstacles.shape[0]:
-            center = box.pose.translation() - rotation[:, 2] * approach_distance / 2.0
-            half = box.size / 2.0 + np.array([0.0, 0.0, approach_distance / 2.0])
-            local = (obstacles - center) @ rotation
-            clearances.append(float(box_signed_distance(local, half).min()))
-    return float(min(clearances))
+        center = box.pose.translation() - rotation[:, 2] * approach_distance / 2.0
+        half = box.size / 2.0 + np.array([0.0, 0.0, approach_distance / 2.0])
+        local = (obstacles - center) @ rotation
+        clearance = min(clearance, float(box_signed_distance(local, half).min()))
+    return clearance
 
 
-def _lowest_corner(rotation: np.ndarray, center: np.ndarray, half: np.ndarray) -> float:
-    """Height above the table of a box's lowest corner."""
-    return float(center[2] - np.abs(rotation[2, :]) @ half)
+def pads_above_table(grasp: Grasp, min_height: float) -> bool:
+    """Whether both open pads stay at least ``min_height`` above the table (z = 0)."""
+    for box in grasp.pad_boxes(grasp.pregrasp_opening):
+        rotation = box.pose.rotation().matrix()
+        lowest = box.pose.translation()[2] - np.abs(rotation[2, :]) @ (box.size / 2.0)
+        if lowest < min_height:
+            return False
+    return True
 
 
 def _obstacles(domino_pose: np.ndarray, scene_points: np.ndarray, own_surface: float) -> np.ndarray:
