@@ -24,7 +24,8 @@ sleeping one are always computed, so a sleeper is a solid support until it wakes
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,8 +109,7 @@ class SleepManager:
             return
         plant_context = self._plant.GetMyMutableContextFromRoot(root)
         domino_moving = self._domino_moving(plant_context)
-        robot_moving = self._robot_moving(plant_context)
-        near_moving, near_robot = self._neighbourhood(root, domino_moving, robot_moving)
+        near_moving, near_robot = self._neighbourhood(root, plant_context, domino_moving)
         changed = False
         for index in np.flatnonzero(self._asleep & near_moving):
             self._set_asleep(plant_context, int(index), False)
@@ -150,15 +150,9 @@ class SleepManager:
             dtype=bool,
         )
 
-    def _robot_moving(self, plant_context: Context) -> np.ndarray:
-        return np.array(
-            [
-                np.linalg.norm(body.EvalSpatialVelocityInWorld(plant_context).translational())
-                > self._settings.moving_speed
-                for body in self._robot
-            ],
-            dtype=bool,
-        )
+    def _robot_moving(self, plant_context: Context, index: int) -> bool:
+        velocity = self._robot[index].EvalSpatialVelocityInWorld(plant_context)
+        return bool(np.linalg.norm(velocity.translational()) > self._settings.moving_speed)
 
     def _resting(self, plant_context: Context, now: float) -> np.ndarray:
         """Per awake domino: has it stayed near its anchor pose for the rest time?
@@ -176,9 +170,12 @@ class SleepManager:
         return resting
 
     def _neighbourhood(
-        self, root: Context, domino_moving: np.ndarray, robot_moving: np.ndarray
+        self, root: Context, plant_context: Context, domino_moving: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Per domino: is a moving body within the wake distance? is any robot body?"""
+        """Per domino: is a moving body within the wake distance? is any robot body?
+
+        Robot speeds are evaluated only for robot bodies that are that close to a domino.
+        """
         near_moving = np.zeros(len(self._dominoes), dtype=bool)
         near_robot = np.zeros(len(self._dominoes), dtype=bool)
         query = self._scene_graph.get_query_output_port().Eval(
@@ -192,7 +189,7 @@ class SleepManager:
                 kind, index = other
                 if kind == "robot":
                     near_robot[this[1]] = True
-                    near_moving[this[1]] |= robot_moving[index]
+                    near_moving[this[1]] |= self._robot_moving(plant_context, index)
                 else:
                     near_moving[this[1]] |= domino_moving[index]
         return near_moving, near_robot
@@ -208,13 +205,28 @@ class SleepManager:
         self._asleep[index] = asleep
         self._anchor[index] = None
 
+    @contextmanager
+    def filters_lifted(self, root: Context) -> Iterator[None]:
+        """Inside this block geometry queries see every pair, sleeping ones included."""
+        self._remove_filter(root)
+        try:
+            yield
+        finally:
+            self._refresh_filter(root)
+
+    def _remove_filter(self, root: Context) -> None:
+        if self._filter_id is not None:
+            manager = self._scene_graph.collision_filter_manager(
+                self._scene_graph.GetMyMutableContextFromRoot(root)
+            )
+            manager.RemoveDeclaration(self._filter_id)
+            self._filter_id = None
+
     def _refresh_filter(self, root: Context) -> None:
+        self._remove_filter(root)
         manager = self._scene_graph.collision_filter_manager(
             self._scene_graph.GetMyMutableContextFromRoot(root)
         )
-        if self._filter_id is not None:
-            manager.RemoveDeclaration(self._filter_id)
-            self._filter_id = None
         sleeping = [
             geometry
             for index in np.flatnonzero(self._asleep)

@@ -141,8 +141,11 @@ class CellWorld:
         plant.set_contact_model(ContactModel.kHydroelasticWithFallback)
         models = add_cell(plant, scenario)
         domino_models = add_dominoes(plant, capacity)
-        for actuator_index in plant.GetJointActuatorIndices(models.arm):
+        # GetJointActuatorIndices(model_instance) is empty before Finalize: filter all of them.
+        for actuator_index in plant.GetJointActuatorIndices():
             actuator = plant.get_mutable_joint_actuator(actuator_index)
+            if actuator.model_instance() != models.arm:
+                continue
             joint = scenario.arm_joints.index(actuator.joint().name())
             actuator.set_controller_gains(
                 PdControllerGains(
@@ -337,6 +340,13 @@ class CellWorld:
             self._set_pose(index, pose)
         self._in_use = sorted(poses)
 
+    def kick_domino(self, index: int, velocity: SpatialVelocity) -> None:
+        """Give a domino a spatial velocity (world frame, about its centre), waking it."""
+        self._sleep.wake(self._root, [index])
+        self._plant.SetFreeBodySpatialVelocity(
+            self._plant_context, self._domino_bodies[index], velocity
+        )
+
     def domino_truth(self) -> list[DominoTruth]:
         """Every domino in the plant (parked ones have ``in_use`` False)."""
         asleep = self._sleep.asleep
@@ -357,6 +367,20 @@ class CellWorld:
                 )
             )
         return truths
+
+    def deepest_penetration(self) -> tuple[float, str]:
+        """Deepest overlap [m] of a domino with anything, and which pair; sleepers included."""
+        inspector = self._scene_graph.model_inspector()
+        query_port = self._scene_graph.get_query_output_port()
+        with self._sleep.filters_lifted(self._root):
+            query = query_port.Eval(self._scene_graph.GetMyContextFromRoot(self._root))
+            pairs = query.ComputePointPairPenetration()
+        deepest, where = 0.0, ""
+        for pair in pairs:
+            names = (inspector.GetName(pair.id_A), inspector.GetName(pair.id_B))
+            if pair.depth > deepest and any("domino" in name for name in names):
+                deepest, where = float(pair.depth), " / ".join(names)
+        return deepest, where
 
     # ------------------------------------------------------------------ robot
     def joint_state(self) -> JointStateSample:
@@ -391,6 +415,21 @@ class CellWorld:
     def desired_arm_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the arm controller is tracking now: (q, v, a)."""
         return self._arm_source.desired(self.time)
+
+    def tcp_pose(self) -> np.ndarray:
+        """4x4 pose of the gripper's TCP frame in world."""
+        frame = self._plant.GetFrameByName(self.scenario.tcp_frame)
+        return frame.CalcPoseInWorld(self._plant_context).GetAsMatrix4()
+
+    def tcp_speed(self) -> float:
+        frame = self._plant.GetFrameByName(self.scenario.tcp_frame)
+        velocity = frame.CalcSpatialVelocityInWorld(self._plant_context)
+        return float(np.linalg.norm(velocity.translational()))
+
+    def domino_in_tcp(self, index: int) -> np.ndarray:
+        """4x4 pose of a domino in the TCP frame: constant while it is held without slipping."""
+        pose = self._domino_bodies[index].EvalPoseInWorld(self._plant_context).GetAsMatrix4()
+        return np.linalg.inv(self.tcp_pose()) @ pose
 
     def command_gripper(self, opening: float, max_force: float = 0.0) -> None:
         """Move the fingers to ``opening`` [m] at the speed limit; squeeze with ``max_force`` N."""
