@@ -13,13 +13,16 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+import traceback
+from collections import deque
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import rclpy
 from geometry_msgs.msg import Pose, PoseArray, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -34,17 +37,27 @@ from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline, PipelineResult, build_pipeline
 from dombot_perception.segmentation import SegmenterError
 
+SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
 DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
 
 
 @dataclass
 class CameraInput:
-    """The latest messages of one camera and when they arrived (monotonic seconds)."""
+    """The last few messages of one camera and when a colour image last arrived."""
 
-    color: Image | None = None
-    depth: Image | None = None
+    colors: deque = field(default_factory=lambda: deque(maxlen=SYNC_BUFFER))
+    depths: deque = field(default_factory=lambda: deque(maxlen=SYNC_BUFFER))
     info: CameraInfo | None = None
     received: float = -math.inf
+
+    def latest_pair(self, tolerance: float) -> tuple[Image, Image] | None:
+        """The newest colour and depth images whose stamps agree within ``tolerance`` s."""
+        for color in reversed(self.colors):
+            stamp = _seconds(color.header.stamp)
+            for depth in reversed(self.depths):
+                if abs(_seconds(depth.header.stamp) - stamp) <= tolerance:
+                    return color, depth
+        return None
 
 
 class PerceptionNode(Node):
@@ -58,8 +71,7 @@ class PerceptionNode(Node):
                 f"{name}.optical_pose",
                 Parameter.Type.DOUBLE_ARRAY,
                 ParameterDescriptor(
-                    description="optical frame in world [x y z qx qy qz qw]; unset: scenario",
-                    dynamic_typing=True,
+                    description="optical frame in world [x y z qx qy qz qw]; unset: scenario"
                 ),
             )
         self.inputs = {name: CameraInput() for name in self.camera_names}
@@ -172,11 +184,11 @@ class PerceptionNode(Node):
         camera = self.inputs[name]
 
         def on_color(message: Image) -> None:
-            camera.color = message
+            camera.colors.append(message)
             camera.received = time.monotonic()
 
         def on_depth(message: Image) -> None:
-            camera.depth = message
+            camera.depths.append(message)
 
         def on_info(message: CameraInfo) -> None:
             camera.info = message
@@ -191,13 +203,16 @@ class PerceptionNode(Node):
             CameraInfo, f"{name}/color/camera_info", on_info, 2, callback_group=group
         )
 
+    def _is_stale(self, camera: CameraInput) -> bool:
+        return time.monotonic() - camera.received > float(self._param("max_frame_age"))
+
     def _views(self, names: list[str]) -> tuple[list[CameraView], list[str]]:
         """Usable synchronised views of ``names`` and the warnings about the others."""
         views, warnings = [], []
         max_age = float(self._param("max_frame_age"))
         for name in names:
             camera = self.inputs[name]
-            if camera.color is None or camera.depth is None or camera.info is None:
+            if not camera.colors or not camera.depths or camera.info is None:
                 warnings.append(f"{name}: no colour, depth and camera_info received yet")
                 continue
             age = time.monotonic() - camera.received
@@ -213,13 +228,15 @@ class PerceptionNode(Node):
         return views, warnings
 
     def _view(self, name: str, camera: CameraInput) -> CameraView:
-        skew = abs(_seconds(camera.color.header.stamp) - _seconds(camera.depth.header.stamp))
-        if skew > float(self._param("sync_tolerance")):
-            raise ValueError(f"colour and depth stamps differ by {skew:.3f} s")
+        tolerance = float(self._param("sync_tolerance"))
+        pair = camera.latest_pair(tolerance)
+        if pair is None:
+            raise ValueError(f"no colour and depth images with stamps within {tolerance} s")
+        color, depth = pair
         view = CameraView(
             name,
-            rgb_array(camera.color),
-            depth_array(camera.depth),
+            rgb_array(color),
+            depth_array(depth),
             np.asarray(camera.info.k, dtype=float).reshape(3, 3),
             self._camera_pose(name),
         )
@@ -229,7 +246,10 @@ class PerceptionNode(Node):
         return view
 
     def _camera_pose(self, name: str) -> np.ndarray:
-        values = self.get_parameter(f"{name}.optical_pose").value
+        try:
+            values = self.get_parameter(f"{name}.optical_pose").value
+        except ParameterUninitializedException:
+            values = None
         if values is not None and len(values) > 0:
             if len(values) != 7 or not np.all(np.isfinite(values)):
                 raise ValueError(f"{name}.optical_pose needs 7 finite numbers [x y z qx qy qz qw]")
@@ -250,11 +270,16 @@ class PerceptionNode(Node):
         if not self._param("continuous"):
             return
         fresh = {
-            name: _seconds(camera.color.header.stamp)
+            name: _seconds(camera.colors[-1].header.stamp)
             for name, camera in self.inputs.items()
-            if camera.color is not None
+            if camera.colors
         }
         if not fresh or fresh == self.last_processed:
+            silent = [name for name, camera in self.inputs.items() if self._is_stale(camera)]
+            if silent:
+                self.get_logger().warning(
+                    f"no new frames from {silent}; waiting", throttle_duration_sec=10.0
+                )
             return
         self.last_processed = fresh
         self._detect(self.camera_names)
@@ -277,23 +302,21 @@ class PerceptionNode(Node):
 
     def _detect(self, names: list[str]) -> tuple[PipelineResult | None, str]:
         """Run the pipeline on the latest frames of ``names``; publish; say what happened."""
-        views, warnings = self._views(names)
-        result = None
-        if views:
-            started = time.perf_counter()
-            try:
-                result = self.pipeline.run(views)
-            except Exception as error:  # a bad frame must never take the node down
-                warnings.append(f"pipeline failed on this frame set: {error!r}")
-                self.get_logger().error(warnings[-1])
-            else:
-                warnings += result.warnings
-                elapsed = time.perf_counter() - started
-                stages = ", ".join(f"{k} {v * 1000:.0f}" for k, v in result.timings.items())
-                self.get_logger().info(
-                    f"{len(result.detections)} dominoes from {[v.name for v in views]} in "
-                    f"{elapsed:.2f} s ({stages} ms); {len(result.rejected)} candidates rejected"
-                )
+        started = time.perf_counter()
+        try:
+            views, warnings = self._views(names)
+            result = self.pipeline.run(views) if views else None
+        except Exception as error:  # one bad frame set must never take the node down
+            self.get_logger().error(f"perception failed: {error!r}\n{traceback.format_exc()}")
+            views, warnings, result = [], [f"perception failed on this frame set: {error!r}"], None
+        if result is not None:
+            warnings += result.warnings
+            stages = ", ".join(f"{k} {v * 1000:.0f}" for k, v in result.timings.items())
+            self.get_logger().info(
+                f"{len(result.detections)} dominoes from {[v.name for v in views]} in "
+                f"{time.perf_counter() - started:.2f} s ({stages} ms); "
+                f"{len(result.rejected)} candidates rejected"
+            )
         for warning in warnings:
             self.get_logger().warning(warning)
         detections = result.detections if result else []
@@ -301,8 +324,7 @@ class PerceptionNode(Node):
         if result is not None and self._param("publish_debug_image"):
             self.debug_pub.publish(self._debug_image(views, result))
         summary = f"{len(detections)} dominoes found"
-        message = "; ".join([summary, *warnings]) if warnings else summary
-        return (result if views else None), message
+        return result, "; ".join([summary, *warnings])
 
     # ------------------------------------------------------------------ outputs
     def _publish(self, detections: list[Detection]) -> None:
