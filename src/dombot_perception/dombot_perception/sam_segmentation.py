@@ -107,6 +107,8 @@ class SamSegmenter:
             masks.append(batch_masks)
             scores.append(batch_scores)
         masks_t, scores_t = torch.cat(masks), torch.cat(scores)
+        if masks_t.shape[0] == 0:
+            return []
         keep = box_nms(batched_mask_to_box(masks_t).float(), scores_t, self.nms_threshold)
         flat = masks_t[keep].reshape(len(keep), -1).numpy()
         return [np.flatnonzero(row) for row in flat if row.sum() >= self.min_pixels]
