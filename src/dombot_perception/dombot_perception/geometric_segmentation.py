@@ -30,6 +30,8 @@ from dombot_perception.domino_model import (
 from dombot_perception.frames import CameraView
 
 SPLIT_ROUNDS = 3  # box-fit / reassign rounds when splitting a region
+MAX_SPLIT_DEPTH = 3  # a part of a split region may be split again this often
+SPLIT_FIT_POINTS = 600  # points of a region used to fit the boxes that split it
 
 
 @dataclass(frozen=True)
@@ -129,16 +131,32 @@ def split_oversized(
     surface_areas: np.ndarray,
     margin: float,
     seed: int,
+    depth: int = 0,
 ) -> list[np.ndarray]:
     """Split a region too big for one domino into k parts, k = its largest face's area
-    over a domino's largest face (48 x 24 mm), by seeded k-means on the 3-D points."""
-    if points.shape[0] < 8 or not _too_big(points, margin):
+    over a domino's largest face (48 x 24 mm), by seeded k-means on the 3-D points; a
+    part still too big (dominoes at different slopes share no dominant face) is split
+    again, up to ``MAX_SPLIT_DEPTH`` times."""
+    if depth >= MAX_SPLIT_DEPTH or points.shape[0] < 8 or not _too_big(points, margin):
         return [pixels]
     face = dominant_face(normals)
     count = int(np.clip(np.round(surface_areas[face].sum() / face_areas().max()), 2, 6))
     _, assignment = kmeans2(points - points.mean(axis=0), count, minit="++", seed=seed)
     assignment = _assign_to_boxes(points, normals, assignment, count)
-    return [pixels[assignment == k] for k in range(count) if np.any(assignment == k)]
+    parts = []
+    for k in range(count):
+        part = assignment == k
+        if np.any(part):
+            parts += split_oversized(
+                pixels[part],
+                points[part],
+                normals[part],
+                surface_areas[part],
+                margin,
+                seed,
+                depth + 1,
+            )
+    return parts
 
 
 def _assign_to_boxes(
@@ -150,11 +168,12 @@ def _assign_to_boxes(
     k-means cuts between centroids; dominoes side by side are cut along their edges.
     """
     config = BoxFitConfig(max_fit_points=120, iterations=8)
+    stride = max(1, points.shape[0] // SPLIT_FIT_POINTS)  # fit on a subset, assign all
     for _ in range(SPLIT_ROUNDS):
         distances = np.full((count, points.shape[0]), np.inf)
         for k in range(count):
-            part = assignment == k
-            if part.sum() < 10:
+            part = np.flatnonzero(assignment == k)[::stride]
+            if part.size < 10:
                 continue
             try:
                 pose = fit_domino_box(points[part], normals[part], config).X_WD

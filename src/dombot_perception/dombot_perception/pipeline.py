@@ -20,7 +20,12 @@ from dombot_description.scenario import Scenario
 from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
 from dombot_perception.canonical import canonical_pose, posture
-from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
+from dombot_perception.filtering import (
+    FilterConfig,
+    rejection_reason,
+    remove_outliers,
+    see_through_fraction,
+)
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
 from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
@@ -89,7 +94,7 @@ class PerceptionPipeline:
         with _timed(timings, "fusion"):
             fused = fuse(mask_clouds, self.config.fusion)
         with _timed(timings, "box_fit"):
-            detections = self._fit(fused, result.rejected)
+            detections = self._fit(fused, usable, result.rejected)
         with _timed(timings, "scoring"):
             result.detections = score_detections(detections, scene, self.config.scoring)
         return result
@@ -128,19 +133,28 @@ class PerceptionPipeline:
             scene = scene[rng.choice(scene.shape[0], self.config.max_scene_points, replace=False)]
         return scene
 
-    def _fit(self, fused: list[FusedCloud], rejected: list[str]) -> list[Detection]:
+    def _fit(
+        self, fused: list[FusedCloud], views: list[CameraView], rejected: list[str]
+    ) -> list[Detection]:
         """Box-fit each fused cloud, merge duplicates, drop what fails the filters."""
-        detections = [d for d in (self._fit_one(cloud, rejected) for cloud in fused) if d]
+        detections = [d for d in (self._fit_one(c, views, rejected) for c in fused) if d]
         return self._merge_duplicates(detections, rejected)
 
-    def _fit_one(self, cloud: FusedCloud, rejected: list[str]) -> Detection | None:
+    def _fit_one(
+        self, cloud: FusedCloud, views: list[CameraView], rejected: list[str]
+    ) -> Detection | None:
         points, normals = cloud.points, cloud.normals
         try:
             fit = fit_domino_box(points, normals, self.config.box_fit)
         except BoxFitError as error:
             rejected.append(str(error))
             return None
-        reason = rejection_reason(fit, points.shape[0], self.config.filtering)
+        filtering = self.config.filtering
+        reason = rejection_reason(fit, points.shape[0], filtering)
+        if reason is None:
+            seen_through = see_through_fraction(fit.X_WD, views, filtering.free_space_margin)
+            if seen_through > filtering.max_see_through:
+                reason = f"cameras see behind {seen_through:.0%} of its surface"
         if reason:
             rejected.append(f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}")
             return None
