@@ -204,7 +204,7 @@ def test_filter_rejects_boxes_that_cannot_be_one_well_seen_domino() -> None:
     assert "points" in rejection_reason(good, 10, config)
     half = points[:, 0] < 0.55
     partial = fit_domino_box(points[half], normals[half], BoxFitConfig())
-    assert "face" in rejection_reason(partial, int(half.sum()), config)
+    assert "of its length" in rejection_reason(partial, int(half.sum()), config)
 
 
 def _detection(pose: np.ndarray) -> Detection:

@@ -76,7 +76,9 @@ def see_through_fraction(pose: np.ndarray, views: list[CameraView], margin: floa
         camera = view.X_WC[:3, 3]
         world_points = FACE_SAMPLES @ pose[:3, :3].T + pose[:3, 3]
         world_normals = FACE_NORMALS @ pose[:3, :3].T
-        visible = np.einsum("nk,nk->n", world_normals, camera - world_points) > 0
+        rays = camera - world_points
+        facing = np.einsum("nk,nk->n", world_normals, rays) / np.linalg.norm(rays, axis=1)
+        visible = facing > MIN_VIEW_COSINE  # grazing faces land on the wrong pixels
         local = (world_points[visible] - camera) @ view.X_WC[:3, :3]
         in_front = local[:, 2] > 0
         local = local[in_front]
@@ -110,3 +112,4 @@ def _face_samples(spacing: float = 0.004) -> tuple[np.ndarray, np.ndarray]:
 
 
 FACE_SAMPLES, FACE_NORMALS = _face_samples()
+MIN_VIEW_COSINE = 0.3  # faces seen more obliquely than ~73 degrees are not checked
