@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from dombot_description.scenario import load_scenario
 from dombot_perception.domino_model import orientation_error
+from dombot_perception.filtering import see_through_fraction
 from dombot_perception.frames import POSTURE_FLAT, POSTURE_ON_EDGE, POSTURE_UPRIGHT, CameraView
 from dombot_perception.pipeline import build_pipeline
 from support.perception_scenes import FLAT_HEIGHT, PILE_CENTRE, domino_pose, flat
@@ -134,3 +135,11 @@ def test_malformed_view_is_skipped_with_a_warning(pipeline, render_scene):
     assert any("camera matrix" in w for w in result.warnings)
     assert len(result.detections) == 1
     assert result.detections[0].cameras == (good.name,)
+
+
+def test_a_box_where_the_cameras_see_the_table_fails_the_free_space_check(render_scene) -> None:
+    truth = flat(X0, Y0, 0.3)
+    views = render_scene({0: truth})
+    assert see_through_fraction(truth, views, margin=0.005) < 0.05
+    phantom = flat(X0 + 0.06, Y0, 0.3)  # nothing there: both cameras see the table behind
+    assert see_through_fraction(phantom, views, margin=0.005) > 0.8  # low sides: < margin
