@@ -24,12 +24,15 @@ from dombot_perception.domino_model import (
     dominant_face,
 )
 
+RECTANGLE_POINTS = 500  # points whose hull gives the initial in-plane axes
+
 
 @dataclass(frozen=True)
 class BoxFitConfig:
     size_tolerance: float = 0.004  # m: observed extents may exceed the domino's by this
     max_fit_points: int = 250  # points used by the least-squares refinement (subsampled)
     inlier_distance: float = 0.002  # m: points further from the box belong to something else
+    passes: int = 2  # fits; each after the first uses only the previous fit's inliers
     loss_scale: float = 0.001  # m: residuals beyond this count less (Huber)
     iterations: int = 15  # Gauss-Newton steps of the refinement at most
     damping: float = 1e-3  # relative Levenberg damping: directions no point pins stay put
@@ -54,7 +57,7 @@ def fit_domino_box(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig
         raise BoxFitError(f"{points.shape[0]} points are too few for a box fit")
     rng = np.random.default_rng(config.seed)
     inliers = np.ones(points.shape[0], dtype=bool)
-    for _ in range(2):  # fit, drop points off the box (a neighbour's), fit the rest again
+    for _ in range(config.passes):  # fit, drop points off the box (a neighbour's), refit
         pose = initial_pose(points[inliers], normals[inliers], config)
         pose = _refine(pose, _subsample(points[inliers], config.max_fit_points, rng), config)
         residuals = box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3])
@@ -83,7 +86,8 @@ def initial_pose(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) 
     normal = normals[face].mean(axis=0)
     normal /= np.linalg.norm(normal)
     u, v = _plane_basis(normal)
-    planar = np.column_stack([points @ u, points @ v])
+    stride = max(1, points.shape[0] // RECTANGLE_POINTS)  # only a starting guess: ICP refines
+    planar = np.column_stack([points[::stride] @ u, points[::stride] @ v])
     center_2d, long_2d, dims_2d = min_area_rectangle(planar)
     face_axis = _which_face(dims_2d, config.size_tolerance)
     in_plane = [axis for axis in range(3) if axis != face_axis]  # longer body axis first

@@ -29,7 +29,7 @@ from dombot_perception.domino_model import (
 )
 from dombot_perception.frames import CameraView
 
-SPLIT_ROUNDS = 3  # box-fit / reassign rounds when splitting a region
+SPLIT_ROUNDS = 2  # box-fit / reassign rounds when splitting a region
 MAX_SPLIT_DEPTH = 3  # a part of a split region may be split again this often
 SPLIT_FIT_POINTS = 600  # points of a region used to fit the boxes that split it
 
@@ -167,7 +167,7 @@ def _assign_to_boxes(
 
     k-means cuts between centroids; dominoes side by side are cut along their edges.
     """
-    config = BoxFitConfig(max_fit_points=120, iterations=8)
+    config = BoxFitConfig(max_fit_points=120, iterations=8, passes=1)
     stride = max(1, points.shape[0] // SPLIT_FIT_POINTS)  # fit on a subset, assign all
     for _ in range(SPLIT_ROUNDS):
         distances = np.full((count, points.shape[0]), np.inf)

@@ -26,12 +26,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RigidTransform
+from scipy.spatial import cKDTree
 
 from dombot_description.grasp import Grasp, comes_from_above, pick_grasps
 from dombot_perception.domino_model import HALF_SIZE, box_signed_distance
 from dombot_perception.frames import Detection
 
 FREE_SPACE = 0.05  # m: clearance reported when no neighbour is nearer
+NEIGHBOURHOOD = 0.12  # m around a domino's centre: farther points cannot touch its grasp
 TERMS = ("flatness", "clearance", "uncovered", "height", "reach")
 
 
@@ -72,8 +74,12 @@ def score_detections(
         return []
     tops = np.array([_top_height(d.X_WD) for d in detections])
     span = tops.max() - tops.min()
+    tree = cKDTree(scene_points) if scene_points.shape[0] else None
     for detection, top in zip(detections, tops, strict=True):
-        obstacles = _obstacles(detection.X_WD, scene_points, config.own_surface)
+        nearby = scene_points[:0]
+        if tree is not None:
+            nearby = scene_points[tree.query_ball_point(detection.X_WD[:3, 3], NEIGHBOURHOOD)]
+        obstacles = _obstacles(detection.X_WD, nearby, config.own_surface)
         choice = best_grasp(detection.X_WD, obstacles, config)
         covered = _points_on_top(detection.X_WD, obstacles, config.cover_height)
         terms = {
