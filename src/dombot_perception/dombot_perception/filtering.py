@@ -29,7 +29,9 @@ class FilterConfig:
     outlier_min_neighbours: int = 6
     max_fit_error: float = 0.0015  # m RMS
     size_tolerance: float = 0.005  # m: observed extents beyond the domino's by more: reject
-    min_coverage: float = 0.85  # of the domino's length and of its width
+    min_coverage: float = 0.85  # of the domino's length that must be seen
+    min_width_coverage: float = 0.75  # of its width (less of it can hide next to the table)
+    min_thickness_coverage: float = 0.0  # of its thickness (> 0: a side face must be seen)
     free_space_margin: float = 0.005  # m: a camera seeing this far behind a box face
     max_see_through: float = 0.2  # fraction of a box's visible surface a camera may see behind
     min_points: int = 40
@@ -57,8 +59,15 @@ def rejection_reason(fit: BoxFit, num_points: int, config: FilterConfig) -> str 
     if fit.inlier_fraction < config.min_inlier_fraction:
         return f"only {fit.inlier_fraction:.0%} of the points on the box"
     coverage = np.minimum(fit.extents / DOMINO_SIZE, 1.0)
-    if min(coverage[0], coverage[1]) < config.min_coverage:
-        return f"only {coverage[0]:.0%} of its length and {coverage[1]:.0%} of its width seen"
+    if (
+        coverage[0] < config.min_coverage
+        or coverage[1] < config.min_width_coverage
+        or coverage[2] < config.min_thickness_coverage
+    ):
+        return (
+            f"only {coverage[0]:.0%} of its length, {coverage[1]:.0%} of its width and "
+            f"{coverage[2]:.0%} of its thickness seen"
+        )
     lowest = fit.X_WD[2, 3] - np.abs(fit.X_WD[2, :3]) @ (DOMINO_SIZE / 2.0)
     if lowest < -config.table_tolerance:
         return f"box reaches {-lowest * 1000:.1f} mm into the table"

@@ -20,6 +20,7 @@ from dombot_description.scenario import Scenario
 from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
 from dombot_perception.canonical import canonical_pose, posture
+from dombot_perception.domino_model import DOMINO_SIZE
 from dombot_perception.filtering import (
     FilterConfig,
     rejection_reason,
@@ -42,6 +43,13 @@ class PipelineConfig:
     fusion: FusionConfig = field(default_factory=FusionConfig)
     box_fit: BoxFitConfig = field(default_factory=BoxFitConfig)
     filtering: FilterConfig = field(default_factory=FilterConfig)
+    # two fragments fitted as one must fit tightly and show a side face: a loose fit, or
+    # two coplanar patches of buried dominoes, is not one domino
+    rejoin_filtering: FilterConfig = field(
+        default_factory=lambda: FilterConfig(
+            max_fit_error=0.0007, min_inlier_fraction=0.95, min_thickness_coverage=0.5
+        )
+    )
     scoring: GraspScoringConfig = field(default_factory=GraspScoringConfig)
     duplicate_distance: float = 0.012  # m: boxes closer than this are one domino seen twice
     max_scene_points: int = 15000  # obstacle points kept for the clearance check
@@ -136,12 +144,50 @@ class PerceptionPipeline:
     def _fit(
         self, fused: list[FusedCloud], views: list[CameraView], rejected: list[str]
     ) -> list[Detection]:
-        """Box-fit each fused cloud, merge duplicates, drop what fails the filters."""
-        detections = [d for d in (self._fit_one(c, views, rejected) for c in fused) if d]
+        """Box-fit each fused cloud, rejoin fragments, merge duplicates, apply the filters."""
+        detections, failed = [], []
+        for cloud in fused:
+            detection = self._fit_one(cloud, views, rejected)
+            if detection is None:
+                failed.append(cloud)
+            else:
+                detections.append(detection)
+        detections += self._rejoin(failed, views, rejected)
         return self._merge_duplicates(detections, rejected)
 
+    def _rejoin(
+        self, clouds: list[FusedCloud], views: list[CameraView], rejected: list[str]
+    ) -> list[Detection]:
+        """Fit pairs of nearby rejected clouds as one: a region split once too often leaves
+        two fragments of one domino, each too short to pass on its own."""
+        if len(clouds) < 2:
+            return []
+        centres = np.array([cloud.points.mean(axis=0) for cloud in clouds])
+        pairs = sorted(
+            cKDTree(centres).query_pairs(float(DOMINO_SIZE[0]), output_type="ndarray").tolist(),
+            key=lambda pair: np.linalg.norm(centres[pair[0]] - centres[pair[1]]),
+        )
+        used: set[int] = set()
+        found = []
+        for first, second in pairs:
+            if first in used or second in used:
+                continue
+            joined = FusedCloud(clouds[first].parts + clouds[second].parts)
+            detection = self._fit_one(joined, views, [], self.config.rejoin_filtering)
+            if detection is not None:
+                used.update((first, second))
+                found.append(detection)
+                rejected.append(
+                    f"two fragments rejoined into the box at {np.round(detection.X_WD[:3, 3], 3)}"
+                )
+        return found
+
     def _fit_one(
-        self, cloud: FusedCloud, views: list[CameraView], rejected: list[str]
+        self,
+        cloud: FusedCloud,
+        views: list[CameraView],
+        rejected: list[str],
+        filtering: FilterConfig | None = None,
     ) -> Detection | None:
         points, normals = cloud.points, cloud.normals
         try:
@@ -149,7 +195,7 @@ class PerceptionPipeline:
         except BoxFitError as error:
             rejected.append(str(error))
             return None
-        filtering = self.config.filtering
+        filtering = filtering or self.config.filtering
         reason = rejection_reason(fit, points.shape[0], filtering)
         if reason is None:
             seen_through = see_through_fraction(fit.X_WD, views, filtering.free_space_margin)
