@@ -18,9 +18,9 @@ from scipy.spatial import cKDTree
 
 from dombot_description.scenario import Scenario
 from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
-from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_box
 from dombot_perception.canonical import canonical_pose, posture
-from dombot_perception.domino_model import DOMINO_SIZE
+from dombot_perception.domino_model import DOMINO_SIZE, orientation_error
 from dombot_perception.filtering import (
     FilterConfig,
     rejection_reason,
@@ -32,6 +32,8 @@ from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
 from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
 from dombot_perception.segmentation import Segmenter, make_segmenter
 
+REJOIN_DISTANCE = 0.032  # m: halves of one domino have centres about 24 mm apart
+REJOIN_SIDEWAYS = 0.005  # m: and are offset across the length by less than this
 PILE_MARGIN = 0.12  # m around the pile disc where dominoes may have slid
 STAGES = ("segmentation", "backprojection", "fusion", "box_fit", "scoring")
 
@@ -145,41 +147,42 @@ class PerceptionPipeline:
         self, fused: list[FusedCloud], views: list[CameraView], rejected: list[str]
     ) -> list[Detection]:
         """Box-fit each fused cloud, rejoin fragments, merge duplicates, apply the filters."""
-        detections, failed = [], []
+        detections, fragments = [], []
+        filtering = self.config.filtering
         for cloud in fused:
-            detection = self._fit_one(cloud, views, rejected)
-            if detection is None:
-                failed.append(cloud)
-            else:
+            detection, fit = self._fit_one(cloud, views, rejected)
+            if detection is not None:
                 detections.append(detection)
-        detections += self._rejoin(failed, views, rejected)
+            elif (
+                fit is not None
+                and fit.extents[0] < filtering.min_coverage * DOMINO_SIZE[0]
+                and fit.fit_error <= filtering.max_fit_error
+            ):
+                fragments.append((cloud, fit))  # a clean fit, just too short: half a domino?
+        detections += self._rejoin(fragments, views, rejected)
         return self._merge_duplicates(detections, rejected)
 
     def _rejoin(
-        self, clouds: list[FusedCloud], views: list[CameraView], rejected: list[str]
+        self,
+        fragments: list[tuple[FusedCloud, BoxFit]],
+        views: list[CameraView],
+        rejected: list[str],
     ) -> list[Detection]:
-        """Fit pairs of nearby rejected clouds as one: a region split once too often leaves
-        two fragments of one domino, each too short to pass on its own."""
-        if len(clouds) < 2:
-            return []
-        centres = np.array([cloud.points.mean(axis=0) for cloud in clouds])
-        pairs = sorted(
-            cKDTree(centres).query_pairs(float(DOMINO_SIZE[0]), output_type="ndarray").tolist(),
-            key=lambda pair: np.linalg.norm(centres[pair[0]] - centres[pair[1]]),
-        )
+        """Fit pairs of fragments as one: a region split once too often leaves two fragments
+        of one domino, each too short to pass on its own. Only pairs that line up (same
+        orientation, one behind the other along the length) are tried."""
+        found: list[Detection] = []
         used: set[int] = set()
-        found = []
-        for first, second in pairs:
+        for first, second in _aligned_pairs([fit for _, fit in fragments]):
             if first in used or second in used:
                 continue
-            joined = FusedCloud(clouds[first].parts + clouds[second].parts)
-            detection = self._fit_one(joined, views, [], self.config.rejoin_filtering)
+            joined = FusedCloud(fragments[first][0].parts + fragments[second][0].parts)
+            detection, _ = self._fit_one(joined, views, [], self.config.rejoin_filtering)
             if detection is not None:
                 used.update((first, second))
                 found.append(detection)
-                rejected.append(
-                    f"two fragments rejoined into the box at {np.round(detection.X_WD[:3, 3], 3)}"
-                )
+                where = np.round(detection.X_WD[:3, 3], 3)
+                rejected.append(f"two fragments rejoined into the box at {where}")
         return found
 
     def _fit_one(
@@ -188,13 +191,14 @@ class PerceptionPipeline:
         views: list[CameraView],
         rejected: list[str],
         filtering: FilterConfig | None = None,
-    ) -> Detection | None:
+    ) -> tuple[Detection | None, BoxFit | None]:
+        """The detection (None when rejected, with the reason in ``rejected``) and the fit."""
         points, normals = cloud.points, cloud.normals
         try:
             fit = fit_domino_box(points, normals, self.config.box_fit)
         except BoxFitError as error:
             rejected.append(str(error))
-            return None
+            return None, None
         filtering = filtering or self.config.filtering
         reason = rejection_reason(fit, points.shape[0], filtering)
         if reason is None:
@@ -203,9 +207,9 @@ class PerceptionPipeline:
                 reason = f"cameras see behind {seen_through:.0%} of its surface"
         if reason:
             rejected.append(f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}")
-            return None
+            return None, fit
         pose = canonical_pose(fit.X_WD)
-        return Detection(
+        detection = Detection(
             X_WD=pose,
             size=np.abs(pose[:3, :3].T @ fit.X_WD[:3, :3]) @ fit.extents,
             posture=posture(pose[:3, :3]),
@@ -214,6 +218,7 @@ class PerceptionPipeline:
             cameras=cloud.cameras,
             points=points,
         )
+        return detection, fit
 
     def _merge_duplicates(
         self, detections: list[Detection], rejected: list[str]
@@ -268,3 +273,20 @@ def build_pipeline(
     config = config or config_for_scenario(scenario)
     segmenter = make_segmenter(backend, **backend_options)
     return PerceptionPipeline(segmenter, config)
+
+
+def _aligned_pairs(fits: list[BoxFit]) -> list[tuple[int, int]]:
+    """Index pairs of fits turned alike (10 degrees) whose centres lie one behind the other
+    along the length (sideways and in depth within a few millimetres), nearest first."""
+    if len(fits) < 2:
+        return []
+    centres = np.array([fit.X_WD[:3, 3] for fit in fits])
+    pairs = []
+    for first, second in cKDTree(centres).query_pairs(REJOIN_DISTANCE):
+        rotation = fits[first].X_WD[:3, :3]
+        if orientation_error(fits[second].X_WD[:3, :3], rotation) > np.radians(10.0):
+            continue
+        offset = np.abs(rotation.T @ (centres[second] - centres[first]))
+        if offset[1] < REJOIN_SIDEWAYS and offset[2] < REJOIN_SIDEWAYS:
+            pairs.append((float(offset[0]), first, second))
+    return [(first, second) for _, first, second in sorted(pairs)]
