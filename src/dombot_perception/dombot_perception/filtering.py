@@ -31,7 +31,7 @@ class FilterConfig:
     size_tolerance: float = 0.005  # m: observed extents beyond the domino's by more: reject
     min_coverage: float = 0.85  # of the domino's length that must be seen
     min_width_coverage: float = 0.75  # of its width (less of it can hide next to the table)
-    min_thickness_coverage: float = 0.0  # of its thickness (> 0: a side face must be seen)
+    min_thickness_coverage: float = 0.2  # of its thickness (> 0: a side face must be seen)
     free_space_margin: float = 0.005  # m: a camera seeing this far behind a box face
     max_see_through: float = 0.2  # fraction of a box's visible surface a camera may see behind
     min_points: int = 40

@@ -32,6 +32,8 @@ from dombot_perception.frames import CameraView
 SPLIT_ROUNDS = 2  # box-fit / reassign rounds when splitting a region
 MAX_SPLIT_DEPTH = 3  # a part of a split region may be split again this often
 SPLIT_FIT_POINTS = 600  # points of a region used to fit the boxes that split it
+SPLIT_GOOD_FIT = 0.9  # share of a region's points on their part's box that ends the search
+ON_BOX_DISTANCE = 0.002  # m
 
 
 @dataclass(frozen=True)
@@ -141,8 +143,7 @@ def split_oversized(
         return [pixels]
     face = dominant_face(normals)
     count = int(np.clip(np.round(surface_areas[face].sum() / face_areas().max()), 2, 6))
-    _, assignment = kmeans2(points - points.mean(axis=0), count, minit="++", seed=seed)
-    assignment = _assign_to_boxes(points, normals, assignment, count)
+    assignment, count = _best_split(points, normals, count, seed)
     parts = []
     for k in range(count):
         part = assignment == k
@@ -159,11 +160,32 @@ def split_oversized(
     return parts
 
 
+def _best_split(
+    points: np.ndarray, normals: np.ndarray, count: int, seed: int
+) -> tuple[np.ndarray, int]:
+    """Part labels (and how many parts) that put the most points on their part's box.
+
+    The first k-means start usually explains the region; when it leaves more than
+    ``SPLIT_GOOD_FIT`` of the points off the boxes, other starts and one more part are
+    tried and the best kept.
+    """
+    best: tuple[float, np.ndarray, int] | None = None
+    for parts, start in ((count, seed), (count, seed + 1), (count, seed + 2), (count + 1, seed)):
+        _, initial = kmeans2(points - points.mean(axis=0), parts, minit="++", seed=start)
+        assignment, on_box = _assign_to_boxes(points, normals, initial, parts)
+        if best is None or on_box > best[0]:
+            best = (on_box, assignment, parts)
+        if on_box >= SPLIT_GOOD_FIT:
+            break
+    return best[1], best[2]
+
+
 def _assign_to_boxes(
     points: np.ndarray, normals: np.ndarray, assignment: np.ndarray, count: int
-) -> np.ndarray:
+) -> tuple[np.ndarray, float]:
     """Refine a k-means split with the domino's shape: fit a box to each part, give each
-    point to the box whose surface it lies on, repeat until nothing moves.
+    point to the box whose surface it lies on, repeat until nothing moves. Also returns
+    the share of points within 2 mm of their box.
 
     k-means cuts between centroids; dominoes side by side are cut along their edges.
     """
@@ -180,13 +202,15 @@ def _assign_to_boxes(
             except BoxFitError:
                 continue
             distances[k] = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
-        if not np.all(np.isfinite(distances.min(axis=0))):
-            return assignment
+        nearest = distances.min(axis=0)
+        if not np.all(np.isfinite(nearest)):
+            return assignment, 0.0
+        on_box = float(np.mean(nearest < ON_BOX_DISTANCE))
         updated = distances.argmin(axis=0)
         if np.array_equal(updated, assignment):
             break
         assignment = updated
-    return assignment
+    return assignment, on_box
 
 
 def _too_big(points: np.ndarray, margin: float) -> bool:
