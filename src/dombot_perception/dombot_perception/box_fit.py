@@ -172,7 +172,7 @@ def _refine(initial: np.ndarray, points: np.ndarray, config: BoxFitConfig) -> np
         step = np.linalg.solve(hessian, -jacobian.T @ (weight * residual))
         centre = centre + rotation @ step[3:]
         rotation = rotation @ _rodrigues(step[:3])
-        if np.linalg.norm(step[3:]) < 1e-6 and np.linalg.norm(step[:3]) < 1e-5:
+        if np.linalg.norm(step[3:]) < 1e-5 and np.linalg.norm(step[:3]) < 1e-4:
             break
     pose = np.eye(4)
     pose[:3, :3] = rotation
