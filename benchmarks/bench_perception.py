@@ -134,14 +134,31 @@ def grasp_outcomes(detections, matches, truths, pipeline, config) -> dict:
 
 
 def write_figures(directory: Path, views: list[CameraView], result) -> None:
+    """Mask overlay and detections per camera, cropped to the pile and enlarged 2x."""
     from PIL import Image
 
     directory.mkdir(parents=True, exist_ok=True)
     for view in views:
-        overlay = mask_overlay(view, result.masks.get(view.name, []))
-        Image.fromarray(overlay).save(directory / f"perception_masks_{view.name}.png")
-        drawn = draw_detections(view.rgb, view, result.detections)
-        Image.fromarray(drawn).save(directory / f"perception_detections_{view.name}.png")
+        masks = result.masks.get(view.name, [])
+        crop = _pile_window(view, masks)
+        for name, picture in (
+            ("masks", mask_overlay(view, masks)),
+            ("detections", draw_detections(view.rgb, view, result.detections)),
+        ):
+            image = Image.fromarray(picture[crop])
+            image = image.resize((image.width * 2, image.height * 2), Image.NEAREST)
+            image.save(directory / f"perception_{name}_{view.name}.png")
+
+
+def _pile_window(view: CameraView, masks: list[np.ndarray], margin: int = 30):
+    if not masks:
+        return np.s_[:, :]
+    rows, cols = np.divmod(np.concatenate(masks), view.depth.shape[1])
+    height, width = view.depth.shape
+    return np.s_[
+        max(rows.min() - margin, 0) : min(rows.max() + margin, height),
+        max(cols.min() - margin, 0) : min(cols.max() + margin, width),
+    ]
 
 
 def summarise(piles: list[dict]) -> dict:

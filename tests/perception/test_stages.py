@@ -255,3 +255,13 @@ def test_camera_view_check_names_the_problem() -> None:
     assert "orthonormal" in CameraView("c", rgb, depth, np.eye(3), bad_pose).check()
     assert "differ" in CameraView("c", rgb, depth[:2], np.eye(3), np.eye(4)).check()
     assert CameraView("c", rgb, depth, np.eye(3), np.eye(4)).check() is None
+
+
+def test_height_only_ranks_free_dominoes() -> None:
+    low = flat(0.50, -0.30, 0.3)
+    high = flat(0.60, -0.30, 0.3)
+    high[2, 3] += 0.02  # resting on something 2 cm up
+    scene = np.vstack([visible_surface(p, CAMERA)[0] for p in (low, high)])
+    ranked = score_detections([_detection(low), _detection(high)], scene, GraspScoringConfig())
+    assert np.allclose(ranked[0].X_WD, high)
+    assert ranked[1].score > 0.5, "the lowest free domino is still a good pick"

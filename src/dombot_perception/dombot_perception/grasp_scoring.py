@@ -11,7 +11,7 @@ the domino's score combines:
   fingers must fit beside the domino's long faces without touching a neighbour;
 * uncovered: no other domino lies on top of it (points above its top face);
 * height: higher in the pile is better (nothing under it can pin it, and picking it
-  does not disturb the rest);
+  does not disturb the rest); 0.5 for the lowest, 1 for the highest, so it only ranks;
 * reach: the grasp comes from above and its TCP lies within the arm's reach.
 
 The score is a weighted geometric mean of the terms, so any term at zero (a finger
@@ -86,7 +86,7 @@ def score_detections(
             "flatness": abs(detection.X_WD[2, 2]),
             "clearance": float(np.clip(choice.clearance / config.good_clearance, 0.0, 1.0)),
             "uncovered": float(np.clip(1.0 - covered / config.max_cover_points, 0.0, 1.0)),
-            "height": float((top - tops.min()) / span) if span > 1e-6 else 1.0,
+            "height": 0.5 + 0.5 * float((top - tops.min()) / span) if span > 1e-6 else 1.0,
             "reach": _reach_term(choice.grasp, config),
         }
         detection.grasp_pose = choice.grasp.pose.GetAsMatrix4()
