@@ -79,7 +79,7 @@ def flattest_first(detections: list[Detection]) -> list[Detection]:
 def evaluate_pile(
     world: CellWorld, pipeline: PerceptionPipeline, config: EvaluationConfig, figures: Path | None
 ) -> dict:
-    frames = world.render()
+    frames = {n: f for n, f in world.render().items() if n in CAMERA_SETS["both"]}
     views = views_of(frames)
     truths = truth_of(world)
     covered = covered_from_above(truths)

@@ -20,6 +20,9 @@ setup(
     ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [],
+        "console_scripts": [
+            "sim_node = dombot_sim.sim_node:main",
+            "snapshot = dombot_sim.snapshot:main",
+        ],
     },
 )

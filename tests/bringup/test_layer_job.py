@@ -11,7 +11,9 @@ from ament_index_python.packages import get_package_prefix
 
 def bringup(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
     executable = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
-    return subprocess.run([str(executable), *args], capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [str(executable), "--job", "layer", *args], capture_output=True, text=True, timeout=timeout
+    )
 
 
 def test_vehicle_lays_an_arc_on_the_requested_radius(tmp_path: Path) -> None:

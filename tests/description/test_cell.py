@@ -72,14 +72,17 @@ def test_domino_size_mass_and_inertia(cell) -> None:
     assert [plant.GetModelInstanceName(d) for d in dominoes] == ["domino_0", "domino_1"]
 
 
-def test_cameras_see_the_pile_centre_in_the_middle_of_the_image() -> None:
-    pile = np.array([*SCENARIO.pile_center, 0.0, 1.0])
+def test_each_camera_sees_what_it_looks_at_in_the_middle_of_the_image() -> None:
     for camera in SCENARIO.cameras:
-        in_camera = np.linalg.inv(camera.pose()) @ pile
+        target = np.array([*camera.look_at, 1.0])
+        in_camera = np.linalg.inv(camera.pose()) @ target
         pixel = camera.intrinsics @ (in_camera[:3] / in_camera[2])
         assert pixel[:2] == pytest.approx([camera.width / 2, camera.height / 2], abs=1e-6)
         assert in_camera[2] > 0.3  # in front of the camera, inside the depth range
         assert camera.intrinsics[1, 1] == pytest.approx(240 / math.tan(math.radians(22.5)))
+    pile = np.array([*SCENARIO.pile_center, 0.0])
+    pile_cameras = [c.name for c in SCENARIO.cameras if np.allclose(c.look_at, pile)]
+    assert pile_cameras == ["camera_0", "camera_1"]  # the paper's two, on the pile
 
 
 def test_shadow_plant_has_only_the_arm_and_the_obstacles() -> None:

@@ -12,6 +12,7 @@ import pytest
 
 from dombot_perception.frames import CameraView
 
+PILE_CAMERAS = ("camera_0", "camera_1")  # camera_2 watches the build area
 collect_ignore = [] if importlib.util.find_spec("dombot_msgs") else ["test_perception_node.py"]
 
 
@@ -24,10 +25,14 @@ def world():
 
 @pytest.fixture(scope="session")
 def render_scene(world):
-    """Render dominoes at exact poses: {index: 4x4} -> a CameraView per camera."""
+    """Render dominoes at exact poses: {index: 4x4} -> a CameraView per pile camera."""
 
     def render(poses: dict[int, np.ndarray]) -> list[CameraView]:
         world.set_domino_poses(poses)
-        return [CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC) for f in world.render().values()]
+        return [
+            CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
+            for f in world.render().values()
+            if f.name in PILE_CAMERAS
+        ]
 
     return render

@@ -96,7 +96,11 @@ def cameras(world):
     world.set_domino_poses({0: TRUTH})
     from dombot_perception.frames import CameraView
 
-    views = [CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC) for f in world.render().values()]
+    views = [
+        CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
+        for f in world.render().values()
+        if f.name in ("camera_0", "camera_1")
+    ]
     rclpy.init()
     with installed_node(
         "dombot_perception", "perception_node", "--ros-args", "-p", "rate:=2.0"

@@ -1,29 +1,41 @@
 """bringup: the DOM-BOT main job, started with ``ros2 run dombot_bringup bringup``.
 
-Starts the nodes a job needs as separate processes (like a launch file), drives
-them over ROS, and writes a report. Jobs available now:
+Starts the nodes a job needs as separate processes (like a launch file), drives them
+over ROS, and writes a report. Jobs:
 
-* ``layer`` — the domino-laying vehicle lays an arc of dominoes in simulation
-  (layer_node + vehicle_sim_node); the settled dominoes are checked against the
-  requested radius.
+* ``arm`` (default) — the simulated iiwa builds a domino run from a seeded pile and
+  knocks it down (sim_node, perception_node, planner_node). Layouts: line, arc,
+  circle, spiral, s-curve, or a CSV of x,y points; validated before anything moves.
+* ``layer`` — the domino-laying vehicle lays an arc in simulation (layer_node +
+  vehicle_sim_node); the settled dominoes are checked against the requested radius.
 
-The arm job (build a run from a pile with the simulated iiwa and knock it down)
-needs sim_node, perception_node and planner_node; it is not available yet.
+Examples::
+
+    bringup                                    # 10 dominoes on an arc about the arm base
+    bringup --layout line --start 0.45 0.0 --heading 90 --count 8
+    bringup --layout s-curve --start 0.45 -0.05 --heading 80 --length 0.45 --amplitude 0.05
+    bringup --layout csv --csv my_run.csv --visual
+    bringup --job layer --radius 0.5 --sweep 270
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
+from dombot_bringup import layouts
+from dombot_bringup.arm_job import ArmJobSettings, run_arm_job
+from dombot_bringup.cell_client import CallFailedError
 from dombot_bringup.layer_job import PathRejectedError, run_layer_job
 from dombot_bringup.process_group import NodeDiedError
+from dombot_description.scenario import ScenarioError, load_scenario
 
 
-def node_command(package: str, executable: str, parameters: dict[str, float]) -> list[str]:
+def node_command(package: str, executable: str, parameters: dict) -> list[str]:
     """argv for an installed node with parameters, found through the ament index like ros2 run."""
     path = Path(get_package_prefix(package)) / "lib" / package / executable
     if not path.is_file():
@@ -32,45 +44,117 @@ def node_command(package: str, executable: str, parameters: dict[str, float]) ->
     return [str(path), "--ros-args", *overrides]
 
 
-def parse_args(argv: list[str] | None) -> argparse.Namespace:
+def parse_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="bringup", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument(
-        "--job", choices=["layer"], default="layer", help="what to run (default: layer)"
+    parser.add_argument("--job", choices=["arm", "layer"], default="arm")
+    parser.add_argument("--out", type=Path, default=Path("out"), help="report folder (out/)")
+    run = parser.add_argument_group("arm job: the run")
+    run.add_argument(
+        "--layout", choices=["line", "arc", "circle", "spiral", "s-curve", "csv"], default="arc"
     )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=Path("out"),
-        help="folder for the report and plot (default: out/)",
-    )
-    parser.add_argument(
-        "--radius", type=float, default=0.5, help="arc deposit radius [m] (default 0.5)"
-    )
-    parser.add_argument("--sweep", type=float, default=270.0, help="arc angle [deg] (default 270)")
-    parser.add_argument(
-        "--spacing", type=float, default=0.03, help="domino spacing [m] (default 0.03)"
-    )
-    parser.add_argument(
-        "--speed", type=float, default=0.2, help="vehicle speed [m/s] (default 0.2)"
-    )
+    run.add_argument("--count", type=int, default=10, help="dominoes in the run (default 10)")
+    run.add_argument("--spacing", type=float, help="centre spacing [m] (default 60%% of height)")
+    run.add_argument("--start", type=float, nargs=2, default=(0.45, 0.0), metavar=("X", "Y"))
+    run.add_argument("--heading", type=float, default=90.0, help="line/s-curve heading [deg]")
+    run.add_argument("--center", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"))
+    run.add_argument("--radius", type=float, help="arc/circle radius [m] (arc 0.6; layer 0.5)")
+    run.add_argument("--start-angle", type=float, default=-2.0, help="arc start [deg]")
+    run.add_argument("--inner-radius", type=float, default=0.08, help="spiral [m]")
+    run.add_argument("--pitch", type=float, default=0.06, help="spiral [m per turn]")
+    run.add_argument("--length", type=float, default=0.45, help="s-curve length [m]")
+    run.add_argument("--amplitude", type=float, default=0.05, help="s-curve amplitude [m]")
+    run.add_argument("--csv", type=Path, help="x,y points in metres (world frame)")
+    cell = parser.add_argument_group("arm job: the cell")
+    cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
+    cell.add_argument("--seed", type=int, default=0, help="pile seed (default 0)")
+    cell.add_argument("--real-time-factor", type=float, default=1.0, help="0: as fast as possible")
+    cell.add_argument("--visual", action="store_true", help="show the cell in Meshcat")
+    layer = parser.add_argument_group("layer job")
+    layer.add_argument("--sweep", type=float, default=270.0, help="arc angle [deg] (270)")
+    layer.add_argument("--speed", type=float, default=0.2, help="vehicle speed [m/s] (0.2)")
+    layer.add_argument("--layer-spacing", type=float, default=0.03, help="[m] (0.03)")
     return parser.parse_args(argv)
+
+
+def make_layout(args: argparse.Namespace) -> list[layouts.DominoPlacement]:
+    heading = math.radians(args.heading)
+    if args.layout == "line":
+        return layouts.line(tuple(args.start), heading, args.count, args.spacing)
+    if args.layout == "arc":
+        radius = 0.6 if args.radius is None else args.radius
+        start = math.radians(args.start_angle)
+        return layouts.arc(tuple(args.center), radius, start, args.count, args.spacing)
+    if args.layout == "circle":
+        radius = 0.1 if args.radius is None else args.radius
+        return layouts.circle(tuple(args.center), radius, args.spacing)
+    if args.layout == "spiral":
+        center = tuple(args.center)
+        return layouts.spiral(center, args.inner_radius, args.pitch, args.count, args.spacing)
+    if args.layout == "s-curve":
+        return layouts.s_curve(
+            tuple(args.start), heading, args.length, args.amplitude, args.count, args.spacing
+        )
+    if args.csv is None:
+        raise layouts.LayoutError("--layout csv needs --csv PATH")
+    return layouts.from_csv(args.csv, args.count, args.spacing)
+
+
+def build_area() -> layouts.BuildArea:
+    scenario = load_scenario()
+    return layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
+
+
+def run_arm(args: argparse.Namespace) -> int:
+    placements = make_layout(args)
+    layouts.validate(placements, build_area())
+    if not 1 <= args.pile <= 200:
+        raise layouts.LayoutError(f"--pile must be 1..200, got {args.pile}")
+    if args.pile < len(placements):
+        raise layouts.LayoutError(
+            f"a run of {len(placements)} needs at least as many dominoes in the pile "
+            f"(--pile {args.pile})"
+        )
+    settings = ArmJobSettings(
+        pile=args.pile,
+        seed=args.seed,
+        real_time_factor=args.real_time_factor,
+        meshcat=args.visual,
+    )
+    return run_arm_job(args.out, placements, args.layout, settings, node_command)
+
+
+def run_layer(args: argparse.Namespace) -> int:
+    radius = 0.5 if args.radius is None else args.radius
+    for name, value in (
+        ("radius", radius),
+        ("sweep", args.sweep),
+        ("layer-spacing", args.layer_spacing),
+        ("speed", args.speed),
+    ):
+        if not value > 0:
+            raise layouts.LayoutError(f"--{name} must be positive")
+    return run_layer_job(args.out, radius, args.sweep, args.layer_spacing, args.speed, node_command)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    for name in ("radius", "sweep", "spacing", "speed"):
-        if not getattr(args, name) > 0:
-            print(f"bringup: --{name} must be positive", file=sys.stderr)
-            return 2
     try:
-        return run_layer_job(
-            args.out, args.radius, args.sweep, args.spacing, args.speed, node_command
-        )
+        return run_arm(args) if args.job == "arm" else run_layer(args)
+    except layouts.LayoutError as error:
+        print(f"bringup: layout rejected: {error}", file=sys.stderr)
+        return 2
     except NodeDiedError as error:
         print(f"bringup: {error}", file=sys.stderr)
-    except (TimeoutError, FileNotFoundError, PackageNotFoundError, PathRejectedError) as error:
+    except (
+        TimeoutError,
+        FileNotFoundError,
+        PackageNotFoundError,
+        PathRejectedError,
+        CallFailedError,
+        ScenarioError,
+    ) as error:
         print(f"bringup: {error}", file=sys.stderr)
     except KeyboardInterrupt:
         print("bringup: interrupted; nodes stopped", file=sys.stderr)

@@ -119,7 +119,8 @@ class PerceptionNode(Node):
             ("max_fit_error", 0.0015, "reject boxes whose RMS point distance exceeds this [m]"),
             ("min_coverage", 0.85, "fraction of a large face that must be seen"),
             ("min_clearance", 0.0015, "finger clearance below this predicts a failed grasp [m]"),
-            ("work_region_radius", 0.0, "pile region radius [m]; 0: scenario pile + margin"),
+            ("work_region_center", [0.0, 0.0], "region centre [x y] in world; [0 0]: the pile's"),
+            ("work_region_radius", 0.0, "region radius [m]; 0: scenario pile radius + margin"),
             ("publish_debug_image", True, "publish /perception/debug_image"),
         ):
             self.declare_parameter(name, default, ParameterDescriptor(description=description))
@@ -150,6 +151,11 @@ class PerceptionNode(Node):
         )
         config = pipeline.config
         region = config.region
+        centre = [float(v) for v in values["work_region_center"]]
+        if len(centre) != 2 or not np.all(np.isfinite(centre)):
+            raise ValueError(f"work_region_center needs two finite numbers, got {centre}")
+        if any(centre):
+            region = replace(region, center=(centre[0], centre[1]))
         if values["work_region_radius"] > 0:
             region = replace(region, radius=float(values["work_region_radius"]))
         pipeline.config = replace(

@@ -41,7 +41,7 @@ from dombot_sim.pile import BOUNDING_RADIUS
 @dataclass(frozen=True)
 class SleepSettings:
     enabled: bool = True
-    rest_motion: float = 2e-4  # m any point may move during the rest window
+    rest_motion: float = 5e-4  # m any point may move during the rest window
     rest_time: float = 0.25  # s
     moving_speed: float = 0.005  # m/s of a body's fastest point (bounding radius)
     wake_distance: float = 0.006  # m
@@ -64,6 +64,7 @@ class SleepManager:
         self._dominoes = list(dominoes)
         self._joints = [_floating_joint(plant, body) for body in self._dominoes]
         self._settings = settings
+        self.enabled = settings.enabled
         self._static_ids = [
             g for b in static_bodies for g in plant.GetCollisionGeometriesForBody(b)
         ]
@@ -105,7 +106,7 @@ class SleepManager:
 
     def update(self, root: Context) -> None:
         """After a simulator step: wake sleepers near moving bodies, put resting ones to sleep."""
-        if not self._settings.enabled:
+        if not self.enabled:
             return
         plant_context = self._plant.GetMyMutableContextFromRoot(root)
         domino_moving = self._domino_moving(plant_context)

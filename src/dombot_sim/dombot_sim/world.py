@@ -45,7 +45,12 @@ from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_look
 from dombot_sim.control import ArmCommandSource, ArmGains, GripperController, GripperSettings
 from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
 from dombot_sim.sleeping import SleepManager, SleepSettings
+from dombot_sim.trajectory import JointLimits
 
+CONTACT_MODELS = {
+    "hydroelastic": ContactModel.kHydroelasticWithFallback,
+    "point": ContactModel.kPoint,  # ignores the hydroelastic properties; for comparison
+}
 CONTACT_APPROXIMATIONS = {
     "tamsi": DiscreteContactApproximation.kTamsi,
     "sap": DiscreteContactApproximation.kSap,
@@ -62,6 +67,7 @@ class WorldConfig:
     scenario_path: str | None = None  # None: dombot_description's default scenario
     time_step: float = 0.002  # s
     contact_approximation: str = "similar"
+    contact_model: str = "hydroelastic"
     cameras: bool = True
     meshcat: bool = False
     domino_capacity: int = 30  # bodies in the plant; a larger reset rebuilds it
@@ -78,6 +84,10 @@ class WorldConfig:
             raise ValueError(
                 f"contact_approximation must be one of {sorted(CONTACT_APPROXIMATIONS)}, "
                 f"got {self.contact_approximation!r}"
+            )
+        if self.contact_model not in CONTACT_MODELS:
+            raise ValueError(
+                f"contact_model must be one of {sorted(CONTACT_MODELS)}, got {self.contact_model!r}"
             )
         if self.domino_capacity < 0 or self.pour_wave_size < 1:
             raise ValueError("domino_capacity must be >= 0 and pour_wave_size >= 1")
@@ -138,7 +148,7 @@ class CellWorld:
         plant.set_discrete_contact_approximation(
             CONTACT_APPROXIMATIONS[config.contact_approximation]
         )
-        plant.set_contact_model(ContactModel.kHydroelasticWithFallback)
+        plant.set_contact_model(CONTACT_MODELS[config.contact_model])
         models = add_cell(plant, scenario)
         domino_models = add_dominoes(plant, capacity)
         # GetJointActuatorIndices(model_instance) is empty before Finalize: filter all of them.
@@ -292,6 +302,12 @@ class CellWorld:
             wall_time=wallclock.perf_counter() - started,
         )
 
+    def set_sleeping(self, enabled: bool) -> None:
+        """Turn sleeping on or off (off wakes every domino in use)."""
+        self._sleep.enabled = enabled
+        if not enabled:
+            self._sleep.wake(self._root, self._in_use)
+
     def settle(self, limit: float) -> bool:
         """Advance until the dominoes in use are at rest; False if still moving at ``limit`` s.
 
@@ -300,7 +316,7 @@ class CellWorld:
         """
         dt, deadline, rested = self.config.time_step, self.time + max(limit, 0.0), 0.0
         while self.time < deadline:
-            if self.config.sleep.enabled:
+            if self._sleep.enabled:
                 if self._sleep.all_asleep(self._in_use):
                     return True
             else:
@@ -395,6 +411,16 @@ class CellWorld:
             position=np.concatenate([plant.GetPositions(context, m) for m in models]),
             velocity=np.concatenate([plant.GetVelocities(context, m) for m in models]),
             effort=effort,
+        )
+
+    def arm_limits(self) -> JointLimits:
+        """Position and velocity limits of the arm joints, in ``arm_joint_names`` order."""
+        joints = [self._plant.GetJointByName(name) for name in self.scenario.arm_joints]
+        return JointLimits(
+            names=self.scenario.arm_joints,
+            lower=np.array([j.position_lower_limits()[0] for j in joints]),
+            upper=np.array([j.position_upper_limits()[0] for j in joints]),
+            velocity=np.array([j.velocity_upper_limits()[0] for j in joints]),
         )
 
     def follow_trajectory(self, trajectory: PiecewisePolynomial) -> float:

@@ -1,0 +1,176 @@
+"""Execute planned pick-and-places in the Drake simulation (dombot_sim) and measure them.
+
+Pairs come from bench_planner's seeded set, those standing on the table (the simulation
+has no step for the raised ones). For each: the pick domino and its standing
+neighbours are put in the simulated cell, the plan is made from the arm's simulated joint
+state, and every segment is tracked by the simulated arm (a cubic Hermite spline through
+the published samples, as a robot driver would interpolate), followed by its gripper
+event. Measured: the held domino against the place pose just before release (≤ 1 mm,
+≤ 0.5° wanted), where it stands once everything has settled (≤ 2 mm, ≤ 2°), and how far
+the standing neighbours moved. Prints one JSON object on stdout (progress on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+
+import numpy as np
+from bench_planner import log, make_cases
+from pydrake.math import RigidTransform
+from pydrake.trajectories import PiecewisePolynomial
+
+from dombot_description.grasp import SYMMETRIES, flat_pose
+from dombot_description.scenario import load_scenario
+from dombot_planner.errors import PlanningError
+from dombot_planner.planner import GRIPPER_CLOSE, GRIPPER_OPEN, PickPlacePlanner
+from dombot_planner.request import PickPlaceRequest
+from dombot_planner.settings import PlannerSettings
+from dombot_planner.verify import nearest_error
+from dombot_sim.world import CellWorld, WorldConfig
+
+TRACKING_SETTLE = 0.1  # s held at the end of each segment before the gripper event
+GRIPPER_TIMEOUT = 2.0  # s a gripper command may take
+GRIPPER_STILL_TIME = 0.1  # s the fingers must be still (at the goal or on the domino)
+FINAL_SETTLE = 2.0  # s limit for the dominoes to come to rest at the end
+PICKED = 0
+
+
+def domino_pose(world: CellWorld, index: int) -> RigidTransform:
+    return RigidTransform(world.domino_truth()[index].X_WD)
+
+
+def place_error(pose: RigidTransform, place: RigidTransform) -> tuple[float, float]:
+    return nearest_error(pose, [place @ RigidTransform(s) for s in SYMMETRIES])
+
+
+def execute(world: CellWorld, plan, period: float) -> dict:
+    """Run every segment and gripper event; the held domino's error just before release."""
+    before_release = None
+    holding = False
+    for segment in plan.sampled(period):
+        if len(segment.times) > 1:
+            spline = PiecewisePolynomial.CubicHermite(
+                segment.times, segment.positions.T, segment.velocities.T
+            )
+            end = world.follow_trajectory(spline)
+            world.advance_to(end + TRACKING_SETTLE)
+        if segment.gripper_after == GRIPPER_OPEN and holding:
+            before_release = domino_pose(world, PICKED)
+        if segment.gripper_after in (GRIPPER_OPEN, GRIPPER_CLOSE):
+            force = plan_force(plan, segment.label)
+            world.command_gripper(segment.gripper_position, force)
+            wait_for_gripper(world)
+            holding = segment.gripper_after == GRIPPER_CLOSE
+    return {"before_release": before_release}
+
+
+def wait_for_gripper(world: CellWorld) -> None:
+    """Advance until the fingers reach the commanded opening or stall on the domino."""
+    deadline, still = world.time + GRIPPER_TIMEOUT, 0.0
+    while world.time < deadline and still < GRIPPER_STILL_TIME:
+        world.advance(0.01)
+        state = world.gripper_state()
+        moving = abs(state.opening_rate) > 1e-3 or abs(state.opening - state.goal) > 0.01
+        reached = abs(state.opening - state.goal) < 2e-4
+        still = still + 0.01 if (reached or not moving) else 0.0
+
+
+def plan_force(plan, label: str) -> float:
+    return next(s.gripper_effort for s in plan.segments if s.label == label)
+
+
+def run_case(world: CellWorld, planner: PickPlacePlanner, case) -> dict:
+    world.reset(domino_count=0, seed=case.index)
+    standing = case.standing()
+    world.set_domino_poses(
+        {PICKED: flat_pose(*case.domino), **{i + 1: p for i, p in enumerate(standing)}}
+    )
+    world.settle(1.0)
+    start_poses = [domino_pose(world, i + 1) for i in range(len(standing))]
+    request = PickPlaceRequest(
+        domino_pose(world, PICKED),
+        case.place_pose(),
+        world.joint_state().position[:7],
+        standing=tuple(start_poses),
+    )
+    try:
+        plan = planner.plan(request)
+    except PlanningError as error:
+        return {"index": case.index, "planned": False, "error": str(error)}
+    began = time.perf_counter()
+    result = execute(world, plan, planner.settings.sample_period)
+    world.settle(FINAL_SETTLE)
+    held = place_error(result["before_release"], request.place_pose)
+    final = place_error(domino_pose(world, PICKED), request.place_pose)
+    moved = [
+        np.linalg.norm(domino_pose(world, i + 1).translation() - p.translation())
+        for i, p in enumerate(start_poses)
+    ]
+    return {
+        "index": case.index,
+        "neighbours": list(case.neighbours),
+        "planned": True,
+        "regrasped": plan.regrasped,
+        "before_release_mm": held[0] * 1000,
+        "before_release_deg": math.degrees(held[1]),
+        "after_release_mm": final[0] * 1000,
+        "after_release_deg": math.degrees(final[1]),
+        "neighbours_moved_mm": max(moved, default=0.0) * 1000,
+        "simulated_s": sum(s.duration for s in plan.segments),
+        "wall_s": time.perf_counter() - began,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--count", type=int, default=10, help="pairs to execute")
+    parser.add_argument("--seed", type=int, default=2026, help="seed of the pair set")
+    parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
+    args = parser.parse_args()
+    scenario = load_scenario()
+    world = CellWorld(WorldConfig(cameras=False, domino_capacity=4), scenario)
+    planner = PickPlacePlanner(scenario, PlannerSettings(**json.loads(args.settings or "{}")))
+    rows = []
+    on_table = [case for case in make_cases(scenario, 4 * args.count, args.seed) if case.on_table]
+    for case in on_table[: args.count]:
+        row = run_case(world, planner, case)
+        rows.append(row)
+        log(json.dumps(row))
+    executed = [r for r in rows if r["planned"]]
+    held_ok = [r["before_release_mm"] <= 1.0 and r["before_release_deg"] <= 0.5 for r in executed]
+    stands_ok = [r["after_release_mm"] <= 2.0 and r["after_release_deg"] <= 2.0 for r in executed]
+    print(
+        json.dumps(
+            {
+                "benchmark": "planner_execution",
+                "pairs": len(rows),
+                "planned": len(executed),
+                "held_within_1mm_0.5deg_before_release": sum(held_ok),
+                "standing_within_2mm_2deg_after_release": sum(stands_ok),
+                "max": {
+                    key: max((r[key] for r in executed), default=None)
+                    for key in (
+                        "before_release_mm",
+                        "before_release_deg",
+                        "after_release_mm",
+                        "after_release_deg",
+                        "neighbours_moved_mm",
+                    )
+                },
+                "wall_s_per_pair": float(np.mean([r["wall_s"] for r in executed]))
+                if executed
+                else None,
+                "rows": rows,
+                "load_average": os.getloadavg(),
+            },
+            indent=2,
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()

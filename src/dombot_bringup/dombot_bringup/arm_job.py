@@ -1,0 +1,417 @@
+"""The arm job: build a user's domino run from the pile, knock it down, report.
+
+Starts ``sim_node``, ``perception_node`` and ``planner_node`` as separate processes,
+then for each domino of the layout, in run order:
+
+perceive the pile → choose the best graspable detection → ``/plan_place`` with the
+dominoes already standing as obstacles → execute the segments (trajectories and
+gripper events) → check the grasp by the finger opening → place → check the placement
+with perception (camera_2 watches the build area) → on failure retry with the next
+candidate; a domino that fell is picked up again from where perception found it.
+
+When the run stands, ``/plan_strike`` knocks the first domino over and perception
+checks that every domino fell. The simulator's ground truth goes into the report only.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import Point, Pose, Quaternion
+from pydrake.math import RigidTransform, RotationMatrix
+from scipy.spatial.transform import Rotation
+
+from dombot_bringup.cell_client import CallFailedError, CellClient
+from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement
+from dombot_bringup.process_group import ProcessGroup
+from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import pick_grasps
+from dombot_msgs.msg import DominoDetection, TrajectorySegment
+from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
+
+NodeCommand = Callable[[str, str, dict], list[str]]
+NEEDED_SERVICES = (
+    "/sim/reset",
+    "/perception/detect",
+    "/perception/check_placement",
+    "/plan_place",
+    "/plan_strike",
+)
+
+
+@dataclass(frozen=True)
+class ArmJobSettings:
+    pile: int = 30  # dominoes poured
+    seed: int = 0
+    max_attempts: int = 4  # per domino
+    plan_budget: float = 5.0  # s of planning per request
+    settle_after_place: float = 0.5  # s simulated before checking a placement
+    topple_wait: float = 3.0  # s simulated after the strike
+    place_tolerance: float = 0.003  # m, perception's check
+    place_tilt_tolerance: float = math.radians(3.0)
+    grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
+    real_time_factor: float = 1.0
+    camera_rate: float = 2.0
+    meshcat: bool = False
+
+
+@dataclass
+class Candidate:
+    """Something to pick: a pile detection or a fallen run domino."""
+
+    pose: Pose
+    grasp_pose: Pose
+    source: str  # "pile" or "run <index>"
+
+
+@dataclass
+class BuildState:
+    standing: dict[int, Pose] = field(default_factory=dict)  # layout index → target pose
+    fallen: dict[int, Pose] = field(default_factory=dict)  # layout index → measured pose
+
+
+def placement_pose(placement: DominoPlacement) -> Pose:
+    w, x, y, z = placement.quaternion_wxyz()
+    return Pose(
+        position=Point(x=placement.x, y=placement.y, z=placement.z),
+        orientation=Quaternion(x=x, y=y, z=z, w=w),
+    )
+
+
+def pose_matrix(pose: Pose) -> np.ndarray:
+    q = pose.orientation
+    matrix = np.eye(4)
+    matrix[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    matrix[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
+    return matrix
+
+
+def matrix_pose(matrix: np.ndarray) -> Pose:
+    x, y, z, w = Rotation.from_matrix(matrix[:3, :3]).as_quat()
+    px, py, pz = (float(v) for v in matrix[:3, 3])
+    return Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(x=x, y=y, z=z, w=w))
+
+
+def grasp_for(pose: Pose) -> Pose:
+    """The preferred grasp of a domino lying at ``pose`` (dombot_description.grasp)."""
+    matrix = pose_matrix(pose)
+    grasps = pick_grasps(RigidTransform(RotationMatrix(matrix[:3, :3]), matrix[:3, 3]))
+    if not grasps:
+        raise ValueError("no grasp for this domino pose")
+    return matrix_pose(grasps[0].pose.GetAsMatrix4())
+
+
+def log(message: str) -> None:
+    print(f"[bringup] {message}", flush=True)
+
+
+class ArmJob:
+    """One run: the task loop over a connected ``CellClient``."""
+
+    def __init__(
+        self,
+        client: CellClient,
+        layout: Sequence[DominoPlacement],
+        name: str,
+        settings: ArmJobSettings,
+    ) -> None:
+        self.client = client
+        self.layout = list(layout)
+        self.targets = [placement_pose(p) for p in self.layout]
+        self.settings = settings
+        self.state = BuildState()
+        self.report = RunReport(
+            layout=name,
+            dominoes=[DominoOutcome(p.index, target_of(p)) for p in self.layout],
+            pile=settings.pile,
+            seed=settings.seed,
+        )
+
+    # ------------------------------------------------------------------ the run
+    def run(self) -> RunReport:
+        started_wall, settings = time.monotonic(), self.settings
+        reset = self.client.reset(settings.pile, settings.seed)
+        log(reset.message)
+        started_sim = self.client.sim_time
+        queue = list(range(len(self.layout)))
+        while queue:
+            index = queue.pop(0)
+            if not self._place_with_retries(index):
+                self.report.message = f"domino {index} could not be placed; stopping the build"
+                log(self.report.message)
+                break
+            refallen = sorted(set(self.state.fallen) - set(queue))
+            queue = refallen + queue  # pick fallen run dominoes up again first
+        self.report.built = len(self.state.standing) == len(self.layout)
+        self._record_truth(before_strike=True)
+        if self.report.built:
+            self._strike()
+        self._record_truth(before_strike=False)
+        self.report.simulated_s = self.client.sim_time - started_sim
+        self.report.wall_s = time.monotonic() - started_wall
+        return self.report
+
+    def _place_with_retries(self, index: int) -> bool:
+        outcome = self.report.dominoes[index]
+        failed: list[np.ndarray] = []
+        sim_start, wall_start = self.client.sim_time, time.monotonic()
+        while outcome.attempts < self.settings.max_attempts:
+            outcome.attempts += 1
+            try:
+                success, why, spot = self._attempt(index, failed)
+            except CallFailedError as error:
+                success, why, spot = False, str(error), None
+            outcome.simulated_s = self.client.sim_time - sim_start
+            outcome.wall_s = time.monotonic() - wall_start
+            if success:
+                outcome.placed = True
+                log(
+                    f"domino {index + 1}/{len(self.layout)} placed (attempt {outcome.attempts}): "
+                    f"{outcome.measured_error_mm:.1f} mm, {outcome.measured_tilt_deg:.1f}° off; "
+                    f"{outcome.simulated_s:.1f} s simulated, {outcome.wall_s:.1f} s wall"
+                )
+                return True
+            outcome.failures.append(why)
+            if spot is not None:
+                failed.append(spot)
+            log(f"domino {index + 1}/{len(self.layout)} attempt {outcome.attempts} failed: {why}")
+        return False
+
+    # ------------------------------------------------------------------ one attempt
+    def _attempt(self, index: int, failed: list[np.ndarray]) -> tuple[bool, str, np.ndarray | None]:
+        candidate = self._choose(failed)
+        if candidate is None:
+            return False, "no graspable domino seen", None
+        spot = np.array([candidate.pose.position.x, candidate.pose.position.y])
+        plan = self.client.plan_place(
+            PlanPlace.Request(
+                domino_pose=candidate.pose,
+                grasp_pose=candidate.grasp_pose,
+                grasp_width=0.0,
+                place_pose=self.targets[index],
+                standing_dominoes=list(self.state.standing.values()),
+                time_budget=self.settings.plan_budget,
+            ),
+            timeout=self.settings.plan_budget + 30.0,
+        )
+        if not plan.success:
+            return False, f"planning ({candidate.source}): {plan.message}", spot
+        if candidate.source.startswith("run "):
+            self.state.fallen.pop(int(candidate.source.split()[1]), None)
+        executed, why = self._execute(plan.segments)
+        if not executed:
+            return False, why, spot
+        return self._check(index), self.report.dominoes[index].check, None
+
+    def _choose(self, failed: list[np.ndarray]) -> Candidate | None:
+        """A fallen run domino first (it blocks the run), else the best pile detection."""
+        for index, pose in sorted(self.state.fallen.items()):
+            spot = np.array([pose.position.x, pose.position.y])
+            if not any(np.linalg.norm(spot - f) < 0.01 for f in failed):
+                try:
+                    return Candidate(pose, grasp_for(pose), f"run {index}")
+                except ValueError:
+                    continue
+        detections = self.client.detect().detections.detections
+        for detection in detections:
+            if graspable(detection, failed):
+                return Candidate(detection.pose, detection.grasp_pose, "pile")
+        return None
+
+    def _execute(self, segments: Sequence[TrajectorySegment]) -> tuple[bool, str]:
+        for segment in segments:
+            points = segment.trajectory.points
+            if points:
+                duration = (
+                    points[-1].time_from_start.sec + points[-1].time_from_start.nanosec * 1e-9
+                )
+                result = self.client.execute(segment.trajectory, timeout=duration * 20 + 60)
+                if result.error_code != 0:
+                    return False, f"{segment.label}: {result.error_string}"
+            if segment.gripper_after == TrajectorySegment.GRIPPER_CLOSE:
+                closed = self.client.gripper(segment.gripper_position, segment.gripper_max_effort)
+                width = DOMINO_SIZE[1]
+                if abs(closed.position - width) > self.settings.grasp_width_tolerance:
+                    self.client.gripper(0.1, 0.0)
+                    return False, (
+                        f"{segment.label}: grasp missed (fingers stopped at "
+                        f"{closed.position * 1e3:.1f} mm, domino {width * 1e3:.0f} mm)"
+                    )
+            elif segment.gripper_after == TrajectorySegment.GRIPPER_OPEN:
+                self.client.gripper(segment.gripper_position, 0.0)
+        return True, ""
+
+    # ------------------------------------------------------------------ checks
+    def _check(self, index: int) -> bool:
+        """Perception looks at every domino placed so far; fallen ones are queued again."""
+        self.client.wait_for_sim_time(self.settings.settle_after_place)
+        indices = sorted(set(self.state.standing) | {index})
+        answer = self.client.check_placement([self.targets[i] for i in indices])
+        if not answer.success:
+            self.report.dominoes[index].check = f"placement check failed: {answer.message}"
+            return False
+        placed = False
+        for position, i in enumerate(indices):
+            status = answer.status[position]
+            error, tilt = answer.position_error[position], answer.tilt[position]
+            upright = (
+                status == CheckPlacement.Response.STANDING
+                and error <= self.settings.place_tolerance
+                and tilt <= self.settings.place_tilt_tolerance
+            )
+            if i == index:
+                outcome = self.report.dominoes[index]
+                outcome.check = check_words(status, error, tilt)
+                outcome.measured_error_mm, outcome.measured_tilt_deg = (
+                    error * 1e3,
+                    math.degrees(tilt),
+                )
+                placed = upright
+            if upright:
+                self.state.standing[i] = self.targets[i]
+            else:
+                self.state.standing.pop(i, None)
+                if status == CheckPlacement.Response.FALLEN or (
+                    status == CheckPlacement.Response.STANDING and not upright
+                ):
+                    self.state.fallen[i] = answer.measured[position]
+                if i != index:
+                    log(
+                        f"domino {i + 1} is no longer standing ({check_words(status, error, tilt)})"
+                    )
+        return placed
+
+    # ------------------------------------------------------------------ knock-down
+    def _strike(self) -> None:
+        log("the run stands: knocking it down")
+        plan = self.client.plan_strike(
+            PlanStrike.Request(
+                domino_pose=self.targets[0],
+                standing_dominoes=self.targets[1:],
+                time_budget=self.settings.plan_budget,
+            ),
+            timeout=self.settings.plan_budget + 30.0,
+        )
+        if not plan.success:
+            self.report.message = f"strike planning failed: {plan.message}"
+            log(self.report.message)
+            return
+        executed, why = self._execute(plan.segments)
+        if not executed:
+            self.report.message = f"strike failed: {why}"
+            log(self.report.message)
+            return
+        self.report.struck = True
+        self.client.wait_for_sim_time(self.settings.topple_wait)
+        answer = self.client.check_placement(self.targets)
+        fallen = [s != CheckPlacement.Response.STANDING for s in answer.status]
+        self.report.toppled_by_perception = answer.success and all(fallen)
+        log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")
+
+    def _record_truth(self, before_strike: bool) -> None:
+        """Ground truth for the report: the simulator domino nearest each target."""
+        truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
+        poses = [pose_matrix(d.pose) for d in truth.dominoes]
+        if not poses:
+            return
+        centres = np.array([p[:2, 3] for p in poses])
+        down = 0
+        standing = 0
+        for outcome, target in zip(self.report.dominoes, self.layout, strict=True):
+            distances = np.linalg.norm(centres - [target.x, target.y], axis=1)
+            nearest = int(np.argmin(distances))
+            if distances[nearest] > (0.02 if before_strike else DOMINO_LENGTH):
+                continue
+            pose = poses[nearest]
+            tilt = math.degrees(math.acos(min(1.0, abs(pose[2, 0]))))
+            along = pose[:3, 2]
+            record = TruthPose(
+                float(pose[0, 3]),
+                float(pose[1, 3]),
+                math.atan2(along[1], along[0]),
+                tilt,
+                float(distances[nearest] * 1e3),
+            )
+            if before_strike:
+                outcome.truth_built = record
+                standing += tilt < 10.0
+            else:
+                outcome.truth_after_strike = record
+                down += tilt > 45.0
+        if before_strike:
+            self.report.standing_by_truth = standing
+        elif self.report.struck:
+            self.report.toppled_by_truth = down == len(self.layout)
+
+
+def graspable(detection: DominoDetection, failed: list[np.ndarray]) -> bool:
+    """Lying flat, scored, and not where an attempt just failed."""
+    spot = np.array([detection.pose.position.x, detection.pose.position.y])
+    return (
+        detection.posture == DominoDetection.POSTURE_FLAT
+        and detection.score > 0.0
+        and not any(np.linalg.norm(spot - f) < 0.01 for f in failed)
+    )
+
+
+def check_words(status: int, error: float, tilt: float) -> str:
+    name = {0: "standing", 1: "fallen", 2: "missing", 3: "not seen"}.get(status, str(status))
+    return f"{name}, {error * 1e3:.1f} mm and {math.degrees(tilt):.1f}° from the target"
+
+
+def run_arm_job(
+    out_dir: Path,
+    layout: Sequence[DominoPlacement],
+    layout_name: str,
+    settings: ArmJobSettings,
+    node_command: NodeCommand,
+) -> int:
+    """Start the nodes, run the job, write the report; exit status 0 only on full success."""
+    sim_parameters = {
+        "domino_count": settings.pile,
+        "seed": settings.seed,
+        "real_time_factor": settings.real_time_factor,
+        "camera_rate": settings.camera_rate,
+        "meshcat": settings.meshcat,
+    }
+    with ProcessGroup() as group:
+        group.start("sim_node", node_command("dombot_sim", "sim_node", sim_parameters))
+        group.start("perception_node", node_command("dombot_perception", "perception_node", {}))
+        group.start("planner_node", node_command("dombot_planner", "planner_node", {}))
+        rclpy.init()
+        client = CellClient(watchdog=group.check)
+        try:
+            group.wait_until(lambda: client.ready(NEEDED_SERVICES), 600.0, "the nodes to be ready")
+            log(
+                f"nodes ready; building '{layout_name}' ({len(layout)} dominoes) "
+                f"from a pile of {settings.pile} (seed {settings.seed})"
+            )
+            job = ArmJob(client, layout, layout_name, settings)
+            report = job.run()
+            group.check()
+        finally:
+            client.close()
+            rclpy.try_shutdown()
+    json_path, png_path = write_report(report, out_dir)
+    summary = report.summary()
+    log(
+        f"{summary['placed']}/{summary['dominoes']} placed "
+        f"({summary['placed_first_attempt']} on the first attempt, {summary['retries']} retries), "
+        f"toppled: perception {summary['toppled_by_perception']}, "
+        f"truth {summary['toppled_by_truth']}; "
+        f"{report.simulated_s:.0f} s simulated, {report.wall_s:.0f} s wall"
+    )
+    log(f"report: {json_path}  picture: {png_path}")
+    print(
+        "SUCCESS" if report.success else "FAILED",
+        file=sys.stderr if not report.success else sys.stdout,
+    )
+    return 0 if report.success else 1

@@ -1,0 +1,163 @@
+"""The bring-up's ROS side: blocking calls to the cell's services and actions.
+
+One node spins on a background executor; each method sends a request and waits for
+its answer with a timeout, so the task loop reads like the procedure it is.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Sequence
+
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import Pose
+from rclpy.action import ActionClient
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+from dombot_msgs.action import ExecuteTrajectory, GripperCommand
+from dombot_msgs.msg import DominoStateArray
+from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
+
+SERVICES = {
+    "/sim/reset": ResetSim,
+    "/perception/detect": DetectDominoes,
+    "/perception/check_placement": CheckPlacement,
+    "/plan_place": PlanPlace,
+    "/plan_strike": PlanStrike,
+}
+
+
+class CallFailedError(RuntimeError):
+    """A service or action did not answer, or refused the goal."""
+
+
+class CellClient:
+    """Blocking access to sim, perception and planner; ``close()`` when done.
+
+    ``watchdog`` is called while waiting for any answer; the bring-up passes its process
+    group's check, so a node that dies mid-call is reported at once, by name.
+    """
+
+    def __init__(self, name: str = "bringup", watchdog: Callable[[], None] = lambda: None) -> None:
+        self.node = Node(name, parameter_overrides=[Parameter("use_sim_time", value=False)])
+        self._watchdog = watchdog
+        self._clients = {n: self.node.create_client(t, n) for n, t in SERVICES.items()}
+        self._trajectory = ActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
+        self._gripper = ActionClient(self.node, GripperCommand, "/gripper_command")
+        self._lock = threading.Lock()
+        self._joint_state: JointState | None = None
+        self._truth: DominoStateArray | None = None
+        self._sim_time = 0.0
+        self.node.create_subscription(JointState, "/joint_states", self._on_joint_state, 10)
+        self.node.create_subscription(
+            DominoStateArray, "/sim/domino_ground_truth", self._on_truth, 2
+        )
+        self._executor = MultiThreadedExecutor(num_threads=2)
+        self._executor.add_node(self.node)
+        self._spinner = threading.Thread(target=self._executor.spin, daemon=True)
+        self._spinner.start()
+
+    def close(self) -> None:
+        self._executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+
+    # ------------------------------------------------------------------ topics
+    def _on_joint_state(self, message: JointState) -> None:
+        with self._lock:
+            self._joint_state = message
+            self._sim_time = message.header.stamp.sec + message.header.stamp.nanosec * 1e-9
+
+    def _on_truth(self, message: DominoStateArray) -> None:
+        with self._lock:
+            self._truth = message
+
+    @property
+    def sim_time(self) -> float:
+        """Simulated seconds, from the latest joint state."""
+        with self._lock:
+            return self._sim_time
+
+    def ground_truth(self, newer_than: float = -1.0, timeout: float = 10.0) -> DominoStateArray:
+        """The simulator's ground truth (for the report only), stamped after ``newer_than``."""
+
+        def fresh() -> DominoStateArray | None:
+            with self._lock:
+                truth = self._truth
+            if truth is None:
+                return None
+            stamp = truth.header.stamp.sec + truth.header.stamp.nanosec * 1e-9
+            return truth if stamp > newer_than else None
+
+        return self._wait(fresh, timeout, "/sim/domino_ground_truth")
+
+    def wait_for_sim_time(self, seconds: float, timeout: float = 60.0) -> None:
+        """Block until simulated time has advanced by ``seconds``."""
+        target = self.sim_time + seconds
+        self._wait(lambda: self.sim_time >= target or None, timeout, "simulated time")
+
+    def ready(self, names: Sequence[str]) -> bool:
+        """Are these services (and both actions) available?"""
+        return (
+            all(self._clients[n].service_is_ready() for n in names)
+            and self._trajectory.server_is_ready()
+            and self._gripper.server_is_ready()
+            and self._joint_state is not None
+        )
+
+    # ------------------------------------------------------------------ services
+    def call(self, name: str, request, timeout: float):
+        client = self._clients[name]
+        if not client.wait_for_service(timeout_sec=min(timeout, 10.0)):
+            raise CallFailedError(f"{name} is not available")
+        future = client.call_async(request)
+        return self._wait(lambda: future.result() if future.done() else None, timeout, name)
+
+    def reset(self, count: int, seed: int) -> ResetSim.Response:
+        return self.call("/sim/reset", ResetSim.Request(domino_count=count, seed=seed), 600.0)
+
+    def detect(self) -> DetectDominoes.Response:
+        return self.call("/perception/detect", DetectDominoes.Request(), 30.0)
+
+    def check_placement(self, expected: Sequence[Pose]) -> CheckPlacement.Response:
+        request = CheckPlacement.Request(expected=list(expected))
+        return self.call("/perception/check_placement", request, 30.0)
+
+    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
+        return self.call("/plan_place", request, timeout)
+
+    def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
+        return self.call("/plan_strike", request, timeout)
+
+    # ------------------------------------------------------------------ actions
+    def execute(self, trajectory: JointTrajectory, timeout: float) -> ExecuteTrajectory.Result:
+        goal = ExecuteTrajectory.Goal(trajectory=trajectory, goal_time_tolerance=Duration(sec=1))
+        return self._run_action(self._trajectory, goal, timeout, "/execute_trajectory")
+
+    def gripper(self, position: float, max_effort: float, timeout: float = 30.0):
+        goal = GripperCommand.Goal(position=float(position), max_effort=float(max_effort))
+        return self._run_action(self._gripper, goal, timeout, "/gripper_command")
+
+    def _run_action(self, client: ActionClient, goal, timeout: float, name: str):
+        if not client.wait_for_server(timeout_sec=10.0):
+            raise CallFailedError(f"{name} is not available")
+        sent = client.send_goal_async(goal)
+        handle = self._wait(lambda: sent.result() if sent.done() else None, 10.0, name)
+        if not handle.accepted:
+            raise CallFailedError(f"{name} refused the goal")
+        result = handle.get_result_async()
+        return self._wait(lambda: result.result() if result.done() else None, timeout, name).result
+
+    def _wait(self, poll, timeout: float, what: str):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            value = poll()
+            if value is not None:
+                return value
+            self._watchdog()
+            time.sleep(0.01)
+        raise CallFailedError(f"no answer from {what} within {timeout:.0f} s")

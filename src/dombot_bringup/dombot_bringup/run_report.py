@@ -1,0 +1,164 @@
+"""What happened in an arm run, as JSON and a top-down picture (no ROS).
+
+The report separates what the robot *believed* (perception's placement checks, which
+drove its decisions) from the simulator's ground truth (recorded for the report only).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Polygon
+
+from dombot_bringup.layouts import DOMINO_THICKNESS, DOMINO_WIDTH, DominoPlacement
+
+
+@dataclass
+class TruthPose:
+    """A domino as the simulator saw it: centre, heading of its body z in the plane, tilt."""
+
+    x: float
+    y: float
+    heading: float  # rad
+    tilt_deg: float  # length axis from vertical
+    error_mm: float  # horizontal distance from its target
+
+
+@dataclass
+class DominoOutcome:
+    index: int
+    target: tuple[float, float, float]  # x, y, heading
+    placed: bool = False
+    attempts: int = 0
+    failures: list[str] = field(default_factory=list)
+    check: str = ""  # perception's verdict after placing
+    measured_error_mm: float | None = None
+    measured_tilt_deg: float | None = None
+    simulated_s: float = 0.0
+    wall_s: float = 0.0
+    truth_built: TruthPose | None = None  # before the strike
+    truth_after_strike: TruthPose | None = None
+
+
+@dataclass
+class RunReport:
+    layout: str
+    dominoes: list[DominoOutcome]
+    pile: int
+    seed: int
+    built: bool = False
+    struck: bool = False
+    toppled_by_perception: bool = False
+    toppled_by_truth: bool | None = None
+    standing_by_truth: int | None = None
+    message: str = ""
+    simulated_s: float = 0.0
+    wall_s: float = 0.0
+
+    @property
+    def success(self) -> bool:
+        return self.built and self.toppled_by_perception and self.toppled_by_truth is not False
+
+    def summary(self) -> dict:
+        placed = [d for d in self.dominoes if d.placed]
+        first_try = [d for d in placed if d.attempts == 1]
+        per_domino = [d.simulated_s for d in placed]
+        return {
+            "success": self.success,
+            "dominoes": len(self.dominoes),
+            "placed": len(placed),
+            "placed_first_attempt": len(first_try),
+            "retries": sum(max(d.attempts - 1, 0) for d in self.dominoes),
+            "standing_before_strike_by_truth": self.standing_by_truth,
+            "toppled_by_perception": self.toppled_by_perception,
+            "toppled_by_truth": self.toppled_by_truth,
+            "simulated_s_per_domino_mean": float(np.mean(per_domino)) if per_domino else None,
+            "wall_s_per_domino_mean": (
+                float(np.mean([d.wall_s for d in placed])) if placed else None
+            ),
+            "simulated_s": self.simulated_s,
+            "wall_s": self.wall_s,
+        }
+
+
+def write_report(report: RunReport, folder: Path) -> tuple[Path, Path]:
+    folder.mkdir(parents=True, exist_ok=True)
+    json_path, png_path = folder / "run_report.json", folder / "run.png"
+    content = {"summary": report.summary(), **asdict(report)}
+    json_path.write_text(json.dumps(content, indent=2, allow_nan=False, default=str))
+    plot_run(report, png_path)
+    return json_path, png_path
+
+
+def _footprint(x: float, y: float, heading: float) -> np.ndarray:
+    along = np.array([math.cos(heading), math.sin(heading)]) * DOMINO_THICKNESS / 2
+    across = np.array([-math.sin(heading), math.cos(heading)]) * DOMINO_WIDTH / 2
+    centre = np.array([x, y])
+    return np.array(
+        [
+            centre + along + across,
+            centre + along - across,
+            centre - along - across,
+            centre - along + across,
+        ]
+    )
+
+
+def plot_run(report: RunReport, path: Path) -> Path:
+    """Top-down: target outlines, where each domino stood (truth), where it lay after the strike."""
+    figure, axes = plt.subplots(figsize=(8, 7))
+    for domino in report.dominoes:
+        x, y, heading = domino.target
+        axes.add_patch(Polygon(_footprint(x, y, heading), fill=False, edgecolor="0.4", lw=1))
+        axes.annotate(
+            str(domino.index),
+            (x, y),
+            textcoords="offset points",
+            xytext=(0, 9),
+            ha="center",
+            fontsize=7,
+            color="0.3",
+        )
+        built = domino.truth_built
+        if built is not None:
+            colour = "tab:green" if built.tilt_deg < 10 else "tab:orange"
+            axes.add_patch(
+                Polygon(_footprint(built.x, built.y, built.heading), color=colour, alpha=0.7)
+            )
+        fallen = domino.truth_after_strike
+        if fallen is not None and fallen.tilt_deg > 45:
+            axes.plot(fallen.x, fallen.y, "x", color="tab:red", ms=6)
+    axes.plot([], [], "s", mfc="none", mec="0.4", label="target")
+    axes.plot([], [], "s", color="tab:green", label="standing after the build (truth)")
+    axes.plot([], [], "s", color="tab:orange", label="placed but not upright (truth)")
+    axes.plot([], [], "x", color="tab:red", label="fallen after the strike (truth)")
+    axes.set_aspect("equal")
+    axes.autoscale_view()
+    axes.margins(0.15)
+    axes.set_xlabel("x [m] (world)")
+    axes.set_ylabel("y [m] (world)")
+    summary = report.summary()
+    verdict = "SUCCESS" if report.success else "FAILED"
+    axes.set_title(
+        f"{report.layout}: {summary['placed']}/{summary['dominoes']} placed "
+        f"({summary['placed_first_attempt']} first try), toppled: "
+        f"{report.toppled_by_truth} — {verdict}"
+    )
+    axes.legend(loc="best", fontsize=8)
+    axes.grid(alpha=0.3)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def target_of(placement: DominoPlacement) -> tuple[float, float, float]:
+    return (placement.x, placement.y, placement.heading)

@@ -1,0 +1,281 @@
+"""How the gripper holds a domino: the one grasp definition for planner, perception and bring-up.
+
+Conventions (see also docs/ARCHITECTURE.md and docs/PLANNER.md):
+
+* Domino body frame D: origin at the centre, x along the 48 mm length, y along the 24 mm
+  width, z along the 7.5 mm thickness.
+* Gripper TCP frame G (``wsg_tcp``): z = approach (out of the fingers), fingers close
+  along y, origin between the pads 9 mm in from their tips.
+* The canonical grasp X_DG closes the fingers across the domino's *width* (G y = D y) and
+  tilts the approach by ``GRASP_TILT`` = 63° from the domino's −z axis towards its +x axis,
+  with the TCP at ``TCP_IN_DOMINO`` = (−19, 0, 9.25) mm. Why: a flat domino (D z up) is
+  picked with the gripper leaning 63° from vertical and stood up (D x down) with it leaning
+  27° from vertical; the sum must be 90° because the domino turns 90° about its y axis
+  between pile and run. 45°/45° puts the pads onto the neighbours of a gap in a run; at 63°
+  the pads stay 1.8 mm above the table at pick, ≥ 3.5 mm from neighbours standing 28.8 mm
+  away on both sides at place, and the gripper body ≥ 14 mm above the table (measured with
+  Drake geometry queries in tests/description/test_grasp.py).
+* The pads grip the domino's side faces near its −x end; at place that end is the top.
+* A domino is a box: its pose is only defined up to ``SYMMETRIES`` {I, Rx(π), Ry(π),
+  Rz(π)}; the gripper is symmetric under a half turn about its approach axis
+  (``FINGER_SWAP``: the fingers trade places, joint 7 differs by π). A grasp is
+  X_WG = X_WD · S · X_DG · F for S in SYMMETRIES and F in {I, FINGER_SWAP}. The finger
+  swap chosen at pick persists to the place (the held domino turns with the wrist), so the
+  place candidates are X_WP · S · X_DG · F with the same F.
+
+Gripper dimensions are read from ``models/wsg50.urdf`` so they have one source of truth.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+
+from dombot_description import DOMINO_SIZE, PACKAGE_DIR
+
+GRASP_TILT = math.radians(63.0)
+TCP_IN_DOMINO = np.array([-0.019, 0.0, 0.00925])  # m, in the domino frame
+TOP_GRASP_HEIGHT = 0.007  # m: TCP above the centre in the top grasp (pad tips 1.75 mm up)
+PREGRASP_CLEARANCE = 0.008  # m per side between open pads and the domino at pick
+RELEASE_CLEARANCE = 0.005  # m per side when the fingers let go at place
+SYMMETRIES = (
+    RotationMatrix(),
+    RotationMatrix.MakeXRotation(math.pi),
+    RotationMatrix.MakeYRotation(math.pi),
+    RotationMatrix.MakeZRotation(math.pi),
+)
+FINGER_SWAP = RigidTransform(RotationMatrix.MakeZRotation(math.pi))
+# An approach with less downward component than this comes from below the domino: not usable.
+MIN_DOWNWARD_APPROACH = 0.05
+WSG_URDF = PACKAGE_DIR / "models" / "wsg50.urdf"
+
+
+@dataclass(frozen=True)
+class OrientedBox:
+    """A box of ``size`` (full edge lengths) whose centre frame is ``pose`` in world."""
+
+    pose: RigidTransform
+    size: np.ndarray
+
+    def signed_distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance of each row of ``points`` (N×3, world) to the box: < 0 inside."""
+        local = (np.asarray(points, dtype=float) - self.pose.translation()) @ (
+            self.pose.rotation().matrix()
+        )
+        excess = np.abs(local) - self.size / 2.0
+        outside = np.linalg.norm(np.maximum(excess, 0.0), axis=1)
+        return np.where(np.all(excess <= 0.0, axis=1), excess.max(axis=1), outside)
+
+
+@dataclass(frozen=True)
+class GripperGeometry:
+    """The gripper's collision boxes and TCP, in the ``wsg_body`` frame (from the URDF)."""
+
+    body_center: np.ndarray
+    body_size: np.ndarray
+    pad_center: np.ndarray  # left pad centre in its finger frame; the right pad mirrors y
+    pad_size: np.ndarray
+    tcp_offset: np.ndarray  # wsg_tcp origin in wsg_body
+    max_opening: float
+
+    def pad_boxes_in_tcp(self, opening: float) -> list[OrientedBox]:
+        """Left and right pad boxes in the TCP frame when the fingers are ``opening`` apart."""
+        boxes = []
+        for side in (1.0, -1.0):
+            center = self.pad_center * np.array([1.0, side, 1.0]) + [0.0, side * opening / 2, 0.0]
+            boxes.append(OrientedBox(RigidTransform(center - self.tcp_offset), self.pad_size))
+        return boxes
+
+    def body_box_in_tcp(self) -> OrientedBox:
+        return OrientedBox(RigidTransform(self.body_center - self.tcp_offset), self.body_size)
+
+
+def _floats(text: str) -> np.ndarray:
+    return np.array([float(value) for value in text.split()])
+
+
+@cache
+def gripper_geometry() -> GripperGeometry:
+    """Parse the WSG URDF once: body and left pad collision boxes, TCP joint, finger stroke."""
+    root = ET.parse(WSG_URDF).getroot()
+
+    def collision_box(link: str) -> tuple[np.ndarray, np.ndarray]:
+        collision = root.find(f"link[@name='{link}']/collision")
+        return _floats(collision.find("origin").get("xyz")), _floats(
+            collision.find("geometry/box").get("size")
+        )
+
+    body_center, body_size = collision_box("wsg_body")
+    pad_center, pad_size = collision_box("wsg_left_finger")
+    tcp = _floats(root.find("joint[@name='wsg_tcp_joint']/origin").get("xyz"))
+    stroke = float(root.find("joint[@name='wsg_left_finger_joint']/limit").get("upper"))
+    return GripperGeometry(body_center, body_size, pad_center, pad_size, tcp, 2.0 * stroke)
+
+
+def canonical_grasp() -> RigidTransform:
+    """X_DG: the TCP in the domino frame for the canonical tilted grasp."""
+    approach = np.array([math.sin(GRASP_TILT), 0.0, -math.cos(GRASP_TILT)])
+    closing = np.array([0.0, 1.0, 0.0])
+    rotation = np.column_stack([np.cross(closing, approach), closing, approach])
+    return RigidTransform(RotationMatrix(rotation), TCP_IN_DOMINO)
+
+
+def pregrasp_opening(width: float) -> float:
+    """Finger opening while approaching a domino ``width`` wide: PREGRASP_CLEARANCE per side."""
+    return width + 2.0 * PREGRASP_CLEARANCE
+
+
+def release_opening(width: float) -> float:
+    """Finger opening that lets go of a domino ``width`` wide: RELEASE_CLEARANCE per side."""
+    return width + 2.0 * RELEASE_CLEARANCE
+
+
+def top_grasp() -> RigidTransform:
+    """X_DG of the regrasp: straight down onto a flat domino, fingers across its width.
+
+    It cannot stand a domino up (the gripper would be horizontal at place); the planner
+    uses it only to turn a domino that lies where no tilted grasp reaches (docs/PLANNER.md).
+    """
+    rotation = np.column_stack([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])
+    return RigidTransform(RotationMatrix(rotation), [0.0, 0.0, TOP_GRASP_HEIGHT])
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """One way to hold a domino: TCP pose in world and the finger openings it needs."""
+
+    pose: RigidTransform  # X_WG of wsg_tcp
+    closed_opening: float  # m, finger opening when closed on the domino (its width)
+    pregrasp_opening: float  # m, opening while approaching it
+
+    @property
+    def approach(self) -> np.ndarray:
+        """Unit approach direction (TCP z) in world."""
+        return self.pose.rotation().matrix()[:, 2]
+
+    @property
+    def release_opening(self) -> float:
+        """Opening that lets go of the domino at place."""
+        return release_opening(self.closed_opening)
+
+    def pad_boxes(self, opening: float | None = None) -> list[OrientedBox]:
+        """Where the two pads are in world at ``opening`` (default: closed on the domino)."""
+        opening = self.closed_opening if opening is None else opening
+        return [
+            OrientedBox(self.pose @ box.pose, box.size)
+            for box in gripper_geometry().pad_boxes_in_tcp(opening)
+        ]
+
+
+def comes_from_above(tcp_pose: RigidTransform) -> bool:
+    """False when the approach points up: the gripper would come from under the domino."""
+    return bool(tcp_pose.rotation().matrix()[2, 2] < -MIN_DOWNWARD_APPROACH)
+
+
+def equivalent_grasps(
+    domino_pose: RigidTransform,
+    size: tuple[float, float, float] = DOMINO_SIZE,
+    tcp_in_domino: RigidTransform | None = None,
+) -> list[Grasp]:
+    """All 8 grasps holding a domino at ``domino_pose`` (S, then F), unranked.
+
+    ``tcp_in_domino``: the grasp X_DG (default: the canonical tilted grasp).
+    """
+    width = float(size[1])
+    tcp_in_domino = canonical_grasp() if tcp_in_domino is None else tcp_in_domino
+    return [
+        Grasp(
+            domino_pose @ RigidTransform(symmetry) @ tcp_in_domino @ swap,
+            width,
+            pregrasp_opening(width),
+        )
+        for swap in (RigidTransform(), FINGER_SWAP)
+        for symmetry in SYMMETRIES
+    ]
+
+
+def _horizontal_unit(vector: np.ndarray) -> np.ndarray:
+    flat = np.array([vector[0], vector[1], 0.0])
+    norm = np.linalg.norm(flat)
+    return flat / norm if norm > 1e-9 else flat
+
+
+def _approach(tcp_pose: RigidTransform) -> np.ndarray:
+    return tcp_pose.rotation().matrix()[:, 2]
+
+
+def pick_grasps(
+    domino_pose: RigidTransform,
+    size: tuple[float, float, float] = DOMINO_SIZE,
+    base_xy: tuple[float, float] = (0.0, 0.0),
+    tcp_in_domino: RigidTransform | None = None,
+) -> list[Grasp]:
+    """The grasps of a domino lying at ``domino_pose``, best first.
+
+    Ranking: the most downward approach first (grasps from below come last); among equals
+    the gripper leaning so that its approach points away from the arm base (``base_xy``),
+    the arm's natural reach; unswapped fingers before swapped ones (stable sort).
+    """
+    outward = _horizontal_unit(domino_pose.translation() - np.array([*base_xy, 0.0]))
+
+    def score(grasp: Grasp) -> float:
+        approach = grasp.approach
+        return -approach[2] + 0.3 * float(_horizontal_unit(approach) @ outward)
+
+    grasps = equivalent_grasps(domino_pose, size, tcp_in_domino)
+    return sorted(grasps, key=lambda grasp: -round(score(grasp), 9))
+
+
+def domino_in_tcp(grasp_pose: RigidTransform, domino_pose: RigidTransform) -> RigidTransform:
+    """X_GD: where a domino grasped at ``grasp_pose`` sits in the TCP frame while held."""
+    return grasp_pose.inverse() @ domino_pose
+
+
+def place_grasps(
+    place_pose: RigidTransform,
+    held_in_tcp: RigidTransform,
+    free_direction: np.ndarray | None = None,
+) -> list[RigidTransform]:
+    """TCP poses that put a domino held at ``held_in_tcp`` at ``place_pose``, best first.
+
+    One pose per domino symmetry.
+
+    The most downward approach first (for the canonical grasp and an upright domino: the
+    one standing the domino on the end far from the pads); among equals the gripper body
+    leaning over ``free_direction`` (default: the domino's +z, where the next domino of a
+    run built in order will stand, so no neighbour stands there yet).
+    """
+    free = place_pose.rotation().matrix()[:, 2] if free_direction is None else free_direction
+    free = _horizontal_unit(np.asarray(free, dtype=float))
+    poses = [
+        place_pose @ RigidTransform(symmetry) @ held_in_tcp.inverse() for symmetry in SYMMETRIES
+    ]
+
+    def score(tcp_pose: RigidTransform) -> float:
+        approach = _approach(tcp_pose)
+        return -approach[2] + 0.3 * float(-_horizontal_unit(approach) @ free)
+
+    return sorted(poses, key=lambda pose: -round(score(pose), 9))
+
+
+def upright_pose(x: float, y: float, heading: float, base_height: float = 0.0) -> RigidTransform:
+    """A domino standing on ``base_height`` (body x up), toppling towards ``heading`` (body z).
+
+    Same convention as dombot_bringup.layouts: x = up, z = run tangent, y = z × x.
+    """
+    tangent = np.array([math.cos(heading), math.sin(heading), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    rotation = RotationMatrix(np.column_stack([up, np.cross(tangent, up), tangent]))
+    return RigidTransform(rotation, [x, y, base_height + DOMINO_SIZE[0] / 2.0])
+
+
+def flat_pose(x: float, y: float, yaw: float, base_height: float = 0.0) -> RigidTransform:
+    """A domino lying on its largest face (body z up) on ``base_height``, turned by ``yaw``."""
+    return RigidTransform(
+        RotationMatrix.MakeZRotation(yaw), [x, y, base_height + DOMINO_SIZE[2] / 2.0]
+    )

@@ -1,0 +1,238 @@
+"""planner_node: serves /plan_place (dombot_msgs/srv/PlanPlace).
+
+A thin ROS adapter over ``planner``: parameters are PlannerSettings' fields (validated; a
+rejected update keeps the old values), /joint_states gives the start state when a request
+has none, requests are checked and converted before they wait for the planner, and every
+failure is answered with an error code and a message and logged. The service runs in a
+reentrant callback group on a multi-threaded executor, so bad requests are answered at
+once while another request is being planned; a request that cannot start planning within
+its time budget gets TIMEOUT.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+import traceback
+
+import rclpy
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import Pose
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from dombot_description.scenario import ScenarioError, load_scenario
+from dombot_msgs.msg import TrajectorySegment
+from dombot_msgs.srv import PlanPlace
+from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.planner import GRIPPER_CLOSE, GRIPPER_OPEN, PickPlacePlanner, Plan
+from dombot_planner.request import PickPlaceRequest, arm_positions, check_request, pose_from
+from dombot_planner.settings import PlannerSettings
+
+GRIPPER_EVENTS = {
+    GRIPPER_OPEN: TrajectorySegment.GRIPPER_OPEN,
+    GRIPPER_CLOSE: TrajectorySegment.GRIPPER_CLOSE,
+}
+
+
+def pose_of(message: Pose, what: str):
+    p, o = message.position, message.orientation
+    return pose_from([p.x, p.y, p.z], [o.w, o.x, o.y, o.z], what)
+
+
+def is_unset(message: Pose) -> bool:
+    """A grasp_pose left at the origin (inside the arm base): the planner chooses."""
+    p = message.position
+    return p.x == 0.0 and p.y == 0.0 and p.z == 0.0
+
+
+def duration_of(seconds: float) -> Duration:
+    whole = int(seconds)
+    return Duration(sec=whole, nanosec=round((seconds - whole) * 1e9))
+
+
+class PlannerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("planner_node")
+        self.declare_parameter(
+            "scenario", "", ParameterDescriptor(description="scenario YAML; empty: the default")
+        )
+        for field in dataclasses.fields(PlannerSettings):
+            default = field.default
+            value = list(default) if isinstance(default, tuple) else default
+            self.declare_parameter(
+                field.name, value, ParameterDescriptor(description="see docs/PLANNER.md")
+            )
+        try:
+            self.scenario = load_scenario(self.get_parameter("scenario").value or None)
+            settings = self._settings({})
+        except (ScenarioError, ValueError, TypeError) as error:
+            self.get_logger().fatal(f"cannot start: {error}")
+            raise
+        self.planner = PickPlacePlanner(self.scenario, settings)
+        self.lock = threading.Lock()
+        self.joint_state: JointState | None = None
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.create_subscription(
+            JointState,
+            "joint_states",
+            self._on_joint_state,
+            10,
+            callback_group=MutuallyExclusiveCallbackGroup(),
+        )
+        self.create_service(
+            PlanPlace, "plan_place", self._on_plan_place, callback_group=ReentrantCallbackGroup()
+        )
+        self.get_logger().info(
+            f"ready: /plan_place on scenario {self.scenario.path.name}, "
+            f"default time budget {settings.default_time_budget} s"
+        )
+
+    # ------------------------------------------------------------------ parameters
+    def _settings(self, overrides: dict) -> PlannerSettings:
+        values = {}
+        for field in dataclasses.fields(PlannerSettings):
+            value = overrides.get(field.name, self.get_parameter(field.name).value)
+            values[field.name] = tuple(value) if isinstance(field.default, tuple) else value
+        return PlannerSettings(**values)
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        overrides = {p.name: p.value for p in parameters if p.name != "scenario"}
+        if any(p.name == "scenario" for p in parameters):
+            return SetParametersResult(successful=False, reason="scenario is read at start only")
+        try:
+            settings = self._settings(overrides)
+        except (ValueError, TypeError) as error:
+            self.get_logger().error(f"rejected parameter update: {error}")
+            return SetParametersResult(successful=False, reason=str(error))
+        with self.lock:
+            self.planner = PickPlacePlanner(self.scenario, settings)
+        self.get_logger().info(f"settings updated: {sorted(overrides)}")
+        return SetParametersResult(successful=True)
+
+    def _on_joint_state(self, message: JointState) -> None:
+        self.joint_state = message
+
+    # ------------------------------------------------------------------ service
+    def _on_plan_place(self, request: PlanPlace.Request, response: PlanPlace.Response):
+        began = time.monotonic()
+        try:
+            plan_request = self._convert(request)
+            check_request(plan_request, self.planner.settings)  # answered before queueing
+            budget = plan_request.time_budget or self.planner.settings.default_time_budget
+            if not self.lock.acquire(timeout=budget):
+                raise PlanningError(
+                    ErrorCode.TIMEOUT, "queue", f"still busy with another request after {budget} s"
+                )
+            try:
+                waited = time.monotonic() - began
+                remaining = max(budget - waited, 1e-3)
+                plan = self.planner.plan(dataclasses.replace(plan_request, time_budget=remaining))
+            finally:
+                self.lock.release()
+            self._fill(response, plan)
+            self.get_logger().info(
+                f"plan_place: planned in {time.monotonic() - began:.2f} s "
+                f"({len(response.segments)} segments, "
+                f"{sum(s.duration for s in plan.segments):.2f} s of motion"
+                f"{', with a regrasp' if plan.regrasped else ''})"
+            )
+        except PlanningError as error:
+            self._fail(response, error.code, error.stage, error.message)
+        except Exception as error:  # the node must keep serving
+            self.get_logger().error(traceback.format_exc())
+            self._fail(response, ErrorCode.PLANNING_FAILED, "internal", repr(error))
+        response.planning_time = time.monotonic() - began
+        return response
+
+    def _fail(self, response, code: ErrorCode, stage: str, message: str) -> None:
+        response.success = False
+        response.error_code = int(code)
+        response.message = f"{code.name} at {stage}: {message}"
+        self.get_logger().warning(f"plan_place: {response.message}")
+
+    def _convert(self, request: PlanPlace.Request) -> PickPlaceRequest:
+        arm = self.scenario.arm_joints
+        lower, upper = self.planner.lower, self.planner.upper
+        state = request.start_state
+        if not state.name and not state.position:
+            if self.joint_state is None:
+                raise PlanningError(
+                    ErrorCode.NO_START_STATE,
+                    "start",
+                    "start_state is empty and no /joint_states has been received",
+                )
+            state = self.joint_state
+        start = arm_positions(list(state.name), list(state.position), arm, lower, upper)
+        return PickPlaceRequest(
+            domino_pose=pose_of(request.domino_pose, "domino_pose"),
+            place_pose=pose_of(request.place_pose, "place_pose"),
+            start=start,
+            grasp_pose=(
+                None if is_unset(request.grasp_pose) else pose_of(request.grasp_pose, "grasp_pose")
+            ),
+            grasp_width=request.grasp_width,
+            standing=tuple(
+                pose_of(p, f"standing_dominoes[{i}]")
+                for i, p in enumerate(request.standing_dominoes)
+            ),
+            time_budget=request.time_budget,
+        )
+
+    def _fill(self, response: PlanPlace.Response, plan: Plan) -> None:
+        period = self.planner.settings.sample_period
+        for segment, sampled in zip(plan.segments, plan.sampled(period), strict=True):
+            trajectory = JointTrajectory(joint_names=list(self.scenario.arm_joints))
+            for t, q, qd, qdd in zip(
+                sampled.times,
+                sampled.positions,
+                sampled.velocities,
+                sampled.accelerations,
+                strict=True,
+            ):
+                trajectory.points.append(
+                    JointTrajectoryPoint(
+                        positions=q.tolist(),
+                        velocities=qd.tolist(),
+                        accelerations=qdd.tolist(),
+                        time_from_start=duration_of(float(t)),
+                    )
+                )
+            response.segments.append(
+                TrajectorySegment(
+                    label=segment.label,
+                    trajectory=trajectory,
+                    gripper_after=GRIPPER_EVENTS.get(
+                        segment.gripper_after, TrajectorySegment.GRIPPER_NONE
+                    ),
+                    gripper_position=float(segment.gripper_position),
+                    gripper_max_effort=float(segment.gripper_effort),
+                )
+            )
+        response.success = True
+        response.error_code = int(ErrorCode.SUCCESS)
+        response.message = "planned" + (" (domino turned in place first)" if plan.regrasped else "")
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    executor = MultiThreadedExecutor(num_threads=4)
+    try:
+        node = PlannerNode()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()

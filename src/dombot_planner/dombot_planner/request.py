@@ -1,0 +1,153 @@
+"""A pick-and-place request in plain Python types, and the checks every request passes
+before any planning: finite numbers, unit quaternions, a known start state, poses inside
+the workspace, a place pose that does not overlap the table or a standing domino."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RigidTransform, RotationMatrix
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import gripper_geometry, pregrasp_opening
+from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.settings import PlannerSettings
+
+QUATERNION_TOLERANCE = 1e-3  # |q| must be 1 within this (docs/ARCHITECTURE.md)
+JOINT_LIMIT_TOLERANCE = 1e-3  # rad a start state may sit beyond a limit (it is clipped)
+OVERLAP_TOLERANCE = 1e-4  # m two dominoes may overlap (touching faces)
+TABLE_TOLERANCE = 5e-4  # m a place pose may reach into the table top
+GRASP_REACH = 0.05  # m: a grasp TCP farther than this from its domino's centre is a mistake
+
+
+@dataclass(frozen=True)
+class PickPlaceRequest:
+    domino_pose: RigidTransform  # the domino to pick, body frame in world
+    place_pose: RigidTransform  # where it must end up
+    start: np.ndarray  # arm joint positions [rad]
+    grasp_pose: RigidTransform | None = None  # TCP pose to grasp with; None: choose
+    grasp_width: float = 0.0  # finger opening closed on the domino [m]; 0: its width
+    standing: tuple[RigidTransform, ...] = ()  # dominoes already placed
+    time_budget: float = 0.0  # s; 0: the planner's default
+
+
+def invalid(stage: str, message: str) -> PlanningError:
+    return PlanningError(ErrorCode.INVALID_REQUEST, stage, message)
+
+
+def pose_from(
+    position: Sequence[float], quaternion_wxyz: Sequence[float], what: str
+) -> RigidTransform:
+    """A pose from message numbers; NaN, infinity or a non-unit quaternion is refused."""
+    values = np.array([*position, *quaternion_wxyz], dtype=float)
+    if not np.all(np.isfinite(values)):
+        raise invalid("validation", f"{what} contains NaN or infinity")
+    norm = float(np.linalg.norm(values[3:]))
+    if abs(norm - 1.0) > QUATERNION_TOLERANCE:
+        raise invalid("validation", f"{what} quaternion has norm {norm:.6f}, must be unit")
+    rotation = RotationMatrix(Quaternion(values[3:] / norm))
+    return RigidTransform(rotation, values[:3])
+
+
+def arm_positions(
+    names: Sequence[str],
+    positions: Sequence[float],
+    arm_joints: Sequence[str],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    what: str = "start_state",
+) -> np.ndarray:
+    """The arm's joint positions from a JointState's names and positions, checked."""
+    if len(names) != len(positions):
+        raise invalid("validation", f"{what} has {len(names)} names but {len(positions)} positions")
+    by_name = dict(zip(names, positions, strict=True))
+    missing = [joint for joint in arm_joints if joint not in by_name]
+    if missing:
+        raise invalid("validation", f"{what} lacks joints {', '.join(missing)}")
+    q = np.array([by_name[joint] for joint in arm_joints], dtype=float)
+    if not np.all(np.isfinite(q)):
+        raise invalid("validation", f"{what} contains NaN or infinity")
+    outside = (q < lower - JOINT_LIMIT_TOLERANCE) | (q > upper + JOINT_LIMIT_TOLERANCE)
+    if np.any(outside):
+        joint = arm_joints[int(np.argmax(outside))]
+        raise invalid("validation", f"{what}: {joint} is outside its joint limits")
+    return np.clip(q, lower, upper)
+
+
+def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
+    """Everything that can be said about a request without planning; raises PlanningError."""
+    if not (math.isfinite(request.time_budget) and request.time_budget >= 0):
+        raise invalid("validation", f"time_budget must be >= 0 s, got {request.time_budget}")
+    width = request.grasp_width
+    stroke = gripper_geometry().max_opening
+    if not (math.isfinite(width) and width >= 0.0 and pregrasp_opening(width) <= stroke):
+        raise invalid(
+            "validation",
+            f"grasp_width must be 0 (auto) or leave room to pre-grasp within the {stroke} m "
+            f"stroke, got {width}",
+        )
+    for what, pose in (("domino_pose", request.domino_pose), ("place_pose", request.place_pose)):
+        check_workspace(pose, what, settings)
+    if request.grasp_pose is not None:
+        reach = np.linalg.norm(request.grasp_pose.translation() - request.domino_pose.translation())
+        if reach > GRASP_REACH:
+            raise invalid(
+                "validation", f"grasp_pose is {reach * 1000:.0f} mm from the domino's centre"
+            )
+    check_place_is_free(request.place_pose, request.standing)
+
+
+def check_workspace(pose: RigidTransform, what: str, settings: PlannerSettings) -> None:
+    x, y, z = pose.translation()
+    reach, (low, high) = math.hypot(x, y), settings.workspace_reach
+    z_low, z_high = settings.workspace_height
+    if not (low <= reach <= high and z_low <= z <= z_high):
+        raise PlanningError(
+            ErrorCode.OUTSIDE_WORKSPACE,
+            "validation",
+            f"{what} at ({x:.3f}, {y:.3f}, {z:.3f}) m is outside the workspace "
+            f"(reach {low}–{high} m from the arm base axis, height {z_low}–{z_high} m)",
+        )
+
+
+def box_corners(pose: RigidTransform) -> np.ndarray:
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+    return (pose @ (signs * np.array(DOMINO_SIZE) / 2).T).T
+
+
+def dominoes_overlap(a: RigidTransform, b: RigidTransform, tolerance: float) -> bool:
+    """Separating-axis test of two domino boxes; overlaps shallower than ``tolerance`` pass."""
+    half = np.array(DOMINO_SIZE) / 2
+    axes_a, axes_b = a.rotation().matrix(), b.rotation().matrix()
+    offset = b.translation() - a.translation()
+    candidates = [*axes_a.T, *axes_b.T] + [np.cross(u, v) for u in axes_a.T for v in axes_b.T]
+    for axis in candidates:
+        norm = np.linalg.norm(axis)
+        if norm < 1e-9:
+            continue
+        axis = axis / norm
+        reach = half @ np.abs(axes_a.T @ axis) + half @ np.abs(axes_b.T @ axis)
+        if abs(offset @ axis) >= reach - tolerance:
+            return False
+    return True
+
+
+def check_place_is_free(place: RigidTransform, standing: Sequence[RigidTransform]) -> None:
+    lowest = box_corners(place)[:, 2].min()
+    if lowest < -TABLE_TOLERANCE:
+        raise PlanningError(
+            ErrorCode.PLACE_IN_COLLISION,
+            "validation",
+            f"place_pose reaches {-lowest * 1000:.1f} mm into the table",
+        )
+    for index, other in enumerate(standing):
+        if dominoes_overlap(place, other, OVERLAP_TOLERANCE):
+            raise PlanningError(
+                ErrorCode.PLACE_IN_COLLISION,
+                "validation",
+                f"place_pose overlaps standing domino {index}",
+            )

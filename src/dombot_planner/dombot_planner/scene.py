@@ -1,0 +1,172 @@
+"""Shadow plants and per-request scenes.
+
+A shadow plant (dombot_description.cell.build_shadow_plant: the arm's 7 joints, fingers
+welded) is built once per finger opening and kept. Each request gets scenes: fresh
+contexts of those plants into which this request's standing dominoes, the target domino
+and the held domino are registered as geometry (SceneGraph's context-modifying
+RegisterGeometry), so nothing is rebuilt per request. Every collision geometry belongs to
+a class, so clearances are judged per pair of classes: the arm, the pads and the held
+domino move; the table, standing dominoes and the target domino stay.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import (
+    Box,
+    CollisionFilterDeclaration,
+    GeometryId,
+    GeometryInstance,
+    GeometrySet,
+    ProximityProperties,
+)
+from pydrake.math import RigidTransform
+from pydrake.multibody.tree import BodyIndex
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.cell import ShadowPlant, build_shadow_plant
+from dombot_description.scenario import Scenario
+
+ARM, PADS, HELD = "arm", "pads", "held"  # moving classes (ARM includes the gripper body)
+TABLE, STANDING, TARGET, SELF = "table", "standing", "target", "self"
+MOVING = (ARM, PADS, HELD)
+OBSTACLES = (TABLE, STANDING, TARGET)
+FINGER_BODIES = ("wsg_left_finger", "wsg_right_finger")
+QUERY_DISTANCE = 0.05  # m: pairs farther apart than this are reported as this far
+
+
+class ShadowPlants:
+    """build_shadow_plant results kept per finger opening (0.1 mm resolution)."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self._plants: dict[int, ShadowPlant] = {}
+
+    def get(self, opening: float) -> ShadowPlant:
+        key = round(opening * 1e4)
+        if key not in self._plants:
+            self._plants[key] = build_shadow_plant(self.scenario, key / 1e4)
+        return self._plants[key]
+
+
+@dataclass(frozen=True)
+class ClearanceRules:
+    """Minimum signed distance [m] per (moving class, obstacle class or SELF)."""
+
+    minimum: dict[tuple[str, str], float]
+
+    def violations(self, clearance: dict[tuple[str, str], float]) -> list[str]:
+        return [
+            f"{moving}–{other} {distance * 1000:.1f} mm < {self.minimum[moving, other] * 1000:.1f}"
+            for (moving, other), distance in clearance.items()
+            if distance < self.minimum.get((moving, other), -math.inf)
+        ]
+
+
+class Scene:
+    """One context of a shadow plant holding this request's dominoes.
+
+    ``standing``: dominoes already placed; ``target``: the domino being picked (approach)
+    or just placed (retreat); ``held_in_tcp``: the held domino's pose in the TCP frame.
+    """
+
+    def __init__(
+        self,
+        shadow: ShadowPlant,
+        tcp_frame: str,
+        standing: Sequence[RigidTransform] = (),
+        target: RigidTransform | None = None,
+        held_in_tcp: RigidTransform | None = None,
+    ) -> None:
+        self.shadow = shadow
+        self.plant = shadow.plant
+        self.scene_graph = shadow.scene_graph
+        self.root_context = shadow.builder_diagram.CreateDefaultContext()
+        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.root_context)
+        self.graph_context = self.scene_graph.GetMyMutableContextFromRoot(self.root_context)
+        self.tcp = self.plant.GetFrameByName(tcp_frame)
+        self.classes = self._robot_and_table_classes()
+        world = self.scene_graph.world_frame_id()
+        added = [self._register(pose, world, STANDING) for pose in standing]
+        if target is not None:
+            added.append(self._register(target, world, TARGET))
+        self._filter_against_welded(added, self.plant.world_body())
+        if held_in_tcp is not None:
+            gripper = self.plant.GetBodyByName("wsg_body")
+            body_in_tcp = self.plant.CalcRelativeTransform(
+                self.plant_context, self.tcp, gripper.body_frame()
+            )
+            frame = self.plant.GetBodyFrameIdOrThrow(gripper.index())
+            held = self._register(body_in_tcp.inverse() @ held_in_tcp, frame, HELD)
+            self._filter_against_welded([held], gripper)
+
+    def _robot_and_table_classes(self) -> dict[GeometryId, str]:
+        classes = {}
+        for body_index in range(self.plant.num_bodies()):
+            body = self.plant.get_body(BodyIndex(body_index))
+            instance = self.plant.GetModelInstanceName(body.model_instance())
+            if instance == "table":
+                name = TABLE
+            elif body.name() in FINGER_BODIES:
+                name = PADS
+            else:
+                name = ARM
+            for geometry in self.plant.GetCollisionGeometriesForBody(body):
+                classes[geometry] = name
+        return classes
+
+    def _register(self, pose: RigidTransform, frame, kind: str) -> GeometryId:
+        instance = GeometryInstance(pose, Box(*DOMINO_SIZE), f"{kind}_{len(self.classes)}")
+        instance.set_proximity_properties(ProximityProperties())
+        geometry = self.scene_graph.RegisterGeometry(
+            self.graph_context, self.plant.get_source_id(), frame, instance
+        )
+        self.classes[geometry] = kind
+        return geometry
+
+    def _filter_against_welded(self, geometries: list[GeometryId], body) -> None:
+        """Never test new geometry against bodies welded to ``body`` (table; gripper, pads)."""
+        if not geometries:
+            return
+        welded = [
+            geometry
+            for other in self.plant.GetBodiesWeldedTo(body)
+            for geometry in self.plant.GetCollisionGeometriesForBody(other)
+        ]
+        self.scene_graph.collision_filter_manager(self.graph_context).Apply(
+            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(geometries + welded))
+        )
+
+    def set_positions(self, q: np.ndarray) -> None:
+        self.plant.SetPositions(self.plant_context, q)
+
+    def tcp_pose(self, q: np.ndarray) -> RigidTransform:
+        self.set_positions(q)
+        return self.tcp.CalcPoseInWorld(self.plant_context)
+
+    def clearance(self, q: np.ndarray) -> dict[tuple[str, str], float]:
+        """Smallest signed distance per (moving class, obstacle class or SELF) at ``q``.
+
+        Pairs farther apart than QUERY_DISTANCE are reported as QUERY_DISTANCE.
+        """
+        self.set_positions(q)
+        query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
+        result = {}
+        for pair in query.ComputeSignedDistancePairwiseClosestPoints(QUERY_DISTANCE):
+            key = self._pair_key(self.classes[pair.id_A], self.classes[pair.id_B])
+            result[key] = min(result.get(key, QUERY_DISTANCE), pair.distance)
+        return result
+
+    @staticmethod
+    def _pair_key(a: str, b: str) -> tuple[str, str]:
+        if a in MOVING and b in MOVING:
+            return (min(a, b, key=MOVING.index), SELF)
+        return (a, b) if a in MOVING else (b, a)
+
+    def minimum_distance(self, q: np.ndarray) -> float:
+        """The smallest distance over all pairs (what a MinimumDistance constraint sees)."""
+        return min(self.clearance(q).values(), default=QUERY_DISTANCE)

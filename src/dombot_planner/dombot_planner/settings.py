@@ -1,0 +1,63 @@
+"""Planner parameters (the node exposes each as a ROS parameter of the same name)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    # Final approach and retreat: straight vertical lines solved by IK at close waypoints.
+    pick_approach_distance: float = 0.06  # m above the grasp where the coarse move ends
+    place_approach_distance: float = 0.07  # m above the placement (clears 48 mm neighbours)
+    waypoint_spacing: float = 0.005  # m between IK waypoints on the lines
+    release_height: float = 0.0002  # m the domino is let go above its place pose
+    approach_speed: float = 0.15  # m/s TCP speed limit on the lines
+    # Clearances [m]: coarse moves keep everything this far from table and dominoes ...
+    coarse_clearance: float = 0.005
+    # ... and the optimizer enforces this much more at its samples (covers the gaps).
+    coarse_margin: float = 0.006
+    # Within the lines only pads and the held domino come closer: pads to the table,
+    # pads and held domino to standing dominoes.
+    pad_table_clearance: float = 0.0005
+    fine_obstacle_clearance: float = 0.002
+    self_clearance: float = 0.001  # robot against itself, everywhere
+    # Kinematic trajectory optimization.
+    kto_control_points: int = 10
+    kto_collision_samples: int = 16
+    kto_attempts: int = 4
+    ik_random_seeds: int = 6
+    # Retiming.
+    velocity_scale: float = 1.0  # of the URDF joint velocity limits
+    acceleration_limit: float = 3.0  # rad/s², every joint (not in the URDF; conservative)
+    sample_period: float = 0.01  # s between published trajectory points
+    # Gripper: the close command aims at a fully closed gripper, so its force limit (not a
+    # position) sets the squeeze, as a WSG grasp command does.
+    grip_force: float = 40.0  # N
+    # Requests.
+    default_time_budget: float = 5.0  # s when the request says 0
+    workspace_reach: tuple[float, float] = (0.25, 0.85)  # m from the arm base axis
+    workspace_height: tuple[float, float] = (-0.005, 0.35)  # m, domino centres
+    seed: int = 0  # random IK seeds and KTO restarts
+    allow_regrasp: bool = True  # turn a domino no tilted grasp reaches, then pick it again
+
+    def __post_init__(self) -> None:
+        for field in fields(self):
+            value = getattr(self, field.name)
+            values = value if isinstance(value, tuple) else (value,)
+            if field.name in ("seed", "allow_regrasp"):
+                continue
+            if not all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                for v in values
+            ):
+                raise ValueError(f"{field.name} must be finite numbers, got {value!r}")
+            if not isinstance(value, tuple) and field.name != "release_height" and value <= 0:
+                raise ValueError(f"{field.name} must be positive, got {value!r}")
+            if isinstance(value, tuple) and not values[0] < values[1]:
+                raise ValueError(f"{field.name} must be (low, high) with low < high, got {value}")
+        if self.release_height < 0:
+            raise ValueError(f"release_height must be >= 0, got {self.release_height}")
+        if self.kto_control_points < 4:
+            raise ValueError("kto_control_points must be at least 4 (cubic B-spline)")

@@ -1,0 +1,123 @@
+"""The arm job end to end over DDS with real node processes: the paper's test (three
+dominoes in a line) built and knocked down; bad layouts refused before anything starts;
+a node killed mid-run named in the error."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from ament_index_python.packages import get_package_prefix
+
+BRINGUP = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
+LINE = [
+    "--layout",
+    "line",
+    "--start",
+    "0.50",
+    "0.10",
+    "--heading",
+    "90",
+    "--count",
+    "3",
+    "--pile",
+    "8",
+    "--seed",
+    "1",
+    "--real-time-factor",
+    "0",
+]
+
+
+def bringup(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([str(BRINGUP), *args], capture_output=True, text=True, timeout=timeout)
+
+
+def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> None:
+    result = bringup("--out", str(tmp_path), *LINE)
+    output = result.stdout[-4000:] + result.stderr[-4000:]
+    assert result.returncode == 0, output
+    report = json.loads((tmp_path / "run_report.json").read_text())
+    assert report["summary"]["placed"] == 3
+    for domino in report["dominoes"]:
+        built = domino["truth_built"]  # the simulator's ground truth, before the strike
+        assert built["error_mm"] <= 3.0, domino
+        assert built["tilt_deg"] <= 3.0, domino
+        heading_error = math.remainder(built["heading"] - domino["target"][2], math.pi)
+        assert abs(math.degrees(heading_error)) <= 3.0, domino
+        assert domino["truth_after_strike"]["tilt_deg"] > 45.0, domino
+    assert report["toppled_by_truth"] and report["toppled_by_perception"]
+    assert (tmp_path / "run.png").stat().st_size > 10_000
+    for node in ("[sim_node]", "[perception_node]", "[planner_node]"):
+        assert node in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("arguments", "words"),
+    [
+        (
+            ["--layout", "line", "--start", "0.2", "0.0", "--heading", "90", "--count", "3"],
+            "outside the build area",
+        ),
+        (
+            ["--layout", "line", "--start", "0.5", "0.1", "--count", "3", "--spacing", "0.005"],
+            "would not topple",
+        ),
+        (["--layout", "arc", "--count", "12", "--pile", "5"], "at least as many dominoes"),
+        (["--layout", "csv"], "needs --csv"),
+    ],
+    ids=["off-the-area", "too-tight", "pile-too-small", "csv-missing"],
+)
+def test_bad_layouts_are_refused_before_any_node_starts(
+    tmp_path: Path, arguments: list[str], words: str
+) -> None:
+    started = time.monotonic()
+    result = bringup("--out", str(tmp_path), *arguments, timeout=60)
+    assert result.returncode == 2
+    assert words in result.stderr
+    assert "domino" in result.stderr or "csv" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert time.monotonic() - started < 30  # no node was started
+    assert not (tmp_path / "run_report.json").exists()
+
+
+def test_a_node_killed_mid_run_is_reported_by_name(tmp_path: Path) -> None:
+    process = subprocess.Popen(
+        [str(BRINGUP), "--out", str(tmp_path), *LINE],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    planner = None
+    try:
+        deadline = time.monotonic() + 600
+        for line in process.stdout:
+            if "nodes ready" in line:
+                planner = _child_process(process.pid, "dombot_planner", "planner_node")
+                break
+            assert time.monotonic() < deadline, "the nodes never became ready"
+        assert planner is not None, "planner_node process not found"
+        os.kill(planner, signal.SIGKILL)
+        _, stderr = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 1
+    assert "node 'planner_node' died with exit code -9" in stderr
+    assert "Traceback" not in stderr
+
+
+def _child_process(parent: int, package: str, executable: str) -> int | None:
+    """PID of the bring-up's child running this installed executable."""
+    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    listing = subprocess.run(
+        ["pgrep", "-P", str(parent), "-f", str(path)], capture_output=True, text=True
+    )
+    pids = [int(p) for p in listing.stdout.split()]
+    return max(pids) if pids else None

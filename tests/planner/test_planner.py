@@ -1,0 +1,243 @@
+"""The pick-and-place planner without ROS: plans checked by the independent verifier."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RotationMatrix
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import flat_pose, pick_grasps, upright_pose
+from dombot_description.scenario import load_scenario
+from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.planner import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN, PickPlacePlanner
+from dombot_planner.request import PickPlaceRequest, dominoes_overlap
+from dombot_planner.settings import PlannerSettings
+from dombot_planner.verify import TrajectoryChecker
+
+SCENARIO = load_scenario()
+SETTINGS = PlannerSettings()
+SPACING = 0.6 * DOMINO_SIZE[0]
+
+
+@pytest.fixture(scope="module")
+def planner() -> PickPlacePlanner:
+    return PickPlacePlanner(SCENARIO, SETTINGS)
+
+
+def run_with_neighbours(x: float, y: float, heading: float, sides=(-1, 1)):
+    forward = np.array([math.cos(heading), math.sin(heading)])
+    return tuple(
+        upright_pose(*(np.array([x, y]) + side * SPACING * forward), heading) for side in sides
+    )
+
+
+def request(**changes) -> PickPlaceRequest:
+    base = PickPlaceRequest(
+        domino_pose=flat_pose(0.60, -0.28, 0.4),
+        place_pose=upright_pose(0.55, 0.15, 0.3),
+        start=SCENARIO.home_position,
+        standing=run_with_neighbours(0.55, 0.15, 0.3),
+    )
+    return dataclasses.replace(base, **changes)
+
+
+def check(plan, req: PickPlaceRequest):
+    checker = TrajectoryChecker(
+        SCENARIO,
+        req.domino_pose,
+        req.place_pose,
+        req.standing,
+        SETTINGS.acceleration_limit,
+        DOMINO_SIZE[1],
+    )
+    return checker.check(
+        plan.sampled(SETTINGS.sample_period),
+        req.start,
+        (SETTINGS.pick_approach_distance, SETTINGS.place_approach_distance),
+    )
+
+
+def failure(planner: PickPlacePlanner, req: PickPlaceRequest) -> PlanningError:
+    with pytest.raises(PlanningError) as caught:
+        planner.plan(req)
+    return caught.value
+
+
+@pytest.fixture(scope="module")
+def planned(planner):
+    req = request()
+    plan = planner.plan(req)
+    return req, plan, check(plan, req)
+
+
+def test_plan_has_the_gripper_events_in_order(planned) -> None:
+    _, plan, _ = planned
+    events = [(s.label, s.gripper_after) for s in plan.segments]
+    assert events == [
+        ("open_gripper", GRIPPER_OPEN),
+        ("approach_grasp", GRIPPER_CLOSE),
+        ("transfer", GRIPPER_OPEN),
+        ("retreat", GRIPPER_NONE),
+    ]
+    closing = plan.segments[1]
+    assert closing.gripper_position == 0.0  # closes until the force limit stops it
+    assert closing.gripper_effort == SETTINGS.grip_force
+
+
+def test_plan_reaches_grasp_and_place_poses(planned) -> None:
+    _, _, result = planned
+    assert result.grasp_error[0] <= 1e-3 and math.degrees(result.grasp_error[1]) <= 0.5
+    # The domino is let go release_height above its place pose.
+    assert result.place_error[0] <= SETTINGS.release_height + 1e-4
+    assert math.degrees(result.place_error[1]) <= 0.5
+
+
+def test_plan_respects_joint_limits_and_joins_without_jumps(planned) -> None:
+    _, plan, result = planned
+    assert result.position_limit_excess <= 1e-9
+    assert result.velocity_use <= 1.003
+    assert result.acceleration_use <= 1.003
+    assert result.largest_jump <= 1e-9
+    for segment in plan.sampled(SETTINGS.sample_period):
+        if len(segment.times) > 1:
+            assert np.abs(segment.velocities[[0, -1]]).max() <= 1e-6  # at rest at both ends
+            assert np.all(np.diff(segment.times) > 0)
+
+
+def test_plan_keeps_its_clearances_by_an_independent_query(planned) -> None:
+    _, _, result = planned
+    coarse = SETTINGS.coarse_clearance
+    for moving in ("arm", "pads", "held"):
+        for obstacle in ("table", "standing", "target"):
+            assert result.min_clearance("coarse", moving, obstacle) >= coarse
+        assert result.min_clearance("fine", "arm", obstacle) >= coarse
+        assert result.min_clearance("coarse", moving, "self") >= 0.0
+    assert result.min_clearance("fine", "pads", "standing") >= 0.002
+    assert result.min_clearance("fine", "held", "standing") >= 0.002
+    assert result.min_clearance("fine", "pads", "table") >= 0.0
+    assert result.min_clearance("fine", "held", "table") >= -1e-6
+    assert result.samples > 500
+
+
+def test_same_request_gives_the_same_plan(planner, planned) -> None:
+    req, plan, _ = planned
+    again = planner.plan(req)
+    first, second = plan.sampled(0.05), again.sampled(0.05)
+    for a, b in zip(first, second, strict=True):
+        assert a.positions == pytest.approx(b.positions, abs=1e-9)
+
+
+def test_requested_grasp_pose_is_used(planner) -> None:
+    domino = flat_pose(0.62, -0.25, -0.8)
+    grasp = pick_grasps(domino)[0].pose
+    req = request(domino_pose=domino, grasp_pose=grasp, standing=())
+    result = check(planner.plan(req), req)
+    assert result.grasp_error[0] <= 1e-6  # the very pose, not an equivalent one
+
+
+def test_radial_domino_near_the_base_is_turned_first(planner) -> None:
+    """No tilted grasp reaches it (elbow limit); the plan turns it with the top grasp."""
+    bearing = math.atan2(-0.30, 0.55)
+    domino = flat_pose(0.545 * math.cos(bearing), 0.545 * math.sin(bearing), bearing)
+    req = request(domino_pose=domino)
+    plan = planner.plan(req)
+    assert plan.regrasped
+    events = [s.gripper_after for s in plan.segments]
+    assert events.count(GRIPPER_CLOSE) == 2
+    result = check(plan, req)
+    assert result.grasp_error[0] <= 1e-3
+    assert result.place_error[0] <= SETTINGS.release_height + 1e-4
+    assert result.min_clearance("coarse", "held", "standing") >= SETTINGS.coarse_clearance
+
+
+def test_unreachable_placement_says_so(planner) -> None:
+    """Standing across the radius 0.33 m from the base: inside the workspace, out of reach."""
+    place = upright_pose(0.33, 0.0, math.pi / 2)
+    error = failure(planner, request(place_pose=place, standing=()))
+    assert error.code == ErrorCode.PLACE_UNREACHABLE
+    assert "no IK" in error.message or "line" in error.message
+
+
+def test_grasp_from_below_is_unreachable(planner) -> None:
+    domino = flat_pose(0.6, -0.3, 0.0)
+    from_below = pick_grasps(domino)[-1].pose
+    assert from_below.rotation().matrix()[2, 2] > 0
+    error = failure(planner, request(domino_pose=domino, grasp_pose=from_below))
+    assert error.code == ErrorCode.GRASP_UNREACHABLE
+
+
+@pytest.mark.parametrize(
+    ("changes", "code"),
+    [
+        ({"time_budget": -1.0}, ErrorCode.INVALID_REQUEST),
+        ({"grasp_width": 0.2}, ErrorCode.INVALID_REQUEST),
+        ({"domino_pose": flat_pose(2.0, 0.0, 0.0)}, ErrorCode.OUTSIDE_WORKSPACE),
+        (
+            {"place_pose": upright_pose(0.55, 0.15, 0.3, base_height=0.5)},
+            ErrorCode.OUTSIDE_WORKSPACE,
+        ),
+        (
+            {"place_pose": upright_pose(0.55, 0.15, 0.3, base_height=-0.01)},
+            ErrorCode.PLACE_IN_COLLISION,
+        ),
+        (
+            {
+                "place_pose": upright_pose(
+                    0.55 + 0.024 * math.cos(0.3), 0.15 + 0.024 * math.sin(0.3), 0.3
+                )
+            },
+            ErrorCode.PLACE_IN_COLLISION,
+        ),
+        ({"grasp_pose": RigidTransform([0.2, 0.0, 0.3])}, ErrorCode.INVALID_REQUEST),
+        ({"start": np.array([0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0])}, ErrorCode.INVALID_REQUEST),
+        ({"time_budget": 1e-4}, ErrorCode.TIMEOUT),
+    ],
+    ids=[
+        "negative_budget",
+        "wide_grasp",
+        "domino_far",
+        "place_high",
+        "place_in_table",
+        "place_overlaps_neighbour",
+        "grasp_far_from_domino",
+        "start_in_collision",
+        "timeout",
+    ],
+)
+def test_bad_requests_get_their_error_code(planner, changes, code) -> None:
+    assert failure(planner, request(**changes)).code == code
+
+
+def test_planner_keeps_working_after_failures(planner) -> None:
+    for bad in ({"time_budget": -1.0}, {"time_budget": 1e-4}):
+        failure(planner, request(**bad))
+    assert planner.plan(request(standing=())).segments
+
+
+def test_domino_overlap_test_agrees_with_sampled_points() -> None:
+    rng = np.random.default_rng(4)
+    half = np.array(DOMINO_SIZE) / 2
+    grid = np.stack(np.meshgrid(*[np.linspace(-1, 1, 9)] * 3), -1).reshape(-1, 3) * half
+    for _ in range(200):
+        a = RigidTransform(RotationMatrix.MakeZRotation(rng.uniform(0, 6.3)), [0, 0, 0.024])
+        b = RigidTransform(
+            RotationMatrix.MakeZRotation(rng.uniform(0, 6.3))
+            @ RotationMatrix.MakeXRotation(rng.uniform(0, 6.3)),
+            [*rng.uniform(-0.05, 0.05, 2), 0.024],
+        )
+        inside = np.abs((a.inverse() @ b @ grid.T).T) < half
+        if np.any(np.all(inside, axis=1)):  # a sample point of b lies inside a
+            assert dominoes_overlap(a, b, 0.0)
+
+
+def test_settings_refuse_bad_values() -> None:
+    with pytest.raises(ValueError, match="acceleration_limit"):
+        PlannerSettings(acceleration_limit=-1.0)
+    with pytest.raises(ValueError, match="workspace_reach"):
+        PlannerSettings(workspace_reach=(0.8, 0.2))
+    with pytest.raises(ValueError, match="approach_speed"):
+        PlannerSettings(approach_speed=math.nan)

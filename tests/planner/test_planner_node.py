@@ -1,0 +1,196 @@
+"""planner_node over real DDS: good and bad requests, the start state from /joint_states,
+bad requests answered while another one is being planned, parameters validated."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from geometry_msgs.msg import Point, Pose, Quaternion
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from dombot_description.grasp import flat_pose, upright_pose
+from dombot_description.scenario import load_scenario
+from dombot_msgs.msg import TrajectorySegment
+from dombot_msgs.srv import PlanPlace
+from dombot_planner.errors import ErrorCode
+from support.ros_processes import installed_node, spin_until
+
+SCENARIO = load_scenario()
+
+
+def pose_message(transform) -> Pose:
+    x, y, z = transform.translation()
+    q = transform.rotation().ToQuaternion()
+    return Pose(
+        position=Point(x=x, y=y, z=z), orientation=Quaternion(w=q.w(), x=q.x(), y=q.y(), z=q.z())
+    )
+
+
+def plan_request(**changes) -> PlanPlace.Request:
+    request = PlanPlace.Request()
+    request.start_state = JointState(
+        name=list(SCENARIO.arm_joints), position=SCENARIO.home_position.tolist()
+    )
+    request.domino_pose = pose_message(flat_pose(0.60, -0.28, 0.4))
+    request.place_pose = pose_message(upright_pose(0.55, 0.15, 0.3))
+    for name, value in changes.items():
+        setattr(request, name, value)
+    return request
+
+
+class Client:
+    def __init__(self) -> None:
+        self.node = Node("plan_place_probe")
+        self.plan = self.node.create_client(PlanPlace, "/plan_place")
+        self.joints = self.node.create_publisher(JointState, "/joint_states", 10)
+
+    def call_async(self, request):
+        return self.plan.call_async(request)
+
+    def call(self, request, timeout: float = 60.0) -> PlanPlace.Response:
+        future = self.call_async(request)
+        assert spin_until(self.node, future.done, timeout=timeout), "no answer"
+        return future.result()
+
+
+@pytest.fixture(scope="module")
+def client():
+    rclpy.init()
+    with installed_node("dombot_planner", "planner_node") as process:
+        client = Client()
+        assert spin_until(client.node, client.plan.service_is_ready, timeout=60), process.poll()
+        yield client
+        client.node.destroy_node()
+        assert process.poll() is None, "planner_node died during the tests"
+    rclpy.shutdown()
+
+
+def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> None:
+    response = client.call(plan_request())
+    assert response.success, response.message
+    assert response.error_code == PlanPlace.Response.SUCCESS
+    assert [s.label for s in response.segments] == [
+        "open_gripper",
+        "approach_grasp",
+        "transfer",
+        "retreat",
+    ]
+    assert [s.gripper_after for s in response.segments] == [
+        TrajectorySegment.GRIPPER_OPEN,
+        TrajectorySegment.GRIPPER_CLOSE,
+        TrajectorySegment.GRIPPER_OPEN,
+        TrajectorySegment.GRIPPER_NONE,
+    ]
+    approach = response.segments[1].trajectory
+    assert list(approach.joint_names) == list(SCENARIO.arm_joints)
+    first = approach.points[0]
+    assert first.positions == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
+    times = [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in approach.points]
+    assert np.all(np.diff(times) > 0)
+    assert approach.points[-1].velocities == pytest.approx([0.0] * 7, abs=1e-6)
+    assert 0.0 < response.planning_time < 30.0
+
+
+@pytest.mark.parametrize(
+    ("changes", "code"),
+    [
+        (
+            {"domino_pose": Pose(position=Point(x=math.nan, y=-0.3, z=0.004))},
+            PlanPlace.Response.INVALID_REQUEST,
+        ),
+        (
+            {
+                "place_pose": Pose(
+                    position=Point(x=0.5, y=0.1, z=0.024),
+                    orientation=Quaternion(w=0.9, x=0.0, y=0.0, z=0.0),
+                )
+            },
+            PlanPlace.Response.INVALID_REQUEST,
+        ),
+        ({"time_budget": -2.0}, PlanPlace.Response.INVALID_REQUEST),
+        (
+            {"place_pose": pose_message(upright_pose(1.5, 0.0, 0.0))},
+            PlanPlace.Response.OUTSIDE_WORKSPACE,
+        ),
+        (
+            {"standing_dominoes": [pose_message(upright_pose(0.55, 0.15, 0.3))]},
+            PlanPlace.Response.PLACE_IN_COLLISION,
+        ),
+        (
+            {"start_state": JointState(name=["iiwa_joint_1"], position=[0.0])},
+            PlanPlace.Response.INVALID_REQUEST,
+        ),
+        (
+            {"place_pose": pose_message(upright_pose(0.33, 0.0, math.pi / 2))},
+            PlanPlace.Response.PLACE_UNREACHABLE,
+        ),
+    ],
+    ids=[
+        "nan",
+        "non_unit_quaternion",
+        "negative_budget",
+        "outside_workspace",
+        "place_on_a_standing_domino",
+        "start_state_lacks_joints",
+        "unreachable_place",
+    ],
+)
+def test_bad_requests_get_an_error_code_and_a_message(client: Client, changes, code) -> None:
+    response = client.call(plan_request(**changes))
+    assert not response.success
+    assert response.error_code == code, response.message
+    assert ErrorCode(code).name in response.message
+    assert not response.segments
+
+
+def test_empty_start_state_uses_joint_states(client: Client) -> None:
+    empty = plan_request(start_state=JointState())
+    response = client.call(empty)
+    assert response.error_code == PlanPlace.Response.NO_START_STATE, response.message
+    state = JointState(name=list(SCENARIO.arm_joints), position=SCENARIO.home_position.tolist())
+
+    def received() -> bool:
+        client.joints.publish(state)
+        answer = client.call(empty)
+        return answer.error_code != PlanPlace.Response.NO_START_STATE
+
+    assert spin_until(client.node, received, timeout=30)
+    response = client.call(empty)
+    assert response.success, response.message
+    start = response.segments[1].trajectory.points[0].positions
+    assert start == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
+
+
+def test_bad_request_is_answered_while_another_is_planned(client: Client) -> None:
+    slow = client.call_async(plan_request(place_pose=pose_message(upright_pose(0.33, 0.0, 1.57))))
+    time.sleep(0.2)  # the slow one is being planned
+    bad = client.call_async(plan_request(time_budget=-1.0))
+    assert spin_until(client.node, bad.done, timeout=30)
+    assert bad.result().error_code == PlanPlace.Response.INVALID_REQUEST
+    assert not slow.done(), "the slow request should still be planning"
+    assert spin_until(client.node, slow.done, timeout=60)
+    assert slow.result().error_code == PlanPlace.Response.PLACE_UNREACHABLE
+
+
+def test_wrong_parameter_value_is_refused(client: Client) -> None:
+    service = client.node.create_client(SetParameters, "/planner_node/set_parameters")
+    assert spin_until(client.node, service.service_is_ready, timeout=30)
+    value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-1.0)
+    request = SetParameters.Request(parameters=[Parameter(name="acceleration_limit", value=value)])
+    future = service.call_async(request)
+    assert spin_until(client.node, future.done, timeout=30)
+    result = future.result().results[0]
+    assert not result.successful and "acceleration_limit" in result.reason
+    assert client.call(plan_request()).success  # still serving with the old settings
+
+
+def test_error_codes_are_the_service_constants() -> None:
+    for code in ErrorCode:
+        assert getattr(PlanPlace.Response, code.name) == code.value

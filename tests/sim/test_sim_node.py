@@ -1,0 +1,189 @@
+"""sim_node over real DDS: images with the right encodings and intrinsics, a trajectory
+that moves the arm, a gripper that closes, resets that change the pile, and clear errors
+for bad goals and requests while the node keeps running."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rclpy
+from builtin_interfaces.msg import Duration
+from rclpy.action import ActionClient
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image, JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from dombot_description.scenario import load_scenario
+from dombot_msgs.action import ExecuteTrajectory, GripperCommand
+from dombot_msgs.msg import DominoStateArray
+from dombot_msgs.srv import ResetSim
+from support.ros_processes import installed_node, spin_until
+
+SCENARIO = load_scenario()
+ARM = list(SCENARIO.arm_joints)
+
+
+class Probe:
+    def __init__(self) -> None:
+        self.node = Node("sim_probe")
+        self.latest: dict[str, object] = {}
+        topics = {
+            "/joint_states": JointState,
+            "/sim/domino_ground_truth": DominoStateArray,
+            "/camera_0/color/image_raw": Image,
+            "/camera_0/depth/image_raw": Image,
+            "/camera_0/color/camera_info": CameraInfo,
+            "/camera_1/depth/image_raw": Image,
+        }
+        for topic, kind in topics.items():
+            self.node.create_subscription(
+                kind, topic, lambda msg, topic=topic: self.latest.__setitem__(topic, msg), 5
+            )
+        self.trajectory = ActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
+        self.gripper = ActionClient(self.node, GripperCommand, "/gripper_command")
+        self.reset = self.node.create_client(ResetSim, "/sim/reset")
+
+    def fresh(self, topic: str, timeout: float = 30.0):
+        self.latest.pop(topic, None)
+        assert spin_until(self.node, lambda: topic in self.latest, timeout), f"nothing on {topic}"
+        return self.latest[topic]
+
+    def arm_position(self) -> np.ndarray:
+        state = self.fresh("/joint_states")
+        return np.array([state.position[state.name.index(n)] for n in ARM])
+
+    def run_action(self, client: ActionClient, goal, timeout: float = 60.0):
+        assert client.wait_for_server(timeout_sec=30)
+        sent = client.send_goal_async(goal)
+        assert spin_until(self.node, sent.done, 10)
+        handle = sent.result()
+        assert handle.accepted
+        result = handle.get_result_async()
+        assert spin_until(self.node, result.done, timeout)
+        return result.result().result
+
+    def call_reset(self, count: int, seed: int) -> ResetSim.Response:
+        assert self.reset.wait_for_service(timeout_sec=30)
+        future = self.reset.call_async(ResetSim.Request(domino_count=count, seed=seed))
+        assert spin_until(self.node, future.done, 120)
+        return future.result()
+
+
+@pytest.fixture(scope="module")
+def probe():
+    rclpy.init()
+    arguments = [
+        "--ros-args",
+        "-p",
+        "domino_count:=6",
+        "-p",
+        "real_time_factor:=0.0",
+        "-p",
+        "camera_rate:=5.0",
+        "-p",
+        "ground_truth_rate:=5.0",
+    ]
+    with installed_node("dombot_sim", "sim_node", *arguments) as process:
+        probe = Probe()
+        assert spin_until(probe.node, lambda: "/joint_states" in probe.latest, 90), process.poll()
+        yield probe
+        probe.node.destroy_node()
+        assert process.poll() is None, "sim_node died during the tests"
+    rclpy.shutdown()
+
+
+def trajectory_goal(names, points) -> ExecuteTrajectory.Goal:
+    goal = ExecuteTrajectory.Goal()
+    goal.trajectory = JointTrajectory(joint_names=names)
+    for seconds, positions in points:
+        goal.trajectory.points.append(
+            JointTrajectoryPoint(
+                positions=list(positions),
+                time_from_start=Duration(sec=int(seconds), nanosec=int(seconds % 1 * 1e9)),
+            )
+        )
+    return goal
+
+
+def test_cameras_publish_rgb8_and_32fc1_with_the_scenario_intrinsics(probe: Probe) -> None:
+    color = probe.fresh("/camera_0/color/image_raw")
+    depth = probe.fresh("/camera_0/depth/image_raw")
+    info = probe.fresh("/camera_0/color/camera_info")
+    spec = SCENARIO.cameras[0]
+    assert (color.encoding, color.width, color.height, color.step) == ("rgb8", 640, 480, 1920)
+    assert (depth.encoding, depth.step) == ("32FC1", 2560)
+    assert color.header.frame_id == "camera_0_optical"
+    assert np.array(info.k).reshape(3, 3) == pytest.approx(spec.intrinsics)
+    metres = np.frombuffer(bytes(depth.data), dtype="<f4").reshape(480, 640)
+    centre = metres[240, 320]  # the pile centre is in the middle of the image
+    distance = np.linalg.norm(spec.position - np.array([*SCENARIO.pile_center, 0.0]))
+    assert 0.8 * distance < centre < 1.02 * distance
+    pixels = np.frombuffer(bytes(color.data), dtype=np.uint8).reshape(480, 640, 3)
+    assert pixels.std() > 5.0  # an actual picture, not a blank frame
+    assert probe.fresh("/camera_1/depth/image_raw").encoding == "32FC1"
+
+
+def test_a_trajectory_moves_the_arm_and_the_joint_states_follow(probe: Probe) -> None:
+    start = probe.arm_position()
+    goal = start + np.array([0.3, -0.1, 0.0, 0.2, 0.0, -0.2, 0.4])
+    result = probe.run_action(probe.trajectory, trajectory_goal(ARM, [(1.5, goal)]))
+    assert result.error_code == ExecuteTrajectory.Result.SUCCESSFUL, result.error_string
+    assert result.max_tracking_error < 0.01
+    assert probe.arm_position() == pytest.approx(goal, abs=2e-3)
+    # Back again, with the joints in another order.
+    order = ARM[::-1]
+    back = [start[ARM.index(name)] for name in order]
+    result = probe.run_action(probe.trajectory, trajectory_goal(order, [(1.5, back)]))
+    assert result.error_code == ExecuteTrajectory.Result.SUCCESSFUL, result.error_string
+    assert probe.arm_position() == pytest.approx(start, abs=2e-3)
+
+
+@pytest.mark.parametrize(
+    ("names", "points", "code", "words"),
+    [
+        ([*ARM[:6], "elbow"], [(1.0, [0.0] * 7)], -2, "unknown joints"),
+        (ARM, [(1.0, [0.0] * 7), (0.5, [0.1] * 7)], -1, "strictly increase"),
+        (ARM, [(1.0, [3.0] + [0.0] * 6)], -1, "outside its limits"),
+        (ARM, [(0.05, [1.0, 0.35, 0.0, -1.75, 0.0, 1.05, 0.0])], -1, "over its limit"),
+        (ARM, [(1.0, [float("nan")] * 7)], -1, "finite"),
+    ],
+    ids=["unknown-joint", "time-goes-back", "beyond-limit", "too-fast", "nan"],
+)
+def test_bad_trajectories_are_refused_with_a_code_and_a_reason(
+    probe: Probe, names, points, code, words
+) -> None:
+    before = probe.arm_position()
+    result = probe.run_action(probe.trajectory, trajectory_goal(names, points))
+    assert result.error_code == code
+    assert words in result.error_string
+    assert probe.arm_position() == pytest.approx(before, abs=1e-3)
+
+
+def test_the_gripper_closes_and_opens(probe: Probe) -> None:
+    result = probe.run_action(probe.gripper, GripperCommand.Goal(position=0.03, max_effort=10.0))
+    assert result.reached_goal and result.position == pytest.approx(0.03, abs=1e-3)
+    result = probe.run_action(probe.gripper, GripperCommand.Goal(position=0.5))
+    assert not result.reached_goal  # beyond the stroke: refused, fingers stay
+    assert result.position == pytest.approx(0.03, abs=1e-3)
+    result = probe.run_action(probe.gripper, GripperCommand.Goal(position=0.1))
+    assert result.reached_goal
+
+
+def test_reset_pours_the_pile_the_seed_asks_for(probe: Probe) -> None:
+    def pile() -> np.ndarray:
+        truth = probe.fresh("/sim/domino_ground_truth")
+        return np.array(
+            [[d.pose.position.x, d.pose.position.y, d.pose.position.z] for d in truth.dominoes]
+        )
+
+    response = probe.call_reset(5, seed=3)
+    assert response.success and response.settle_time > 0.0, response.message
+    first = pile()
+    assert first.shape == (5, 3)
+    assert probe.call_reset(5, seed=4).success
+    assert np.abs(pile() - first).max() > 0.01
+    assert probe.call_reset(5, seed=3).success
+    assert pile() == pytest.approx(first, abs=1e-6)
+    refused = probe.call_reset(100000, seed=1)
+    assert not refused.success and "domino_count" in refused.message
+    assert probe.fresh("/joint_states")  # still serving
