@@ -36,3 +36,18 @@ def render_scene(world):
         ]
 
     return render
+
+
+@pytest.fixture(scope="session")
+def render_build_area(world):
+    """Render dominoes at exact poses, seen by the build-area camera (camera_2)."""
+
+    def render(poses: dict[int, np.ndarray]) -> list[CameraView]:
+        world.set_domino_poses(poses)
+        return [
+            CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
+            for f in world.render().values()
+            if f.name not in PILE_CAMERAS
+        ]
+
+    return render

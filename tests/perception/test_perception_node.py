@@ -14,13 +14,16 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
+from dombot_description.grasp import upright_pose
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
-from dombot_msgs.srv import DetectDominoes
+from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.domino_model import orientation_error
+from dombot_perception.perception_node import pose_message
 from support.perception_scenes import PILE_CENTRE, flat
 from support.ros_processes import installed_node, spin_until
 
 TRUTH = flat(*PILE_CENTRE, yaw=0.4)
+STANDING_IN_RUN = upright_pose(0.52, 0.15, 0.4).GetAsMatrix4()  # seen by camera_2
 
 
 def image_messages(view, stamp, depth_encoding: str = "32FC1") -> tuple[Image, Image, CameraInfo]:
@@ -82,6 +85,10 @@ class Cameras:
             DetectDominoes, "/perception/detect", DetectDominoes.Request(cameras=cameras or [])
         )
 
+    def check_placement(self, expected: list[np.ndarray]) -> CheckPlacement.Response:
+        request = CheckPlacement.Request(expected=[pose_message(pose) for pose in expected])
+        return self.call(CheckPlacement, "/perception/check_placement", request)
+
     def set_parameter(self, name: str, value: ParameterValue):
         request = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
         return self.call(SetParameters, "/perception_node/set_parameters", request).results[0]
@@ -93,14 +100,10 @@ class Cameras:
 
 @pytest.fixture(scope="module")
 def cameras(world):
-    world.set_domino_poses({0: TRUTH})
+    world.set_domino_poses({0: TRUTH, 1: STANDING_IN_RUN})
     from dombot_perception.frames import CameraView
 
-    views = [
-        CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
-        for f in world.render().values()
-        if f.name in ("camera_0", "camera_1")
-    ]
+    views = [CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC) for f in world.render().values()]
     rclpy.init()
     with installed_node(
         "dombot_perception", "perception_node", "--ros-args", "-p", "rate:=2.0"
@@ -138,6 +141,26 @@ def test_detect_service_finds_the_domino_and_topics_carry_it(cameras: Cameras) -
     latest = cameras.poses[-1]
     assert latest.header.frame_id == "world" and len(latest.poses) == 1
     assert len(cameras.detections[-1].detections) == 1
+
+
+def test_placement_check_over_dds(cameras: Cameras) -> None:
+    empty_place = STANDING_IN_RUN.copy()
+    empty_place[:2, 3] += [0.06, 0.03]
+    response = cameras.check_placement([STANDING_IN_RUN, empty_place])
+    assert response.success, response.message
+    assert list(response.status) == [
+        CheckPlacement.Response.STANDING,
+        CheckPlacement.Response.MISSING,
+    ]
+    assert response.position_error[0] < 0.003 and response.tilt[0] < np.radians(2)
+    assert "1 standing" in response.message
+
+
+def test_placement_check_rejects_a_non_unit_quaternion(cameras: Cameras) -> None:
+    request = CheckPlacement.Request(expected=[pose_message(STANDING_IN_RUN)])
+    request.expected[0].orientation.w *= 2.0
+    response = cameras.call(CheckPlacement, "/perception/check_placement", request)
+    assert not response.success and "quaternion" in response.message
 
 
 def test_one_camera_on_request(cameras: Cameras) -> None:

@@ -59,7 +59,7 @@ def fit_domino_box(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig
     inliers = np.ones(points.shape[0], dtype=bool)
     for _ in range(config.passes):  # fit, drop points off the box (a neighbour's), refit
         pose = initial_pose(points[inliers], normals[inliers], config)
-        pose = _refine(pose, _subsample(points[inliers], config.max_fit_points, rng), config)
+        pose = refine_pose(pose, _subsample(points[inliers], config.max_fit_points, rng), config)
         residuals = box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3])
         trimmed = np.abs(residuals) < config.inlier_distance
         if trimmed.sum() < 10 or np.array_equal(trimmed, inliers):
@@ -150,7 +150,7 @@ def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, np.cross(normal, u)
 
 
-def _refine(initial: np.ndarray, points: np.ndarray, config: BoxFitConfig) -> np.ndarray:
+def refine_pose(initial: np.ndarray, points: np.ndarray, config: BoxFitConfig) -> np.ndarray:
     """Point-to-plane ICP against the box model, 6 DoF, started at ``initial``.
 
     Each point is paired with the box face it is closest to; one damped, Huber-weighted

@@ -6,7 +6,8 @@ camera_info of each camera, runs the pipeline continuously at ``rate`` (when
 ``/domino_poses`` (best grasp first), ``/domino_detections`` and a debug picture.
 Camera poses come from the scenario file, or from ``<camera>.optical_pose``
 parameters. Missing, stale or malformed images give an empty result and a warning;
-the node keeps serving.
+the node keeps serving. ``/perception/check_placement`` looks at where the dominoes of a
+run should stand (``placement_check``), with the build-area camera by default.
 """
 
 from __future__ import annotations
@@ -31,12 +32,14 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
-from dombot_msgs.srv import DetectDominoes
+from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.debug_image import draw_detections, mask_overlay
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline, PipelineResult, build_pipeline
+from dombot_perception.placement_check import PlacementConfig, check_placements
 from dombot_perception.segmentation import SegmenterError
 
+DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
 SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
 DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
 
@@ -92,6 +95,12 @@ class PerceptionNode(Node):
         self.create_service(
             DetectDominoes, "perception/detect", self._on_detect, callback_group=work
         )
+        self.create_service(
+            CheckPlacement,
+            "perception/check_placement",
+            self._on_check_placement,
+            callback_group=work,
+        )
         self.last_processed: dict[str, float] = {}
         self.timer = self.create_timer(
             1.0 / self._param("rate"), self._on_timer, callback_group=work
@@ -99,7 +108,7 @@ class PerceptionNode(Node):
         mode = f"continuous at {self._param('rate')} Hz" if self._param("continuous") else ""
         self.get_logger().info(
             f"ready: backend {self.pipeline.segmenter.name}, cameras {self.camera_names}, "
-            f"{mode or 'on demand only'}; service /perception/detect"
+            f"{mode or 'on demand only'}; services /perception/detect, /perception/check_placement"
         )
 
     # ------------------------------------------------------------------ parameters
@@ -107,7 +116,9 @@ class PerceptionNode(Node):
         self.parameter_names: list[str] = []
         for name, default, description in (
             ("scenario", "", "scenario file; empty: dombot_description's default"),
-            ("cameras", ["camera_0", "camera_1"], "camera names (topics /<name>/...)"),
+            ("cameras", ["camera_0", "camera_1", "camera_2"], "cameras to subscribe (/<name>/...)"),
+            ("detect_cameras", ["camera_0", "camera_1"], "cameras that watch the pile"),
+            ("placement_cameras", ["camera_2"], "cameras that watch the build area"),
             ("backend", "geometric", "segmentation backend: geometric | sam"),
             ("sam_checkpoint", "", "path of a SAM checkpoint (.pth), needed by backend sam"),
             ("sam_model_type", "vit_b", "SAM model type of the checkpoint: vit_b | vit_l | vit_h"),
@@ -209,6 +220,9 @@ class PerceptionNode(Node):
             CameraInfo, f"{name}/color/camera_info", on_info, 2, callback_group=group
         )
 
+    def _known(self, names: list[str]) -> list[str]:
+        return [name for name in names if name in self.inputs]
+
     def _is_stale(self, camera: CameraInput) -> bool:
         return time.monotonic() - camera.received > float(self._param("max_frame_age"))
 
@@ -275,25 +289,26 @@ class PerceptionNode(Node):
     def _on_timer(self) -> None:
         if not self._param("continuous"):
             return
+        names = self._known(self._param("detect_cameras"))
         fresh = {
-            name: _seconds(camera.colors[-1].header.stamp)
-            for name, camera in self.inputs.items()
-            if camera.colors
+            name: _seconds(self.inputs[name].colors[-1].header.stamp)
+            for name in names
+            if self.inputs[name].colors
         }
         if not fresh or fresh == self.last_processed:
-            silent = [name for name, camera in self.inputs.items() if self._is_stale(camera)]
+            silent = [name for name in names if self._is_stale(self.inputs[name])]
             if silent:
                 self.get_logger().warning(
                     f"no new frames from {silent}; waiting", throttle_duration_sec=10.0
                 )
             return
         self.last_processed = fresh
-        self._detect(self.camera_names)
+        self._detect(names)
 
     def _on_detect(
         self, request: DetectDominoes.Request, response: DetectDominoes.Response
     ) -> DetectDominoes.Response:
-        names = list(request.cameras) or self.camera_names
+        names = list(request.cameras) or list(self._param("detect_cameras"))
         unknown = [name for name in names if name not in self.inputs]
         if unknown:
             response.success = False
@@ -305,6 +320,62 @@ class PerceptionNode(Node):
         response.message = message
         response.detections = self._detection_array(result.detections if result else [])
         return response
+
+    def _on_check_placement(
+        self, request: CheckPlacement.Request, response: CheckPlacement.Response
+    ) -> CheckPlacement.Response:
+        names = list(request.cameras) or list(self._param("placement_cameras"))
+        problem = self._placement_request_problem(request, names)
+        if problem:
+            response.success, response.message = False, problem
+            self.get_logger().error(f"check_placement rejected: {problem}")
+            return response
+        config = PlacementConfig(search_radius=request.search_radius or DEFAULT_SEARCH_RADIUS)
+        expected = [pose_matrix(pose) for pose in request.expected]
+        try:
+            views, warnings = self._views(names)
+            placements = check_placements(expected, views, self.pipeline, config) if views else []
+        except Exception as error:  # one bad frame set must never take the node down
+            self.get_logger().error(f"placement check failed: {error!r}\n{traceback.format_exc()}")
+            views, warnings, placements = [], [f"placement check failed: {error!r}"], []
+        for warning in warnings:
+            self.get_logger().warning(warning)
+        if not views:
+            response.success = False
+            response.message = "; ".join(["no usable camera for the placement check", *warnings])
+            return response
+        response.success = True
+        response.status = [p.status for p in placements]
+        response.measured = [pose_message(p.measured) for p in placements]
+        response.position_error = [p.position_error for p in placements]
+        response.tilt = [p.tilt for p in placements]
+        counts = np.bincount(response.status, minlength=4)
+        response.message = "; ".join(
+            [
+                f"{counts[0]} standing, {counts[1]} fallen, {counts[2]} missing, "
+                f"{counts[3]} not seen",
+                *warnings,
+            ]
+        )
+        self.get_logger().info(f"placement check of {len(expected)}: {response.message}")
+        return response
+
+    def _placement_request_problem(
+        self, request: CheckPlacement.Request, names: list[str]
+    ) -> str | None:
+        unknown = [name for name in names if name not in self.inputs]
+        if unknown:
+            return f"unknown cameras {unknown}; configured: {self.camera_names}"
+        if not math.isfinite(request.search_radius) or request.search_radius < 0:
+            return f"search_radius must be >= 0, got {request.search_radius}"
+        for index, pose in enumerate(request.expected):
+            q = pose.orientation
+            values = [pose.position.x, pose.position.y, pose.position.z, q.x, q.y, q.z, q.w]
+            if not all(math.isfinite(v) for v in values):
+                return f"expected pose {index} is not finite"
+            if abs(math.sqrt(q.x**2 + q.y**2 + q.z**2 + q.w**2) - 1.0) > 1e-3:
+                return f"expected pose {index}: quaternion is not unit length (within 1e-3)"
+        return None
 
     def _detect(self, names: list[str]) -> tuple[PipelineResult | None, str]:
         """Run the pipeline on the latest frames of ``names``; publish; say what happened."""
@@ -414,6 +485,14 @@ def detection_message(index: int, detection: Detection) -> DominoDetection:
         grasp_pose=pose_message(detection.grasp_pose),
         grasp_width=float(detection.grasp_width),
     )
+
+
+def pose_matrix(pose: Pose) -> np.ndarray:
+    q = pose.orientation
+    matrix = np.eye(4)
+    matrix[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    matrix[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
+    return matrix
 
 
 def pose_message(matrix: np.ndarray) -> Pose:
