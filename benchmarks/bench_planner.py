@@ -39,7 +39,7 @@ from dombot_description.grasp import (
 )
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.planner import PickPlacePlanner, Plan
+from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.timing import retime
@@ -102,13 +102,13 @@ def make_cases(scenario: Scenario, count: int, seed: int) -> list[Case]:
 class Row:
     case: Case
     planning_time: float
-    plan: Plan
+    plan: PickPlacePlan
     check: Check
     duration: float  # s of motion
     optimal: float  # s, the same path's time-optimal duration
 
 
-def optimal_duration(plan: Plan, planner: PickPlacePlanner) -> float:
+def optimal_duration(plan: PickPlacePlan, planner: PickPlacePlanner) -> float:
     """Sum over pieces of the TOPP-RA duration on a finer grid (same path, same limits)."""
     total = 0.0
     plant = planner.plants.get(DOMINO_SIZE[1]).plant
@@ -204,10 +204,10 @@ def coarse_min(check) -> float:
     )
 
 
-def clearance_summary(rows, phase: str) -> dict[str, float]:
+def clearance_summary(checks: list[Check], phase: str) -> dict[str, float]:
     result: dict[str, float] = {}
-    for row in rows:
-        for (p, moving, other), value in row.check.clearance.items():
+    for check in checks:
+        for (p, moving, other), value in check.clearance.items():
             if p == phase:
                 key = f"{moving}-{other}"
                 result[key] = min(result.get(key, math.inf), value)
@@ -241,8 +241,8 @@ def summarise(args, settings, cases, times, failures, rows, load_before) -> dict
             "max": max(times) if times else None,
         },
         "min_clearance_mm": {
-            "coarse_moves": clearance_summary(rows, "coarse"),
-            "final_approach_and_retreat": clearance_summary(rows, "fine"),
+            "coarse_moves": clearance_summary(checks, "coarse"),
+            "final_approach_and_retreat": clearance_summary(checks, "fine"),
         },
         "grasp_error_max": pose_error_summary([c.grasp_error for c in checks]),
         "place_error_max": {
@@ -270,16 +270,19 @@ def summarise(args, settings, cases, times, failures, rows, load_before) -> dict
     }
 
 
-def write_grasp_figure(path: str) -> None:
-    """Side views of the canonical grasp at pick and at place between two neighbours."""
-    import matplotlib.pyplot as plt
+def draw(axis, box: OrientedBox, **style) -> None:
+    """A box's outline seen along world y (x–z plane, mm) on a matplotlib axis."""
     from matplotlib.patches import Polygon
     from scipy.spatial import ConvexHull
 
-    def draw(axis, box, **style) -> None:
-        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
-        corners = (box.pose @ (signs * box.size / 2).T).T[:, [0, 2]] * 1000
-        axis.add_patch(Polygon(corners[ConvexHull(corners).vertices], closed=True, **style))
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+    corners = (box.pose @ (signs * box.size / 2).T).T[:, [0, 2]] * 1000
+    axis.add_patch(Polygon(corners[ConvexHull(corners).vertices], closed=True, **style))
+
+
+def write_grasp_figure(path: str) -> None:
+    """Side views of the canonical grasp at pick and at place between two neighbours."""
+    import matplotlib.pyplot as plt
 
     def domino_box(pose):
         return OrientedBox(pose, np.array(DOMINO_SIZE))

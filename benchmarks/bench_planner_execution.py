@@ -26,7 +26,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from dombot_description.grasp import SYMMETRIES, flat_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.planner import GRIPPER_CLOSE, GRIPPER_OPEN, PickPlacePlanner
+from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN, SampledSegment
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.verify import nearest_error
@@ -47,23 +48,33 @@ def place_error(pose: RigidTransform, place: RigidTransform) -> tuple[float, flo
     return nearest_error(pose, [place @ RigidTransform(s) for s in SYMMETRIES])
 
 
+def track(world: CellWorld, segment: SampledSegment) -> None:
+    """Follow a segment's samples (cubic Hermite, as a driver interpolates), then settle."""
+    if len(segment.times) > 1:
+        spline = PiecewisePolynomial.CubicHermite(
+            segment.times, segment.positions.T, segment.velocities.T
+        )
+        world.advance_to(world.follow_trajectory(spline) + TRACKING_SETTLE)
+
+
+def gripper_event(world: CellWorld, segment: SampledSegment, force: float) -> bool:
+    """Command the segment's gripper event, if any, and wait for it; True if there was one."""
+    if segment.gripper_after not in (GRIPPER_OPEN, GRIPPER_CLOSE):
+        return False
+    world.command_gripper(segment.gripper_position, force)
+    wait_for_gripper(world)
+    return True
+
+
 def execute(world: CellWorld, plan, period: float) -> dict:
     """Run every segment and gripper event; the held domino's error just before release."""
     before_release = None
     holding = False
     for segment in plan.sampled(period):
-        if len(segment.times) > 1:
-            spline = PiecewisePolynomial.CubicHermite(
-                segment.times, segment.positions.T, segment.velocities.T
-            )
-            end = world.follow_trajectory(spline)
-            world.advance_to(end + TRACKING_SETTLE)
+        track(world, segment)
         if segment.gripper_after == GRIPPER_OPEN and holding:
             before_release = domino_pose(world, PICKED)
-        if segment.gripper_after in (GRIPPER_OPEN, GRIPPER_CLOSE):
-            force = plan_force(plan, segment.label)
-            world.command_gripper(segment.gripper_position, force)
-            wait_for_gripper(world)
+        if gripper_event(world, segment, plan_force(plan, segment.label)):
             holding = segment.gripper_after == GRIPPER_CLOSE
     return {"before_release": before_release}
 

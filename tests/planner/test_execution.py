@@ -1,7 +1,9 @@
-"""Plans executed in the Drake simulation (dombot_sim) stand the domino where it was asked.
+"""Plans executed in the Drake simulation (dombot_sim): a place stands the domino where it
+was asked; a strike knocks the whole run down without touching it before the push.
 
 Runs benchmarks/bench_planner_execution.py on the first pairs of the planner benchmark
-(one with neighbours on both sides) and checks its JSON.
+(one with neighbours on both sides) and benchmarks/bench_strike.py on its first runs
+(3 and 4 dominoes at 60 % spacing), and checks their JSON.
 """
 
 from __future__ import annotations
@@ -13,13 +15,12 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_planner_execution.py"
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 
-@pytest.fixture(scope="module")
-def executed() -> dict:
+def benchmark(script: str, *args: str) -> dict:
     run = subprocess.run(
-        [sys.executable, str(SCRIPT), "--count", "2"],
+        [sys.executable, str(BENCHMARKS / script), *args],
         capture_output=True,
         text=True,
         timeout=600,
@@ -27,6 +28,16 @@ def executed() -> dict:
     )
     assert run.returncode == 0, run.stderr[-2000:]
     return json.loads(run.stdout)
+
+
+@pytest.fixture(scope="module")
+def executed() -> dict:
+    return benchmark("bench_planner_execution.py", "--count", "2")
+
+
+@pytest.fixture(scope="module")
+def struck() -> dict:
+    return benchmark("bench_strike.py", "--count", "2", "--execute", "2")
 
 
 def test_every_pair_is_planned_and_executed(executed) -> None:
@@ -49,3 +60,18 @@ def test_held_domino_arrives_at_the_place_pose(executed) -> None:
     for row in executed["rows"]:
         assert row["before_release_mm"] <= 1.5, row
         assert row["before_release_deg"] <= 1.0, row
+
+
+def test_strike_knocks_every_domino_of_the_run_down(struck) -> None:
+    rows = struck["executed"]["rows"]
+    assert struck["success_rate"] == 1.0 and len(rows) == 2
+    for row in rows:
+        assert 3 <= row["run"]["count"] <= 5
+        assert len(row["tilts_deg"]) == row["run"]["count"]
+        assert all(tilt > 45.0 for tilt in row["tilts_deg"]), row
+
+
+def test_strike_touches_no_domino_before_the_push(struck) -> None:
+    for row in struck["executed"]["rows"]:
+        assert row["moved_before_push_mm"] <= 0.1, row
+        assert row["tilted_before_push_deg"] <= 0.5, row

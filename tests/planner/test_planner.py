@@ -13,7 +13,8 @@ from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import flat_pose, pick_grasps, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.planner import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN, PickPlacePlanner
+from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest, dominoes_overlap
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.verify import TrajectoryChecker

@@ -1,5 +1,6 @@
-"""planner_node over real DDS: good and bad requests, the start state from /joint_states,
-bad requests answered while another one is being planned, parameters validated."""
+"""planner_node over real DDS: good and bad /plan_place and /plan_strike requests, the
+start state from /joint_states, bad requests answered while another one is being planned,
+parameters validated."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from sensor_msgs.msg import JointState
 from dombot_description.grasp import flat_pose, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_msgs.msg import TrajectorySegment
-from dombot_msgs.srv import PlanPlace
+from dombot_msgs.srv import PlanPlace, PlanStrike
 from dombot_planner.errors import ErrorCode
 from support.ros_processes import installed_node, spin_until
 
@@ -45,16 +46,36 @@ def plan_request(**changes) -> PlanPlace.Request:
     return request
 
 
+def strike_request(**changes) -> PlanStrike.Request:
+    """The first domino of a run of three at 60 % spacing; the fingers open at the start."""
+    request = PlanStrike.Request()
+    request.start_state = JointState(
+        name=[*SCENARIO.arm_joints, *SCENARIO.gripper_joints],
+        position=[*SCENARIO.home_position.tolist(), 0.017, 0.017],
+    )
+    run = [
+        upright_pose(0.55 + i * 0.0288 * math.cos(0.3), 0.15 + i * 0.0288 * math.sin(0.3), 0.3)
+        for i in range(3)
+    ]
+    request.domino_pose = pose_message(run[0])
+    request.standing_dominoes = [pose_message(p) for p in run[1:]]
+    for name, value in changes.items():
+        setattr(request, name, value)
+    return request
+
+
 class Client:
     def __init__(self) -> None:
         self.node = Node("plan_place_probe")
         self.plan = self.node.create_client(PlanPlace, "/plan_place")
+        self.strike = self.node.create_client(PlanStrike, "/plan_strike")
         self.joints = self.node.create_publisher(JointState, "/joint_states", 10)
 
     def call_async(self, request):
-        return self.plan.call_async(request)
+        service = self.strike if isinstance(request, PlanStrike.Request) else self.plan
+        return service.call_async(request)
 
-    def call(self, request, timeout: float = 60.0) -> PlanPlace.Response:
+    def call(self, request, timeout: float = 60.0):
         future = self.call_async(request)
         assert spin_until(self.node, future.done, timeout=timeout), "no answer"
         return future.result()
@@ -65,7 +86,8 @@ def client():
     rclpy.init()
     with installed_node("dombot_planner", "planner_node") as process:
         client = Client()
-        assert spin_until(client.node, client.plan.service_is_ready, timeout=60), process.poll()
+        for service in (client.plan, client.strike):
+            assert spin_until(client.node, service.service_is_ready, timeout=60), process.poll()
         yield client
         client.node.destroy_node()
         assert process.poll() is None, "planner_node died during the tests"
@@ -150,6 +172,64 @@ def test_bad_requests_get_an_error_code_and_a_message(client: Client, changes, c
     assert not response.segments
 
 
+def test_good_strike_request_closes_the_gripper_then_pushes(client: Client) -> None:
+    response = client.call(strike_request())
+    assert response.success, response.message
+    assert [(s.label, s.gripper_after) for s in response.segments] == [
+        ("close_gripper", TrajectorySegment.GRIPPER_CLOSE),
+        ("approach", TrajectorySegment.GRIPPER_NONE),
+        ("push", TrajectorySegment.GRIPPER_NONE),
+        ("retreat", TrajectorySegment.GRIPPER_NONE),
+    ]
+    first = response.segments[1].trajectory.points[0].positions
+    assert first == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
+    assert 0.0 < response.planning_time < 30.0
+
+
+@pytest.mark.parametrize(
+    ("changes", "code"),
+    [
+        (
+            {"domino_pose": Pose(position=Point(x=0.55, y=math.inf, z=0.024))},
+            PlanStrike.Response.INVALID_REQUEST,
+        ),
+        (
+            {
+                "domino_pose": Pose(
+                    position=Point(x=0.55, y=0.15, z=0.024),
+                    orientation=Quaternion(w=1.0, x=0.1, y=0.0, z=0.0),
+                )
+            },
+            PlanStrike.Response.INVALID_REQUEST,
+        ),
+        (
+            {"domino_pose": pose_message(flat_pose(0.55, 0.15, 0.3))},
+            PlanStrike.Response.INVALID_REQUEST,
+        ),
+        ({"push_distance": -0.01}, PlanStrike.Response.INVALID_REQUEST),
+        (
+            {"domino_pose": pose_message(upright_pose(0.1, 0.0, 0.0))},
+            PlanStrike.Response.OUTSIDE_WORKSPACE,
+        ),
+        ({"push_distance": 0.03}, PlanStrike.Response.PLACE_IN_COLLISION),
+    ],
+    ids=[
+        "inf",
+        "non_unit_quaternion",
+        "not_upright",
+        "negative_push",
+        "outside_workspace",
+        "push_reaches_next",
+    ],
+)
+def test_bad_strike_requests_get_an_error_code_and_a_message(client: Client, changes, code) -> None:
+    response = client.call(strike_request(**changes))
+    assert not response.success
+    assert response.error_code == code, response.message
+    assert ErrorCode(code).name in response.message
+    assert not response.segments
+
+
 def test_empty_start_state_uses_joint_states(client: Client) -> None:
     empty = plan_request(start_state=JointState())
     response = client.call(empty)
@@ -172,8 +252,10 @@ def test_bad_request_is_answered_while_another_is_planned(client: Client) -> Non
     slow = client.call_async(plan_request(place_pose=pose_message(upright_pose(0.33, 0.0, 1.57))))
     time.sleep(0.2)  # the slow one is being planned
     bad = client.call_async(plan_request(time_budget=-1.0))
-    assert spin_until(client.node, bad.done, timeout=30)
+    bad_strike = client.call_async(strike_request(push_speed=-1.0))
+    assert spin_until(client.node, lambda: bad.done() and bad_strike.done(), timeout=30)
     assert bad.result().error_code == PlanPlace.Response.INVALID_REQUEST
+    assert bad_strike.result().error_code == PlanStrike.Response.INVALID_REQUEST
     assert not slow.done(), "the slow request should still be planning"
     assert spin_until(client.node, slow.done, timeout=60)
     assert slow.result().error_code == PlanPlace.Response.PLACE_UNREACHABLE
@@ -194,3 +276,5 @@ def test_wrong_parameter_value_is_refused(client: Client) -> None:
 def test_error_codes_are_the_service_constants() -> None:
     for code in ErrorCode:
         assert getattr(PlanPlace.Response, code.name) == code.value
+        if hasattr(PlanStrike.Response, code.name):
+            assert getattr(PlanStrike.Response, code.name) == code.value

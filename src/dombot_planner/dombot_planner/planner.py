@@ -19,7 +19,6 @@ Plan of a request (docs/PLANNER.md has the picture):
 from __future__ import annotations
 
 import math
-import time
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
@@ -38,122 +37,31 @@ from dombot_description.grasp import (
     release_opening,
     top_grasp,
 )
-from dombot_description.scenario import Scenario
-from dombot_planner import coarse
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.ik import PoseIK, straight_line
-from dombot_planner.request import PickPlaceRequest, check_request
-from dombot_planner.scene import (
-    HELD,
-    MOVING,
-    OBSTACLES,
-    PADS,
-    SELF,
-    STANDING,
-    TABLE,
-    TARGET,
-    ClearanceRules,
-    Scene,
-    ShadowPlants,
+from dombot_planner.ik import PoseIK
+from dombot_planner.motion import (
+    GRIPPER_CLOSE,
+    GRIPPER_OPEN,
+    UP,
+    ArmPlanner,
+    Deadline,
+    Plan,
+    RequestMotions,
+    Segment,
+    reasons,
 )
-from dombot_planner.settings import PlannerSettings
-from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
+from dombot_planner.request import PickPlaceRequest, check_request
+from dombot_planner.scene import HELD, PADS, STANDING, TABLE, TARGET, ClearanceRules, Scene
 
-GRIPPER_NONE, GRIPPER_OPEN, GRIPPER_CLOSE = "none", "open", "close"
-MAX_JOINT_STEP = 0.1  # rad between line waypoints; more means the arm flips
-COARSE_CHECK_SAMPLES = 120  # at least this many clearance checks of each KTO result ...
-CHECK_JOINT_STEP = 0.01  # rad ... and no joint moving more than this between them
-CHECK_MARGIN = 5e-4  # m the planner's own check adds to the required clearance
-LINE_GRID_POINTS = 100  # TOPP-RA grid on a line (its end point is only loosely constrained)
 FREE_SIDE_RADIUS = 0.1  # m: standing dominoes this close decide the free side
-UP = np.array([0.0, 0.0, 1.0])
 
 
-@dataclass(frozen=True)
-class SampledSegment:
-    """One executed segment: joint samples and the gripper event after it."""
-
-    label: str
-    times: np.ndarray
-    positions: np.ndarray  # samples × 7
-    velocities: np.ndarray
-    accelerations: np.ndarray
-    gripper_after: str  # "none" | "open" | "close"
-    gripper_position: float
-
-
-@dataclass
-class Segment:
-    """A trajectory (pieces played in order, each from rest to rest) and a gripper event."""
-
-    label: str
-    pieces: list[TimedPath]
-    finger_opening: float  # m while this segment runs
-    gripper_after: str = GRIPPER_NONE
-    gripper_position: float = 0.0
-    gripper_effort: float = 0.0
-    start: np.ndarray | None = None  # for a segment without motion
-
-    @property
-    def duration(self) -> float:
-        return sum(piece.duration for piece in self.pieces)
-
-    def sample(self, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Times (from the segment start), positions, velocities, accelerations.
-
-        Each piece is sampled every ``period`` and at its end, so every rest point (piece
-        ends) is a sample.
-        """
-        if not self.pieces:
-            q = np.atleast_2d(self.start)
-            return np.zeros(1), q, np.zeros_like(q), np.zeros_like(q)
-        times, q, qd, qdd = [np.zeros(1)], [], [], []
-        offset = 0.0
-        first = self.pieces[0].sample(np.zeros(1))
-        q.append(first[0]), qd.append(first[1]), qdd.append(first[2])
-        for piece in self.pieces:
-            local = np.append(np.arange(period, piece.duration, period), piece.duration)
-            values = piece.sample(local)
-            times.append(offset + local)
-            q.append(values[0]), qd.append(values[1]), qdd.append(values[2])
-            offset += piece.duration
-        return np.concatenate(times), np.vstack(q), np.vstack(qd), np.vstack(qdd)
-
-
-@dataclass
-class Plan:
-    segments: list[Segment]
+@dataclass(kw_only=True)
+class PickPlacePlan(Plan):
     grasp_pose: RigidTransform  # TCP when the gripper closes
     release_pose: RigidTransform  # TCP when it opens
     held_in_tcp: RigidTransform  # the domino in the TCP frame while held
-    planning_time: float = 0.0
-    kto_attempts: dict[str, int] = field(default_factory=dict)
     regrasped: bool = False  # the domino was turned in place first (two picks)
-
-    def final_positions(self) -> np.ndarray:
-        """Arm joint positions when the plan has been executed."""
-        last = self.segments[-1]
-        if not last.pieces:
-            return np.asarray(last.start)
-        return last.pieces[-1].sample(np.array([last.pieces[-1].duration]))[0][0]
-
-    def sampled(self, period: float) -> list[SampledSegment]:
-        """The segments as executed: samples every ``period`` (and at every rest point)."""
-        result = []
-        for segment in self.segments:
-            times, q, qd, qdd = segment.sample(period)
-            result.append(
-                SampledSegment(
-                    segment.label,
-                    times,
-                    q,
-                    qd,
-                    qdd,
-                    segment.gripper_after,
-                    segment.gripper_position,
-                )
-            )
-        return result
 
 
 @dataclass
@@ -182,25 +90,6 @@ def lift_directions(grasp: RigidTransform) -> list[np.ndarray]:
     return [UP, (UP + horizontal / norm) / np.sqrt(2.0)]
 
 
-def _reasons(failures: Counter) -> str:
-    return ", ".join(f"{reason}: {count}" for reason, count in failures.most_common()) or "none"
-
-
-class Deadline:
-    def __init__(self, budget: float) -> None:
-        self.start = time.monotonic()
-        self.end = self.start + budget
-
-    def check(self, stage: str) -> None:
-        if time.monotonic() > self.end:
-            raise PlanningError(
-                ErrorCode.TIMEOUT, stage, f"time budget of {self.end - self.start:.2f} s used up"
-            )
-
-    def elapsed(self) -> float:
-        return time.monotonic() - self.start
-
-
 @dataclass
 class EndSearch:
     """What the search for pick and place ends tried: the error when nothing was found."""
@@ -217,43 +106,23 @@ class EndSearch:
                 ErrorCode.GRASP_UNREACHABLE,
                 "grasp",
                 f"no collision-free IK and approach line for any of {self.grasp_candidates} "
-                f"grasps ({_reasons(self.grasp_failures)})",
+                f"grasps ({reasons(self.grasp_failures)})",
             )
         return PlanningError(
             ErrorCode.PLACE_UNREACHABLE,
             "place",
             f"no collision-free IK and approach line for any of {self.place_candidates} "
-            f"place poses ({_reasons(self.place_failures)})",
+            f"place poses ({reasons(self.place_failures)})",
         )
 
 
-class PickPlacePlanner:
+class PickPlacePlanner(ArmPlanner):
     """Plans /plan_place requests; keeps shadow plants between requests (not thread-safe)."""
-
-    def __init__(self, scenario: Scenario, settings: PlannerSettings | None = None) -> None:
-        self.scenario = scenario
-        self.settings = settings or PlannerSettings()
-        self.plants = ShadowPlants(scenario)
-        plant = self.plants.get(DOMINO_SIZE[1]).plant
-        self.lower = plant.GetPositionLowerLimits()
-        self.upper = plant.GetPositionUpperLimits()
-        self.limits = JointLimits(
-            velocity=plant.GetVelocityUpperLimits() * self.settings.velocity_scale,
-            acceleration=np.full(plant.num_velocities(), self.settings.acceleration_limit),
-        )
-
-    def coarse_rules(self, floor: float | None = None) -> ClearanceRules:
-        """Everything ``floor`` (default coarse_clearance) from the table and dominoes."""
-        clearance = self.settings.coarse_clearance if floor is None else floor
-        rules = {(moving, other): clearance for moving in MOVING for other in OBSTACLES}
-        rules.update({(moving, SELF): self.settings.self_clearance for moving in MOVING})
-        return ClearanceRules(rules)
 
     def fine_rules(self) -> ClearanceRules:
         """Within the lines only pads and the held domino come near the table and dominoes."""
         s = self.settings
-        rules = self.coarse_rules().minimum.copy()
-        rules.update(
+        return self.relaxed_rules(
             {
                 (PADS, TABLE): s.pad_table_clearance,
                 (PADS, STANDING): s.fine_obstacle_clearance,
@@ -262,11 +131,14 @@ class PickPlacePlanner:
                 (HELD, STANDING): s.fine_obstacle_clearance,
             }
         )
-        return ClearanceRules(rules)
 
-    def plan(self, request: PickPlaceRequest) -> Plan:
-        """A plan for ``request``; raises PlanningError with a code and the failing stage."""
+    def check(self, request: PickPlaceRequest) -> None:
+        """What can be said without planning; raises PlanningError."""
         check_request(request, self.settings)
+
+    def plan(self, request: PickPlaceRequest) -> PickPlacePlan:
+        """A plan for ``request``; raises PlanningError with a code and the failing stage."""
+        self.check(request)
         deadline = Deadline(request.time_budget or self.settings.default_time_budget)
         try:
             plan = RequestPlanning(self, request, deadline).plan()
@@ -283,7 +155,7 @@ class PickPlacePlanner:
 
     def _plan_with_regrasp(
         self, request: PickPlaceRequest, deadline: Deadline, error: PlanningError
-    ) -> Plan:
+    ) -> PickPlacePlan:
         """Turn the domino a quarter turn in place with the top grasp, then pick it again.
 
         Where the domino lies along the radius close to the arm, no tilted grasp reaches it
@@ -311,11 +183,11 @@ class PickPlacePlanner:
             ) from None
         for segment in first.segments:
             segment.label = f"regrasp_{segment.label}"
-        return Plan(
+        return PickPlacePlan(
             first.segments + second.segments,
-            second.grasp_pose,
-            second.release_pose,
-            second.held_in_tcp,
+            grasp_pose=second.grasp_pose,
+            release_pose=second.release_pose,
+            held_in_tcp=second.held_in_tcp,
             kto_attempts={
                 **{f"regrasp_{k}": v for k, v in first.kto_attempts.items()},
                 **second.kto_attempts,
@@ -324,15 +196,14 @@ class PickPlacePlanner:
         )
 
 
-class RequestPlanning:
+class RequestPlanning(RequestMotions):
     """The planning of one request: its scenes, random seeds, deadline and search record."""
 
     def __init__(
         self, planner: PickPlacePlanner, request: PickPlaceRequest, deadline: Deadline
     ) -> None:
-        self.planner, self.settings = planner, planner.settings
-        self.request, self.deadline = request, deadline
-        self.rng = np.random.default_rng(self.settings.seed)
+        super().__init__(planner, request.start, deadline)
+        self.request = request
         closed = request.grasp_width or DOMINO_SIZE[1]
         self.openings = {
             "pregrasp": pregrasp_opening(closed),
@@ -347,8 +218,8 @@ class RequestPlanning:
         shadow = self.planner.plants.get(self.openings[opening])
         return Scene(shadow, self.planner.scenario.tcp_frame, self.request.standing, **dominoes)
 
-    def plan(self) -> Plan:
-        self._check_start()
+    def plan(self) -> PickPlacePlan:
+        self.check_start(self.approach)
         connect_error = None
         for pick, place, transfer in self._ends():
             try:
@@ -360,22 +231,6 @@ class RequestPlanning:
         raise connect_error or self.search.error()
 
     # ------------------------------------------------------------------ ends
-    def _check_start(self) -> None:
-        clearance = self.approach.clearance(self.request.start)
-        violations = self.planner.coarse_rules(floor=0.0).violations(clearance)
-        if violations:
-            raise PlanningError(
-                ErrorCode.INVALID_REQUEST, "start", f"start state in collision: {violations[0]}"
-            )
-
-    def _seeds(self, first: list[np.ndarray]) -> list[np.ndarray]:
-        """IK seeds: ``first``, home, then seeded random configurations inside the limits."""
-        lower, upper = self.planner.lower, self.planner.upper
-        middle, half = (lower + upper) / 2, 0.8 * (upper - lower) / 2
-        count = self.settings.ik_random_seeds
-        random = self.rng.uniform(middle - half, middle + half, (count, len(lower)))
-        return [*first, self.planner.scenario.home_position, *random]
-
     def _ends(self) -> Iterator[tuple[End, End, Scene]]:
         """Pick and place ends that pass their checks, best candidates first."""
         request, s = self.request, self.settings
@@ -395,7 +250,7 @@ class RequestPlanning:
                 s.pick_approach_distance,
                 lift_directions(grasp),
                 [self.approach, transfer],
-                self._seeds([request.start]),
+                self.seeds([request.start]),
                 self.search.grasp_failures,
             )
             if pick is None:
@@ -409,7 +264,7 @@ class RequestPlanning:
                     s.place_approach_distance,
                     [UP],
                     [transfer, self.retreat],
-                    self._seeds([pick.line[0], request.start]),
+                    self.seeds([pick.line[0], request.start]),
                     self.search.place_failures,
                 )
                 if place is not None:
@@ -445,54 +300,31 @@ class RequestPlanning:
         """
         ik = PoseIK(scenes[0], tcp_pose.rotation())
         target = tcp_pose.translation()
-        rules = self.planner.fine_rules()
+        checks = [(scene, self.planner.fine_rules()) for scene in scenes]
         top_rules = self.planner.coarse_rules(self.settings.coarse_clearance + 1e-3)
-        for seed in seeds:
-            self.deadline.check("ends")
-            q = ik.solve(target, seed, seed)
-            if q is None:
-                failures["no IK"] += 1
-                continue
-            if any(rules.violations(scene.clearance(q)) for scene in scenes):
-                failures["in collision at the pose"] += 1
-                continue
+        for q in self.clear_solutions(ik, target, seeds, checks, failures):
             for direction in directions:
-                line = straight_line(
-                    ik,
-                    q,
-                    target,
-                    distance * direction,
-                    self.settings.waypoint_spacing,
-                    MAX_JOINT_STEP,
-                )
+                line, why = self.clear_line(ik, q, target, distance * direction, checks, top_rules)
                 if line is None:
-                    failures["line leaves the reach"] += 1
-                elif any(top_rules.violations(scene.clearance(line[-1])) for scene in scenes):
-                    failures["line end too close"] += 1
-                elif any(
-                    rules.violations(scene.clearance(waypoint))
-                    for scene in scenes
-                    for waypoint in line[1:-1]
-                ):
-                    failures["line too close"] += 1
+                    failures[why] += 1
                 else:
                     return End(tcp_pose, line)
         return None
 
     # ------------------------------------------------------------------ connect
-    def _connect(self, pick: End, place: End, transfer: Scene) -> Plan:
+    def _connect(self, pick: End, place: End, transfer: Scene) -> PickPlacePlan:
         """Coarse moves between the ends, retimed and assembled into segments."""
         attempts: dict[str, int] = {}
         start = self.request.start
-        to_pick = self._coarse("approach_grasp", self.approach, start, pick.above, attempts)
-        to_place = self._coarse("transfer", transfer, pick.above, place.above, attempts)
+        to_pick = self.coarse_move("approach_grasp", self.approach, start, pick.above, attempts)
+        to_place = self.coarse_move("transfer", transfer, pick.above, place.above, attempts)
         self.deadline.check("retiming")
         openings, force = self.openings, self.settings.grip_force
         pieces = {
-            "down_to_grasp": self._line("descend_to_grasp", pick.line[::-1], self.approach),
-            "lift": self._line("lift", pick.line, transfer),
-            "down_to_place": self._line("descend_to_place", place.line[::-1], transfer),
-            "retreat": self._line("retreat", place.line, self.retreat),
+            "down_to_grasp": self.timed_line("descend_to_grasp", pick.line[::-1], self.approach),
+            "lift": self.timed_line("lift", pick.line, transfer),
+            "down_to_place": self.timed_line("descend_to_place", place.line[::-1], transfer),
+            "retreat": self.timed_line("retreat", place.line, self.retreat),
         }
         segments = [
             Segment(
@@ -521,74 +353,10 @@ class RequestPlanning:
             Segment("retreat", [pieces["retreat"]], openings["release"]),
         ]
         held_in_tcp = domino_in_tcp(pick.tcp_pose, self.request.domino_pose)
-        return Plan(segments, pick.tcp_pose, place.tcp_pose, held_in_tcp, kto_attempts=attempts)
-
-    def _line(self, label: str, waypoints: np.ndarray, scene: Scene) -> TimedPath:
-        spacing = self.settings.waypoint_spacing
-        timed = retime(
-            label,
-            line_path(waypoints, spacing),
-            scene.plant,
-            self.planner.limits,
-            fine=True,
-            tcp=scene.tcp,
-            tcp_speed=self.settings.approach_speed,
-            grid_points=LINE_GRID_POINTS,
+        return PickPlacePlan(
+            segments,
+            grasp_pose=pick.tcp_pose,
+            release_pose=place.tcp_pose,
+            held_in_tcp=held_in_tcp,
+            kto_attempts=attempts,
         )
-        if timed is None:
-            length = spacing * (len(waypoints) - 1)
-            raise PlanningError(
-                ErrorCode.PLANNING_FAILED, label, f"TOPP-RA found no timing for a {length} m line"
-            )
-        return timed
-
-    def _coarse(
-        self,
-        label: str,
-        scene: Scene,
-        q_start: np.ndarray,
-        q_goal: np.ndarray,
-        attempts: dict[str, int],
-    ) -> TimedPath:
-        """A KTO move from ``q_start`` to ``q_goal`` that passes the dense clearance check."""
-        s = self.settings
-        ends = min(scene.minimum_distance(q_start), scene.minimum_distance(q_goal))
-        bound = min(s.coarse_clearance + s.coarse_margin, 0.9 * ends)
-        rules = self.planner.coarse_rules(min(s.coarse_clearance + CHECK_MARGIN, 0.9 * ends))
-        failure = "no attempt"
-        for attempt in range(s.kto_attempts):
-            self.deadline.check(label)
-            attempts[label] = attempt + 1
-            guess = coarse.initial_guess(
-                scene, q_start, q_goal, attempt, s.kto_control_points, self.rng
-            )
-            samples = s.kto_collision_samples * (1 + attempt // 2)
-            path = coarse.optimize(scene, q_start, q_goal, guess, bound, samples)
-            if path is None:
-                failure = "SNOPT found no feasible trajectory"
-                continue
-            violations = dense_violations(scene, path, rules)
-            if violations:
-                failure = f"too close between samples: {violations[0]}"
-                continue
-            timed = retime(label, path, scene.plant, self.planner.limits)
-            if timed is not None:
-                return timed
-            failure = "TOPP-RA found no timing"
-        raise PlanningError(
-            ErrorCode.PLANNING_FAILED,
-            label,
-            f"KTO failed after {attempts.get(label, 0)} attempts ({failure})",
-        )
-
-
-def dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:
-    """Rule violations at samples no more than CHECK_JOINT_STEP apart (any joint)."""
-    coarse_samples = path.vector_values(np.linspace(path.start_time(), path.end_time(), 50))
-    travel = np.abs(np.diff(coarse_samples, axis=1)).max(axis=0).sum()
-    count = max(COARSE_CHECK_SAMPLES, int(np.ceil(travel / CHECK_JOINT_STEP)))
-    for q in path.vector_values(np.linspace(path.start_time(), path.end_time(), count)).T:
-        violations = rules.violations(scene.clearance(q))
-        if violations:
-            return violations
-    return []

@@ -1,12 +1,14 @@
-"""planner_node: serves /plan_place (dombot_msgs/srv/PlanPlace).
+"""planner_node: serves /plan_place (dombot_msgs/srv/PlanPlace) and /plan_strike
+(dombot_msgs/srv/PlanStrike).
 
-A thin ROS adapter over ``planner``: parameters are PlannerSettings' fields (validated; a
-rejected update keeps the old values), /joint_states gives the start state when a request
-has none, requests are checked and converted before they wait for the planner, and every
-failure is answered with an error code and a message and logged. The service runs in a
-reentrant callback group on a multi-threaded executor, so bad requests are answered at
-once while another request is being planned; a request that cannot start planning within
-its time budget gets TIMEOUT.
+A thin ROS adapter over ``planner`` and ``strike``: parameters are PlannerSettings' fields
+(validated; a rejected update keeps the old values), /joint_states gives the start state
+when a request has none, requests are checked and converted before they wait for the
+planner, and every failure is answered with an error code and a message and logged with
+its stage and the time spent. Both services run in a reentrant callback group on a
+multi-threaded executor, so bad requests are answered at once while another request is
+being planned (the two planners share shadow plants and plan one request at a time); a
+request that cannot start planning within its time budget gets TIMEOUT.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import dataclasses
 import threading
 import time
 import traceback
+from collections.abc import Callable
 
 import rclpy
 from builtin_interfaces.msg import Duration
@@ -28,11 +31,19 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
-from dombot_msgs.srv import PlanPlace
+from dombot_msgs.srv import PlanPlace, PlanStrike
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.planner import GRIPPER_CLOSE, GRIPPER_OPEN, PickPlacePlanner, Plan
-from dombot_planner.request import PickPlaceRequest, arm_positions, check_request, pose_from
+from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN, Plan
+from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.request import (
+    PickPlaceRequest,
+    StrikeRequest,
+    arm_positions,
+    finger_opening,
+    pose_from,
+)
 from dombot_planner.settings import PlannerSettings
+from dombot_planner.strike import StrikePlan, StrikePlanner
 
 GRIPPER_EVENTS = {
     GRIPPER_OPEN: TrajectorySegment.GRIPPER_OPEN,
@@ -49,6 +60,10 @@ def is_unset(message: Pose) -> bool:
     """A grasp_pose left at the origin (inside the arm base): the planner chooses."""
     p = message.position
     return p.x == 0.0 and p.y == 0.0 and p.z == 0.0
+
+
+def standing_of(poses: list[Pose]) -> tuple:
+    return tuple(pose_of(p, f"standing_dominoes[{i}]") for i, p in enumerate(poses))
 
 
 def duration_of(seconds: float) -> Duration:
@@ -74,7 +89,7 @@ class PlannerNode(Node):
         except (ScenarioError, ValueError, TypeError) as error:
             self.get_logger().fatal(f"cannot start: {error}")
             raise
-        self.planner = PickPlacePlanner(self.scenario, settings)
+        self._make_planners(settings)
         self.lock = threading.Lock()
         self.joint_state: JointState | None = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -85,15 +100,21 @@ class PlannerNode(Node):
             10,
             callback_group=MutuallyExclusiveCallbackGroup(),
         )
+        services = ReentrantCallbackGroup()
+        self.create_service(PlanPlace, "plan_place", self._on_plan_place, callback_group=services)
         self.create_service(
-            PlanPlace, "plan_place", self._on_plan_place, callback_group=ReentrantCallbackGroup()
+            PlanStrike, "plan_strike", self._on_plan_strike, callback_group=services
         )
         self.get_logger().info(
-            f"ready: /plan_place on scenario {self.scenario.path.name}, "
+            f"ready: /plan_place, /plan_strike on scenario {self.scenario.path.name}, "
             f"default time budget {settings.default_time_budget} s"
         )
 
     # ------------------------------------------------------------------ parameters
+    def _make_planners(self, settings: PlannerSettings) -> None:
+        self.planner = PickPlacePlanner(self.scenario, settings)
+        self.striker = StrikePlanner(self.scenario, settings, plants=self.planner.plants)
+
     def _settings(self, overrides: dict) -> PlannerSettings:
         values = {}
         for field in dataclasses.fields(PlannerSettings):
@@ -111,81 +132,123 @@ class PlannerNode(Node):
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
         with self.lock:
-            self.planner = PickPlacePlanner(self.scenario, settings)
+            self._make_planners(settings)
         self.get_logger().info(f"settings updated: {sorted(overrides)}")
         return SetParametersResult(successful=True)
 
     def _on_joint_state(self, message: JointState) -> None:
         self.joint_state = message
 
-    # ------------------------------------------------------------------ service
+    # ------------------------------------------------------------------ services
     def _on_plan_place(self, request: PlanPlace.Request, response: PlanPlace.Response):
+        def note(plan: PickPlacePlan) -> str:
+            return "domino turned in place first" if plan.regrasped else ""
+
+        return self._serve(
+            "plan_place", response, lambda: (self.planner, self._place_request(request)), note
+        )
+
+    def _on_plan_strike(self, request: PlanStrike.Request, response: PlanStrike.Response):
+        def note(plan: StrikePlan) -> str:
+            return "gripper closed first" if plan.closes_gripper else ""
+
+        return self._serve(
+            "plan_strike", response, lambda: (self.striker, self._strike_request(request)), note
+        )
+
+    def _serve(self, service: str, response, convert: Callable, note: Callable[[Plan], str]):
+        """Check and convert a request (answered at once), then plan it under the lock.
+
+        ``convert()`` gives the planner and the request; ``note(plan)`` a remark or "".
+        """
         began = time.monotonic()
         try:
-            plan_request = self._convert(request)
-            check_request(plan_request, self.planner.settings)  # answered before queueing
-            budget = plan_request.time_budget or self.planner.settings.default_time_budget
+            planner, plan_request = convert()
+            planner.check(plan_request)  # answered before queueing
+            budget = plan_request.time_budget or planner.settings.default_time_budget
             if not self.lock.acquire(timeout=budget):
                 raise PlanningError(
                     ErrorCode.TIMEOUT, "queue", f"still busy with another request after {budget} s"
                 )
             try:
-                waited = time.monotonic() - began
-                remaining = max(budget - waited, 1e-3)
-                plan = self.planner.plan(dataclasses.replace(plan_request, time_budget=remaining))
+                remaining = max(budget - (time.monotonic() - began), 1e-3)
+                plan = planner.plan(dataclasses.replace(plan_request, time_budget=remaining))
             finally:
                 self.lock.release()
-            self._fill(response, plan)
+            remark = note(plan)
+            self._fill(response, plan, planner.settings.sample_period, remark)
             self.get_logger().info(
-                f"plan_place: planned in {time.monotonic() - began:.2f} s "
+                f"{service}: planned in {time.monotonic() - began:.2f} s "
                 f"({len(response.segments)} segments, "
                 f"{sum(s.duration for s in plan.segments):.2f} s of motion"
-                f"{', with a regrasp' if plan.regrasped else ''})"
+                f"{', ' + remark if remark else ''})"
             )
         except PlanningError as error:
-            self._fail(response, error.code, error.stage, error.message)
+            self._fail(service, response, error, began)
         except Exception as error:  # the node must keep serving
             self.get_logger().error(traceback.format_exc())
-            self._fail(response, ErrorCode.PLANNING_FAILED, "internal", repr(error))
+            internal = PlanningError(ErrorCode.PLANNING_FAILED, "internal", repr(error))
+            self._fail(service, response, internal, began)
         response.planning_time = time.monotonic() - began
         return response
 
-    def _fail(self, response, code: ErrorCode, stage: str, message: str) -> None:
+    def _fail(self, service: str, response, error: PlanningError, began: float) -> None:
         response.success = False
-        response.error_code = int(code)
-        response.message = f"{code.name} at {stage}: {message}"
-        self.get_logger().warning(f"plan_place: {response.message}")
+        response.error_code = int(error.code)
+        response.message = f"{error.code.name} at {error.stage}: {error.message}"
+        self.get_logger().warning(
+            f"{service}: {response.message} (after {time.monotonic() - began:.2f} s)"
+        )
 
-    def _convert(self, request: PlanPlace.Request) -> PickPlaceRequest:
-        arm = self.scenario.arm_joints
-        lower, upper = self.planner.lower, self.planner.upper
-        state = request.start_state
-        if not state.name and not state.position:
-            if self.joint_state is None:
-                raise PlanningError(
-                    ErrorCode.NO_START_STATE,
-                    "start",
-                    "start_state is empty and no /joint_states has been received",
-                )
-            state = self.joint_state
-        start = arm_positions(list(state.name), list(state.position), arm, lower, upper)
+    def _start_state(self, state: JointState) -> JointState:
+        """The request's start state, or the latest /joint_states when it is empty."""
+        if state.name or state.position:
+            return state
+        if self.joint_state is None:
+            raise PlanningError(
+                ErrorCode.NO_START_STATE,
+                "start",
+                "start_state is empty and no /joint_states has been received",
+            )
+        return self.joint_state
+
+    def _arm(self, state: JointState):
+        return arm_positions(
+            list(state.name),
+            list(state.position),
+            self.scenario.arm_joints,
+            self.planner.lower,
+            self.planner.upper,
+        )
+
+    def _place_request(self, request: PlanPlace.Request) -> PickPlaceRequest:
         return PickPlaceRequest(
             domino_pose=pose_of(request.domino_pose, "domino_pose"),
             place_pose=pose_of(request.place_pose, "place_pose"),
-            start=start,
+            start=self._arm(self._start_state(request.start_state)),
             grasp_pose=(
                 None if is_unset(request.grasp_pose) else pose_of(request.grasp_pose, "grasp_pose")
             ),
             grasp_width=request.grasp_width,
-            standing=tuple(
-                pose_of(p, f"standing_dominoes[{i}]")
-                for i, p in enumerate(request.standing_dominoes)
-            ),
+            standing=standing_of(request.standing_dominoes),
             time_budget=request.time_budget,
         )
 
-    def _fill(self, response: PlanPlace.Response, plan: Plan) -> None:
-        period = self.planner.settings.sample_period
+    def _strike_request(self, request: PlanStrike.Request) -> StrikeRequest:
+        state = self._start_state(request.start_state)
+        return StrikeRequest(
+            domino_pose=pose_of(request.domino_pose, "domino_pose"),
+            start=self._arm(state),
+            finger_opening=finger_opening(
+                list(state.name), list(state.position), self.scenario.gripper_joints
+            ),
+            standing=standing_of(request.standing_dominoes),
+            push_distance=request.push_distance,
+            push_speed=request.push_speed,
+            time_budget=request.time_budget,
+        )
+
+    def _fill(self, response, plan: Plan, period: float, remark: str) -> None:
         for segment, sampled in zip(plan.segments, plan.sampled(period), strict=True):
             trajectory = JointTrajectory(joint_names=list(self.scenario.arm_joints))
             for t, q, qd, qdd in zip(
@@ -216,7 +279,7 @@ class PlannerNode(Node):
             )
         response.success = True
         response.error_code = int(ErrorCode.SUCCESS)
-        response.message = "planned" + (" (domino turned in place first)" if plan.regrasped else "")
+        response.message = "planned" + (f" ({remark})" if remark else "")
 
 
 def main(args: list[str] | None = None) -> None:

@@ -1,6 +1,7 @@
-"""A pick-and-place request in plain Python types, and the checks every request passes
-before any planning: finite numbers, unit quaternions, a known start state, poses inside
-the workspace, a place pose that does not overlap the table or a standing domino."""
+"""Pick-and-place and strike requests in plain Python types, and the checks every request
+passes before any planning: finite numbers, unit quaternions, a known start state, poses
+inside the workspace, a place pose (or the domino to strike) that does not overlap the
+table or a standing domino, a domino to strike that stands upright."""
 
 from __future__ import annotations
 
@@ -22,6 +23,9 @@ JOINT_LIMIT_TOLERANCE = 1e-3  # rad a start state may sit beyond a limit (it is 
 OVERLAP_TOLERANCE = 1e-4  # m two dominoes may overlap (touching faces)
 TABLE_TOLERANCE = 5e-4  # m a place pose may reach into the table top
 GRASP_REACH = 0.05  # m: a grasp TCP farther than this from its domino's centre is a mistake
+UPRIGHT_TOLERANCE = math.radians(10.0)  # body x this close to vertical stands upright
+MAX_PUSH_DISTANCE = 0.05  # m past the back face: farther reaches the next domino of a run
+MAX_PUSH_SPEED = 0.5  # m/s: faster throws the domino instead of tipping it
 
 
 @dataclass(frozen=True)
@@ -32,6 +36,17 @@ class PickPlaceRequest:
     grasp_pose: RigidTransform | None = None  # TCP pose to grasp with; None: choose
     grasp_width: float = 0.0  # finger opening closed on the domino [m]; 0: its width
     standing: tuple[RigidTransform, ...] = ()  # dominoes already placed
+    time_budget: float = 0.0  # s; 0: the planner's default
+
+
+@dataclass(frozen=True)
+class StrikeRequest:
+    domino_pose: RigidTransform  # the upright domino to push over (first of the run)
+    start: np.ndarray  # arm joint positions [rad]
+    finger_opening: float | None = None  # m at the start; None: unknown (closed first)
+    standing: tuple[RigidTransform, ...] = ()  # the rest of the run
+    push_distance: float = 0.0  # m past the back face; 0: the planner's default
+    push_speed: float = 0.0  # m/s; 0: the planner's default
     time_budget: float = 0.0  # s; 0: the planner's default
 
 
@@ -78,10 +93,25 @@ def arm_positions(
     return np.clip(q, lower, upper)
 
 
+def finger_opening(
+    names: Sequence[str], positions: Sequence[float], gripper_joints: Sequence[str]
+) -> float | None:
+    """The gripper opening [m] a JointState reports (sum of the fingers); None: not in it."""
+    by_name = dict(zip(names, positions, strict=False))
+    values = [by_name.get(joint) for joint in gripper_joints]
+    if any(v is None or not math.isfinite(v) for v in values):
+        return None
+    return float(sum(values))
+
+
+def check_budget(budget: float) -> None:
+    if not (math.isfinite(budget) and budget >= 0):
+        raise invalid("validation", f"time_budget must be >= 0 s, got {budget}")
+
+
 def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
     """Everything that can be said about a request without planning; raises PlanningError."""
-    if not (math.isfinite(request.time_budget) and request.time_budget >= 0):
-        raise invalid("validation", f"time_budget must be >= 0 s, got {request.time_budget}")
+    check_budget(request.time_budget)
     width = request.grasp_width
     stroke = gripper_geometry().max_opening
     if not (math.isfinite(width) and width >= 0.0 and pregrasp_opening(width) <= stroke):
@@ -99,6 +129,27 @@ def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
                 "validation", f"grasp_pose is {reach * 1000:.0f} mm from the domino's centre"
             )
     check_place_is_free(request.place_pose, request.standing)
+
+
+def check_strike_request(request: StrikeRequest, settings: PlannerSettings) -> None:
+    """Everything that can be said about a strike request without planning."""
+    check_budget(request.time_budget)
+    for name, value, most in (
+        ("push_distance", request.push_distance, MAX_PUSH_DISTANCE),
+        ("push_speed", request.push_speed, MAX_PUSH_SPEED),
+    ):
+        if not (math.isfinite(value) and 0.0 <= value <= most):
+            raise invalid("validation", f"{name} must be 0 (default) to {most}, got {value}")
+    check_workspace(request.domino_pose, "domino_pose", settings)
+    up = request.domino_pose.rotation().matrix()[2, 0]
+    if abs(up) < math.cos(UPRIGHT_TOLERANCE):
+        tilt = math.degrees(math.acos(min(1.0, abs(up))))
+        raise invalid(
+            "validation",
+            f"domino_pose is not upright: its body x is {tilt:.0f}° from vertical "
+            f"(at most {math.degrees(UPRIGHT_TOLERANCE):.0f}°)",
+        )
+    check_place_is_free(request.domino_pose, request.standing, "domino_pose")
 
 
 def check_workspace(pose: RigidTransform, what: str, settings: PlannerSettings) -> None:
@@ -136,18 +187,20 @@ def dominoes_overlap(a: RigidTransform, b: RigidTransform, tolerance: float) -> 
     return True
 
 
-def check_place_is_free(place: RigidTransform, standing: Sequence[RigidTransform]) -> None:
+def check_place_is_free(
+    place: RigidTransform, standing: Sequence[RigidTransform], what: str = "place_pose"
+) -> None:
     lowest = box_corners(place)[:, 2].min()
     if lowest < -TABLE_TOLERANCE:
         raise PlanningError(
             ErrorCode.PLACE_IN_COLLISION,
             "validation",
-            f"place_pose reaches {-lowest * 1000:.1f} mm into the table",
+            f"{what} reaches {-lowest * 1000:.1f} mm into the table",
         )
     for index, other in enumerate(standing):
         if dominoes_overlap(place, other, OVERLAP_TOLERANCE):
             raise PlanningError(
                 ErrorCode.PLACE_IN_COLLISION,
                 "validation",
-                f"place_pose overlaps standing domino {index}",
+                f"{what} overlaps standing domino {index}",
             )

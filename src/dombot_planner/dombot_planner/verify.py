@@ -1,4 +1,4 @@
-"""Independent check of a pick-and-place trajectory, as it would be executed.
+"""Independent checks of planned trajectories (pick-and-place, strike), as executed.
 
 It shares nothing with the optimizer but the scenario: a separate plant built like the
 simulator's (dombot_description.cell.add_cell with real finger joints, every domino a
@@ -7,7 +7,9 @@ sample. Which samples belong to a final approach or retreat is decided geometric
 TCP holds the orientation of the pose where the gripper closes or opens, within the
 approach distance of it (coarse moves turn the hand; the straight lines do not). Reported:
 smallest clearance per phase and pair of body classes, the grasp and place pose errors,
-joint position/velocity/acceleration limit use, and jumps between segments.
+joint position/velocity/acceleration limit use, and jumps between segments. A strike's
+phases are its segments (approach, push, retreat); measured besides: where the fingertips
+are when the push begins, how far the pads travel past first contact and how fast.
 """
 
 from __future__ import annotations
@@ -29,9 +31,9 @@ from dombot_description.grasp import (
     top_grasp,
 )
 from dombot_description.scenario import Scenario
-from dombot_planner.planner import GRIPPER_CLOSE as CLOSE
-from dombot_planner.planner import GRIPPER_OPEN as OPEN
-from dombot_planner.planner import SampledSegment
+from dombot_planner.motion import GRIPPER_CLOSE as CLOSE
+from dombot_planner.motion import GRIPPER_OPEN as OPEN
+from dombot_planner.motion import SampledSegment
 from dombot_planner.request import box_corners
 
 MAX_INTERPOLATION_STEP = 0.003  # rad per joint between checked configurations
@@ -54,6 +56,13 @@ class Check:
 
     def min_clearance(self, phase: str, moving: str, obstacle: str) -> float:
         return self.clearance.get((phase, moving, obstacle), QUERY_DISTANCE)
+
+
+@dataclass
+class StrikeCheck(Check):
+    fingertip_height: float = math.nan  # m above the struck domino's base when the push starts
+    push_past_contact: float = math.nan  # m the TCP travels after the pads first touch it
+    contact_speed: float = math.nan  # m/s of the TCP at first contact
 
 
 def dropped_onto_table(pose: RigidTransform) -> RigidTransform:
@@ -86,22 +95,20 @@ def nearest_error(
     return min((pose_error(actual, c) for c in candidates), key=lambda e: e[0] + 0.01 * e[1])
 
 
-class TrajectoryChecker:
-    """The check plant for one request: the cell plus the picked and standing dominoes."""
+class CellChecker:
+    """A plant built like the simulator's: the cell with real finger joints and the
+    request's dominoes as free bodies, the first one the domino the request is about."""
 
     def __init__(
         self,
         scenario: Scenario,
-        domino_pose: RigidTransform,
-        place_pose: RigidTransform,
-        standing: Sequence[RigidTransform],
+        dominoes: Sequence[RigidTransform],
         acceleration_limit: float,
-        closed_width: float,
     ) -> None:
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
         self.models = add_cell(self.plant, scenario)
-        self.dominoes = add_dominoes(self.plant, 1 + len(standing))
+        self.dominoes = add_dominoes(self.plant, len(dominoes))
         self.plant.Finalize()
         self.diagram = builder.Build()
         self.context = self.diagram.CreateDefaultContext()
@@ -110,14 +117,12 @@ class TrajectoryChecker:
         self.tcp = self.plant.GetFrameByName(scenario.tcp_frame)
         self.fingers = [self.plant.GetJointByName(name) for name in scenario.gripper_joints]
         self.domino_bodies = [self.plant.GetBodyByName("domino", m) for m in self.dominoes]
-        self.domino_pose, self.place_pose = domino_pose, place_pose
-        for body, pose in zip(self.domino_bodies[1:], standing, strict=True):
+        for body, pose in zip(self.domino_bodies, dominoes, strict=True):
             self.plant.SetFreeBodyPose(self.plant_context, body, pose)
         self.lower = self.plant.GetPositionLowerLimits()[: len(scenario.arm_joints)]
         self.upper = self.plant.GetPositionUpperLimits()[: len(scenario.arm_joints)]
         self.velocity = self.plant.GetVelocityUpperLimits()[: len(scenario.arm_joints)]
         self.acceleration = acceleration_limit
-        self.closed_width = closed_width
         self.classes = self._classes()
 
     def _classes(self) -> dict:
@@ -135,7 +140,7 @@ class TrajectoryChecker:
             elif model == "table":
                 classes[geometry] = "table"
             elif body.index() == self.domino_bodies[0].index():
-                classes[geometry] = "picked"
+                classes[geometry] = "target"
             else:
                 classes[geometry] = "standing"
         return classes
@@ -143,6 +148,75 @@ class TrajectoryChecker:
     def tcp_pose(self, q: np.ndarray) -> RigidTransform:
         self.plant.SetPositions(self.plant_context, self.models.arm, q)
         return self.tcp.CalcPoseInWorld(self.plant_context)
+
+    def set_fingers(self, opening: float) -> None:
+        for joint in self.fingers:
+            joint.set_translation(self.plant_context, opening / 2.0)
+
+    def _check_limits_and_joins(self, segments, start, result: Check) -> None:
+        previous = np.asarray(start, dtype=float)
+        for segment in segments:
+            q = segment.positions
+            result.largest_jump = max(result.largest_jump, float(np.max(np.abs(q[0] - previous))))
+            previous = q[-1]
+            excess = np.maximum(self.lower - q, q - self.upper).max()
+            result.position_limit_excess = max(result.position_limit_excess, float(excess))
+            velocity = np.max(np.abs(segment.velocities) / self.velocity)
+            result.velocity_use = max(result.velocity_use, float(velocity))
+            acceleration = np.max(np.abs(segment.accelerations)) / self.acceleration
+            result.acceleration_use = max(result.acceleration_use, float(acceleration))
+
+    @staticmethod
+    def _densified(positions: np.ndarray) -> np.ndarray:
+        if len(positions) < 2:
+            return positions
+        steps = np.ceil(np.max(np.abs(np.diff(positions, axis=0)), axis=1) / MAX_INTERPOLATION_STEP)
+        dense = [positions[:1]]
+        for a, b, count in zip(positions[:-1], positions[1:], steps.astype(int), strict=True):
+            fractions = np.linspace(0.0, 1.0, max(count, 1) + 1)[1:, None]
+            dense.append(a + fractions * (b - a))
+        return np.vstack(dense)
+
+    def _record(self, result: Check, phase: str, holding: bool) -> None:
+        query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
+        for pair in query.ComputeSignedDistancePairwiseClosestPoints(QUERY_DISTANCE):
+            a, b = self.classes[pair.id_A], self.classes[pair.id_B]
+            key = self._key(a, b, holding)
+            if key is None:
+                continue
+            full = (phase, *key)
+            result.clearance[full] = min(result.clearance.get(full, QUERY_DISTANCE), pair.distance)
+
+    @staticmethod
+    def _key(a: str, b: str, holding: bool) -> tuple[str, str] | None:
+        """(moving, obstacle) for a pair; the picked domino moves only while held."""
+        moving = {"arm", "pads"} | ({"target"} if holding else set())
+        if a in moving and b in moving:
+            if {a, b} == {"pads", "target"} or a == b == "pads":  # holding; closed fingers
+                return None
+            return (min(a, b), "self")
+        if b in moving:
+            a, b = b, a
+        if a not in moving:
+            return None
+        return ("held" if a == "target" else a, b)
+
+
+class TrajectoryChecker(CellChecker):
+    """The check plant for one pick-and-place: the cell, the picked and standing dominoes."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        domino_pose: RigidTransform,
+        place_pose: RigidTransform,
+        standing: Sequence[RigidTransform],
+        acceleration_limit: float,
+        closed_width: float,
+    ) -> None:
+        super().__init__(scenario, [domino_pose, *standing], acceleration_limit)
+        self.domino_pose, self.place_pose = domino_pose, place_pose
+        self.closed_width = closed_width
 
     def check(
         self,
@@ -200,61 +274,93 @@ class TrajectoryChecker:
                     lines.append((tcp, approach_distances[1]))
         return states, lines, grasp_errors, releases
 
-    def _check_limits_and_joins(self, segments, start, result: Check) -> None:
-        previous = np.asarray(start, dtype=float)
-        for segment in segments:
-            q = segment.positions
-            result.largest_jump = max(result.largest_jump, float(np.max(np.abs(q[0] - previous))))
-            previous = q[-1]
-            excess = np.maximum(self.lower - q, q - self.upper).max()
-            result.position_limit_excess = max(result.position_limit_excess, float(excess))
-            velocity = np.max(np.abs(segment.velocities) / self.velocity)
-            result.velocity_use = max(result.velocity_use, float(velocity))
-            acceleration = np.max(np.abs(segment.accelerations)) / self.acceleration
-            result.acceleration_use = max(result.acceleration_use, float(acceleration))
-
-    @staticmethod
-    def _densified(positions: np.ndarray) -> np.ndarray:
-        if len(positions) < 2:
-            return positions
-        steps = np.ceil(np.max(np.abs(np.diff(positions, axis=0)), axis=1) / MAX_INTERPOLATION_STEP)
-        dense = [positions[:1]]
-        for a, b, count in zip(positions[:-1], positions[1:], steps.astype(int), strict=True):
-            fractions = np.linspace(0.0, 1.0, max(count, 1) + 1)[1:, None]
-            dense.append(a + fractions * (b - a))
-        return np.vstack(dense)
-
     def _set_scene(self, pose: RigidTransform, opening: float) -> None:
         """The picked domino at ``pose``; fingers ``opening`` apart."""
         self.plant.SetFreeBodyPose(self.plant_context, self.domino_bodies[0], pose)
-        for joint in self.fingers:
-            joint.set_translation(self.plant_context, opening / 2.0)
-
-    def _record(self, result: Check, phase: str, holding: bool) -> None:
-        query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
-        for pair in query.ComputeSignedDistancePairwiseClosestPoints(QUERY_DISTANCE):
-            a, b = self.classes[pair.id_A], self.classes[pair.id_B]
-            key = self._key(a, b, holding)
-            if key is None:
-                continue
-            full = (phase, *key)
-            result.clearance[full] = min(result.clearance.get(full, QUERY_DISTANCE), pair.distance)
-
-    @staticmethod
-    def _key(a: str, b: str, holding: bool) -> tuple[str, str] | None:
-        """(moving, obstacle) for a pair; the picked domino moves only while held."""
-        moving = {"arm", "pads"} | ({"picked"} if holding else set())
-        if a in moving and b in moving:
-            return None if {a, b} == {"pads", "picked"} else (min(a, b), "self")
-        if b in moving:
-            a, b = b, a
-        if a not in moving:
-            return None
-        b = "target" if b == "picked" else b
-        return ("held" if a == "picked" else a, b)
+        self.set_fingers(opening)
 
 
 def _near_target(tcp: RigidTransform, target: RigidTransform, distance: float) -> bool:
     """The TCP holds the target's orientation within ``distance`` of it: a final line."""
     position, angle = pose_error(tcp, target)
     return position <= distance + LINE_TOLERANCE and angle <= ORIENTATION_TOLERANCE
+
+
+class StrikeChecker(CellChecker):
+    """The check plant for one strike: the cell, the struck domino and the rest of the run.
+
+    Phases are the segments' labels; the dominoes stay where they stood (after the push
+    the struck one has gone forward, so its clearances in the retreat mean nothing).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        domino_pose: RigidTransform,
+        standing: Sequence[RigidTransform],
+        acceleration_limit: float,
+    ) -> None:
+        super().__init__(scenario, [domino_pose, *standing], acceleration_limit)
+        self.domino_pose = domino_pose
+
+    def check(
+        self, segments: Sequence[SampledSegment], start: np.ndarray, start_opening: float
+    ) -> StrikeCheck:
+        """Check executed ``segments`` from ``start`` with the fingers ``start_opening`` apart."""
+        result = StrikeCheck()
+        self._check_limits_and_joins(segments, start, result)
+        opening = start_opening
+        for segment in segments:
+            self.set_fingers(opening)
+            for q in self._densified(segment.positions):
+                self.tcp_pose(q)
+                self._record(result, segment.label, holding=False)
+                result.samples += 1
+            if segment.gripper_after in (OPEN, CLOSE):
+                opening = segment.gripper_position
+            if segment.label == "push":
+                self._measure_push(segment, result)
+        return result
+
+    def _measure_push(self, push: SampledSegment, result: StrikeCheck) -> None:
+        self.tcp_pose(push.positions[0])
+        base = box_corners(self.domino_pose)[:, 2].min()
+        result.fingertip_height = self._lowest_pad_point() - base
+        tcp = np.array([self.tcp_pose(q).translation() for q in push.positions])
+        distance = np.array([self._pads_to_target(q) for q in push.positions])
+        touching = np.flatnonzero(distance <= 0.0)
+        if len(touching) == 0 or touching[0] == 0:
+            return
+        i = touching[0]  # first contact between samples i - 1 and i: interpolate
+        fraction = distance[i - 1] / (distance[i - 1] - distance[i])
+        contact = tcp[i - 1] + fraction * (tcp[i] - tcp[i - 1])
+        result.push_past_contact = float(np.linalg.norm(tcp[-1] - contact))
+        travel = np.linalg.norm(tcp[i] - tcp[i - 1])
+        result.contact_speed = float(travel / (push.times[i] - push.times[i - 1]))
+
+    def _pads_to_target(self, q: np.ndarray) -> float:
+        self.tcp_pose(q)
+        query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
+        return min(
+            (
+                pair.distance
+                for pair in query.ComputeSignedDistancePairwiseClosestPoints(QUERY_DISTANCE)
+                if {self.classes[pair.id_A], self.classes[pair.id_B]} == {"pads", "target"}
+            ),
+            default=QUERY_DISTANCE,
+        )
+
+    def _lowest_pad_point(self) -> float:
+        """Height of the lowest corner of the pad collision boxes (their world poses)."""
+        inspector = self.scene_graph.model_inspector()
+        query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
+        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
+        lowest = math.inf
+        for geometry, kind in self.classes.items():
+            if kind != "pads":
+                continue
+            box = inspector.GetShape(geometry)
+            half = np.array([box.width(), box.depth(), box.height()]) / 2
+            corners = query.GetPoseInWorld(geometry) @ (signs * half).T
+            lowest = min(lowest, float(corners[2].min()))
+        return lowest

@@ -1,0 +1,338 @@
+"""What every plan is built from, shared by the pick-and-place and the strike planner.
+
+* ``Segment``/``Plan``: trajectories made of rest-to-rest pieces, each segment followed
+  by an optional gripper event; sampled as they are sent and executed.
+* ``ArmPlanner``: the robot side kept between requests (shadow plants per finger opening,
+  joint limits, clearance rules).
+* ``RequestMotions``: the moves of one request under its deadline: IK solutions and
+  straight TCP lines that keep their clearances, coarse KTO moves checked at dense
+  samples, TOPP-RA timing.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.scenario import Scenario
+from dombot_planner import coarse
+from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.ik import PoseIK, straight_line
+from dombot_planner.scene import MOVING, OBSTACLES, SELF, ClearanceRules, Scene, ShadowPlants
+from dombot_planner.settings import PlannerSettings
+from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
+
+GRIPPER_NONE, GRIPPER_OPEN, GRIPPER_CLOSE = "none", "open", "close"
+MAX_JOINT_STEP = 0.1  # rad between line waypoints; more means the arm flips
+COARSE_CHECK_SAMPLES = 120  # at least this many clearance checks of each KTO result ...
+CHECK_JOINT_STEP = 0.01  # rad ... and no joint moving more than this between them
+CHECK_MARGIN = 5e-4  # m the planner's own check adds to the required clearance
+LINE_GRID_POINTS = 100  # TOPP-RA grid on a line (its end point is only loosely constrained)
+UP = np.array([0.0, 0.0, 1.0])
+
+# A clearance check: the scene and the rules it must keep there.
+Check = tuple[Scene, ClearanceRules]
+
+
+@dataclass(frozen=True)
+class SampledSegment:
+    """One executed segment: joint samples and the gripper event after it."""
+
+    label: str
+    times: np.ndarray
+    positions: np.ndarray  # samples × 7
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    gripper_after: str  # "none" | "open" | "close"
+    gripper_position: float
+
+
+@dataclass
+class Segment:
+    """A trajectory (pieces played in order, each from rest to rest) and a gripper event."""
+
+    label: str
+    pieces: list[TimedPath]
+    finger_opening: float  # m while this segment runs
+    gripper_after: str = GRIPPER_NONE
+    gripper_position: float = 0.0
+    gripper_effort: float = 0.0
+    start: np.ndarray | None = None  # for a segment without motion
+
+    @property
+    def duration(self) -> float:
+        return sum(piece.duration for piece in self.pieces)
+
+    def sample(self, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Times (from the segment start), positions, velocities, accelerations.
+
+        Each piece is sampled every ``period`` and at its end, so every rest point (piece
+        ends) is a sample.
+        """
+        if not self.pieces:
+            q = np.atleast_2d(self.start)
+            return np.zeros(1), q, np.zeros_like(q), np.zeros_like(q)
+        times, q, qd, qdd = [np.zeros(1)], [], [], []
+        offset = 0.0
+        first = self.pieces[0].sample(np.zeros(1))
+        q.append(first[0]), qd.append(first[1]), qdd.append(first[2])
+        for piece in self.pieces:
+            local = np.append(np.arange(period, piece.duration, period), piece.duration)
+            values = piece.sample(local)
+            times.append(offset + local)
+            q.append(values[0]), qd.append(values[1]), qdd.append(values[2])
+            offset += piece.duration
+        return np.concatenate(times), np.vstack(q), np.vstack(qd), np.vstack(qdd)
+
+
+@dataclass
+class Plan:
+    segments: list[Segment]
+    planning_time: float = 0.0
+    kto_attempts: dict[str, int] = field(default_factory=dict)
+
+    def final_positions(self) -> np.ndarray:
+        """Arm joint positions when the plan has been executed."""
+        last = self.segments[-1]
+        if not last.pieces:
+            return np.asarray(last.start)
+        return last.pieces[-1].sample(np.array([last.pieces[-1].duration]))[0][0]
+
+    def sampled(self, period: float) -> list[SampledSegment]:
+        """The segments as executed: samples every ``period`` (and at every rest point)."""
+        result = []
+        for segment in self.segments:
+            times, q, qd, qdd = segment.sample(period)
+            result.append(
+                SampledSegment(
+                    segment.label,
+                    times,
+                    q,
+                    qd,
+                    qdd,
+                    segment.gripper_after,
+                    segment.gripper_position,
+                )
+            )
+        return result
+
+
+def reasons(failures: Counter) -> str:
+    return ", ".join(f"{reason}: {count}" for reason, count in failures.most_common()) or "none"
+
+
+class Deadline:
+    def __init__(self, budget: float) -> None:
+        self.start = time.monotonic()
+        self.end = self.start + budget
+
+    def check(self, stage: str) -> None:
+        if time.monotonic() > self.end:
+            raise PlanningError(
+                ErrorCode.TIMEOUT, stage, f"time budget of {self.end - self.start:.2f} s used up"
+            )
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.start
+
+
+class ArmPlanner:
+    """The robot side of planning, kept between requests (not thread-safe).
+
+    ``plants``: shadow plants to share with another planner of the same scenario.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        settings: PlannerSettings | None = None,
+        plants: ShadowPlants | None = None,
+    ) -> None:
+        self.scenario = scenario
+        self.settings = settings or PlannerSettings()
+        self.plants = plants or ShadowPlants(scenario)
+        plant = self.plants.get(DOMINO_SIZE[1]).plant  # any opening: only the arm's limits
+        self.lower = plant.GetPositionLowerLimits()
+        self.upper = plant.GetPositionUpperLimits()
+        self.limits = JointLimits(
+            velocity=plant.GetVelocityUpperLimits() * self.settings.velocity_scale,
+            acceleration=np.full(plant.num_velocities(), self.settings.acceleration_limit),
+        )
+
+    def coarse_rules(self, floor: float | None = None) -> ClearanceRules:
+        """Everything ``floor`` (default coarse_clearance) from the table and dominoes."""
+        clearance = self.settings.coarse_clearance if floor is None else floor
+        rules = {(moving, other): clearance for moving in MOVING for other in OBSTACLES}
+        rules.update({(moving, SELF): self.settings.self_clearance for moving in MOVING})
+        return ClearanceRules(rules)
+
+    def relaxed_rules(self, changes: dict[tuple[str, str], float]) -> ClearanceRules:
+        """The coarse rules with ``changes`` (-inf: that pair may touch)."""
+        return ClearanceRules({**self.coarse_rules().minimum, **changes})
+
+
+class RequestMotions:
+    """The moves of one request: its random seeds, deadline and start configuration."""
+
+    def __init__(self, planner: ArmPlanner, start: np.ndarray, deadline: Deadline) -> None:
+        self.planner, self.settings = planner, planner.settings
+        self.start, self.deadline = start, deadline
+        self.rng = np.random.default_rng(self.settings.seed)
+
+    def check_start(self, scene: Scene) -> None:
+        violations = self.planner.coarse_rules(floor=0.0).violations(scene.clearance(self.start))
+        if violations:
+            raise PlanningError(
+                ErrorCode.INVALID_REQUEST, "start", f"start state in collision: {violations[0]}"
+            )
+
+    def seeds(self, first: list[np.ndarray]) -> list[np.ndarray]:
+        """IK seeds: ``first``, home, then seeded random configurations inside the limits."""
+        lower, upper = self.planner.lower, self.planner.upper
+        middle, half = (lower + upper) / 2, 0.8 * (upper - lower) / 2
+        count = self.settings.ik_random_seeds
+        random = self.rng.uniform(middle - half, middle + half, (count, len(lower)))
+        return [*first, self.planner.scenario.home_position, *random]
+
+    def clear_solutions(
+        self,
+        ik: PoseIK,
+        position: np.ndarray,
+        seeds: Sequence[np.ndarray],
+        checks: Sequence[Check],
+        failures: Counter,
+        fixed_pairs: tuple[str, ...] = (),
+    ) -> Iterator[np.ndarray]:
+        """IK solutions for the TCP at ``position`` (one per seed) that pass ``checks``.
+
+        ``failures`` counts why seeds gave none. ``fixed_pairs`` (e.g. "pads–standing"):
+        distances that every configuration reaching the pose shares; one of them too
+        close ends the search.
+        """
+        for seed in seeds:
+            self.deadline.check("ends")
+            q = ik.solve(position, seed, seed)
+            if q is None:
+                failures["no IK"] += 1
+                continue
+            too_close = first_violation(q, checks)
+            if not too_close:
+                yield q
+                continue
+            failures[f"in collision at the pose ({too_close})"] += 1
+            if too_close in fixed_pairs:
+                return
+
+    def clear_line(
+        self,
+        ik: PoseIK,
+        q: np.ndarray,
+        start: np.ndarray,
+        offset: np.ndarray,
+        checks: Sequence[Check],
+        end_rules: ClearanceRules | None = None,
+    ) -> tuple[np.ndarray | None, str]:
+        """Waypoints moving the TCP from ``start`` (at ``q``) by ``offset``, or why not.
+
+        Every waypoint after ``q`` keeps ``checks``; with ``end_rules`` the last one keeps
+        those instead (where a coarse move begins or ends).
+        """
+        line = straight_line(ik, q, start, offset, self.settings.waypoint_spacing, MAX_JOINT_STEP)
+        if line is None:
+            return None, "line leaves the reach"
+        if end_rules is not None:
+            too_close = first_violation(line[-1], [(scene, end_rules) for scene, _ in checks])
+            if too_close:
+                return None, f"line end too close ({too_close})"
+        for waypoint in line[1:-1] if end_rules is not None else line[1:]:
+            too_close = first_violation(waypoint, checks)
+            if too_close:
+                return None, f"line too close ({too_close})"
+        return line, ""
+
+    def timed_line(
+        self, label: str, waypoints: np.ndarray, scene: Scene, tcp_speed: float | None = None
+    ) -> TimedPath:
+        """A straight line retimed by TOPP-RA (TCP speed ``tcp_speed``, default approach_speed)."""
+        spacing = self.settings.waypoint_spacing
+        timed = retime(
+            label,
+            line_path(waypoints, spacing),
+            scene.plant,
+            self.planner.limits,
+            fine=True,
+            tcp=scene.tcp,
+            tcp_speed=tcp_speed or self.settings.approach_speed,
+            grid_points=LINE_GRID_POINTS,
+        )
+        if timed is None:
+            length = spacing * (len(waypoints) - 1)
+            raise PlanningError(
+                ErrorCode.PLANNING_FAILED, label, f"TOPP-RA found no timing for a {length} m line"
+            )
+        return timed
+
+    def coarse_move(
+        self,
+        label: str,
+        scene: Scene,
+        q_start: np.ndarray,
+        q_goal: np.ndarray,
+        attempts: dict[str, int],
+    ) -> TimedPath:
+        """A KTO move from ``q_start`` to ``q_goal`` that passes the dense clearance check."""
+        s = self.settings
+        ends = min(scene.minimum_distance(q_start), scene.minimum_distance(q_goal))
+        bound = min(s.coarse_clearance + s.coarse_margin, 0.9 * ends)
+        rules = self.planner.coarse_rules(min(s.coarse_clearance + CHECK_MARGIN, 0.9 * ends))
+        failure = "no attempt"
+        for attempt in range(s.kto_attempts):
+            self.deadline.check(label)
+            attempts[label] = attempt + 1
+            guess = coarse.initial_guess(
+                scene, q_start, q_goal, attempt, s.kto_control_points, self.rng
+            )
+            samples = s.kto_collision_samples * (1 + attempt // 2)
+            path = coarse.optimize(scene, q_start, q_goal, guess, bound, samples)
+            if path is None:
+                failure = "SNOPT found no feasible trajectory"
+                continue
+            violations = dense_violations(scene, path, rules)
+            if violations:
+                failure = f"too close between samples: {violations[0]}"
+                continue
+            timed = retime(label, path, scene.plant, self.planner.limits)
+            if timed is not None:
+                return timed
+            failure = "TOPP-RA found no timing"
+        raise PlanningError(
+            ErrorCode.PLANNING_FAILED,
+            label,
+            f"KTO failed after {attempts.get(label, 0)} attempts ({failure})",
+        )
+
+
+def first_violation(q: np.ndarray, checks: Sequence[Check]) -> str:
+    """The pair of classes (e.g. "pads–standing") first found too close at ``q``, or ""."""
+    for scene, rules in checks:
+        violations = rules.violations(scene.clearance(q))
+        if violations:
+            return violations[0].split(" ")[0]
+    return ""
+
+
+def dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:
+    """Rule violations at samples no more than CHECK_JOINT_STEP apart (any joint)."""
+    coarse_samples = path.vector_values(np.linspace(path.start_time(), path.end_time(), 50))
+    travel = np.abs(np.diff(coarse_samples, axis=1)).max(axis=0).sum()
+    count = max(COARSE_CHECK_SAMPLES, int(np.ceil(travel / CHECK_JOINT_STEP)))
+    for q in path.vector_values(np.linspace(path.start_time(), path.end_time(), count)).T:
+        violations = rules.violations(scene.clearance(q))
+        if violations:
+            return violations
+    return []
