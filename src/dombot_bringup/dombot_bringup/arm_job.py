@@ -36,6 +36,7 @@ from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
 NodeCommand = Callable[[str, str, dict], list[str]]
+NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
 NEEDED_SERVICES = (
     "/sim/reset",
     "/perception/detect",
@@ -63,10 +64,11 @@ class ArmJobSettings:
 
 @dataclass
 class Candidate:
-    """Something to pick: a pile detection or a fallen run domino."""
+    """Something to pick: a pile detection or a fallen run domino, with what lies near it."""
 
     pose: Pose
     source: str  # "pile" or "run <index>"
+    neighbours: list[Pose] = field(default_factory=list)
 
 
 @dataclass
@@ -177,6 +179,7 @@ class ArmJob:
             PlanPlace.Request(
                 domino_pose=candidate.pose,
                 grasp_pose=Pose(),  # the planner picks among all grasps, regrasp included
+                pile_dominoes=candidate.neighbours,
                 grasp_width=0.0,
                 place_pose=self.targets[index],
                 standing_dominoes=list(self.state.standing.values()),
@@ -203,12 +206,17 @@ class ArmJob:
         answer = self.client.detect()
         if not answer.success:
             raise CallFailedError(f"perception: {answer.message}")
-        for detection in answer.detections.detections:
+        detections = answer.detections.detections
+        for detection in detections:
             if graspable(detection, failed):
-                return Candidate(detection.pose, "pile")
+                return Candidate(detection.pose, "pile", neighbours_of(detection, detections))
         return None
 
-    def _execute(self, segments: Sequence[TrajectorySegment]) -> tuple[bool, str]:
+    def _execute(
+        self, segments: Sequence[TrajectorySegment], holds_domino: bool = True
+    ) -> tuple[bool, str]:
+        """Run the segments and their gripper events; a close that should hold a domino
+        is checked by where the fingers stopped (the strike closes them on nothing)."""
         for segment in segments:
             points = segment.trajectory.points
             if points:
@@ -222,7 +230,10 @@ class ArmJob:
             if segment.gripper_after == TrajectorySegment.GRIPPER_CLOSE:
                 closed = self.client.gripper(segment.gripper_position, segment.gripper_max_effort)
                 width = DOMINO_SIZE[1]
-                if abs(closed.position - width) > self.settings.grasp_width_tolerance:
+                if (
+                    holds_domino
+                    and abs(closed.position - width) > self.settings.grasp_width_tolerance
+                ):
                     self.client.gripper(0.1, 0.0)
                     return False, (
                         f"{segment.label}: grasp missed (fingers stopped at "
@@ -292,7 +303,7 @@ class ArmJob:
             self.report.message = f"strike planning failed: {plan.message}"
             log(self.report.message)
             return
-        executed, why = self._execute(plan.segments)
+        executed, why = self._execute(plan.segments, holds_domino=False)
         if not executed:
             self.report.message = f"strike failed: {why}"
             log(self.report.message)
@@ -350,6 +361,18 @@ def graspable(detection: DominoDetection, failed: list[np.ndarray]) -> bool:
     )
 
 
+def neighbours_of(detection: DominoDetection, detections: Sequence[DominoDetection]) -> list[Pose]:
+    """The other detections close enough to matter for the fingers."""
+    centre = np.array([detection.pose.position.x, detection.pose.position.y])
+    return [
+        other.pose
+        for other in detections
+        if other is not detection
+        and np.linalg.norm([other.pose.position.x, other.pose.position.y] - centre)
+        < NEIGHBOUR_RADIUS
+    ]
+
+
 def check_words(status: int, error: float, tilt: float) -> str:
     name = {0: "standing", 1: "fallen", 2: "missing", 3: "not seen"}.get(status, str(status))
     return f"{name}, {error * 1e3:.1f} mm and {math.degrees(tilt):.1f}° from the target"
@@ -371,8 +394,11 @@ def run_arm_job(
     }
     with ProcessGroup() as group:
         group.start("sim_node", node_command("dombot_sim", "sim_node", sim_parameters))
-        group.start("perception_node", node_command("dombot_perception", "perception_node", {}))
-        group.start("planner_node", node_command("dombot_planner", "planner_node", {}))
+        on_sim_time = {"use_sim_time": True}  # frame ages and timers in simulated seconds
+        group.start(
+            "perception_node", node_command("dombot_perception", "perception_node", on_sim_time)
+        )
+        group.start("planner_node", node_command("dombot_planner", "planner_node", on_sim_time))
         rclpy.init()
         client = CellClient(watchdog=group.check)
         try:

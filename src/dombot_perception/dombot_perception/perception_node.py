@@ -202,7 +202,7 @@ class PerceptionNode(Node):
 
         def on_color(message: Image) -> None:
             camera.colors.append(message)
-            camera.received = time.monotonic()
+            camera.received = self._seconds_now()
 
         def on_depth(message: Image) -> None:
             camera.depths.append(message)
@@ -223,8 +223,13 @@ class PerceptionNode(Node):
     def _known(self, names: list[str]) -> list[str]:
         return [name for name in names if name in self.inputs]
 
+    def _seconds_now(self) -> float:
+        """The node clock: simulated time under use_sim_time, so a simulator running slower
+        than real time does not look like a camera that stopped."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
     def _is_stale(self, camera: CameraInput) -> bool:
-        return time.monotonic() - camera.received > float(self._param("max_frame_age"))
+        return self._seconds_now() - camera.received > float(self._param("max_frame_age"))
 
     def _views(self, names: list[str]) -> tuple[list[CameraView], list[str]]:
         """Usable synchronised views of ``names`` and the warnings about the others."""
@@ -235,7 +240,7 @@ class PerceptionNode(Node):
             if not camera.colors or not camera.depths or camera.info is None:
                 warnings.append(f"{name}: no colour, depth and camera_info received yet")
                 continue
-            age = time.monotonic() - camera.received
+            age = self._seconds_now() - camera.received
             if age > max_age:
                 warnings.append(
                     f"{name}: last frame {age:.1f} s old; the camera stopped publishing"

@@ -49,7 +49,10 @@ def add_renderer(scene_graph: SceneGraph) -> None:
 
 def add_camera(builder: DiagramBuilder, scene_graph: SceneGraph, spec: CameraSpec) -> RgbdSensor:
     """An RgbdSensor fixed at the scenario's pose; its body frame is the optical frame."""
-    intrinsics = CameraInfo(spec.width, spec.height, spec.fov_y)
+    matrix = spec.intrinsics  # rendered with exactly the matrix perception is told about
+    intrinsics = CameraInfo(
+        spec.width, spec.height, matrix[0, 0], matrix[1, 1], matrix[0, 2], matrix[1, 2]
+    )
     near, far = spec.depth_range
     core = RenderCameraCore(
         RENDERER, intrinsics, ClippingRange(NEAR_CLIP, far + 1.0), RigidTransform()

@@ -138,11 +138,14 @@ class CellWorld:
         self.scenario = scenario or load_scenario(self.config.scenario_path)
         self.meshcat = Meshcat() if self.config.meshcat else None
         self._in_use: list[int] = []
+        self._root = None
         self._build(self.config.domino_capacity)
 
     # ------------------------------------------------------------------ construction
     def _build(self, capacity: int) -> None:
+        """(Re)build the diagram for ``capacity`` dominoes; simulated time carries on."""
         config, scenario = self.config, self.scenario
+        now = 0.0 if self._root is None else self._root.get_time()
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=config.time_step)
         plant.set_discrete_contact_approximation(
@@ -211,6 +214,7 @@ class CellWorld:
         self._root = self._simulator.get_mutable_context()
         self._plant_context = plant.GetMyMutableContextFromRoot(self._root)
         self._capacity = capacity
+        self._root.SetTime(now)
         self._go_home()
         self._park(range(capacity))
         self._simulator.Initialize()
