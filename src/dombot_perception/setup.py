@@ -20,6 +20,8 @@ setup(
     ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [],
+        "console_scripts": [
+            "perception_node = dombot_perception.perception_node:main",
+        ],
     },
 )

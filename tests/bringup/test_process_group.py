@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import io
+import os
+import subprocess
 import sys
+import time
 
 import pytest
 
@@ -55,3 +58,42 @@ def test_timeout_names_what_was_awaited() -> None:
         group.start("sleeper", python(SLEEPER))
         with pytest.raises(TimeoutError, match="the planner service"):
             group.wait_until(lambda: False, timeout=0.5, what="the planner service")
+
+
+def test_nodes_do_not_outlive_a_killed_supervisor(tmp_path) -> None:
+    """A supervisor killed with SIGKILL cannot stop its nodes; the kernel does (pdeathsig)."""
+    pid_file = tmp_path / "child.pid"
+    supervisor = (
+        "import sys, time\n"
+        "from dombot_bringup.process_group import ProcessGroup\n"
+        "group = ProcessGroup()\n"
+        f"child = group.start('sleeper', [sys.executable, '-c', {SLEEPER!r}])\n"
+        # Only once the node has printed: a write to the dead supervisor's pipe would kill
+        # it with SIGPIPE and pass this test for the wrong reason.
+        "group.wait_until(lambda: 'ready' in child.tail, timeout=20, what='ready')\n"
+        f"open({str(pid_file)!r}, 'w').write(str(child.process.pid))\n"
+        "time.sleep(60)\n"
+    )
+    process = subprocess.Popen(python(supervisor), stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 20
+    while not pid_file.exists() or not pid_file.read_text():
+        assert time.monotonic() < deadline, "the supervisor never started its node"
+        time.sleep(0.05)
+    child = int(pid_file.read_text())
+    os.kill(child, 0)  # alive
+    process.kill()
+    process.wait()
+    deadline = time.monotonic() + 10
+    while _alive(child):
+        assert time.monotonic() < deadline, "the node outlived its killed supervisor"
+        time.sleep(0.05)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # A zombie (exited, not yet reaped by init) counts as gone.
+    with open(f"/proc/{pid}/stat") as stat:
+        return stat.read().split()[2] != "Z"

@@ -77,7 +77,8 @@ def test_each_camera_sees_what_it_looks_at_in_the_middle_of_the_image() -> None:
         target = np.array([*camera.look_at, 1.0])
         in_camera = np.linalg.inv(camera.pose()) @ target
         pixel = camera.intrinsics @ (in_camera[:3] / in_camera[2])
-        assert pixel[:2] == pytest.approx([camera.width / 2, camera.height / 2], abs=1e-6)
+        centre = [(camera.width - 1) / 2, (camera.height - 1) / 2]  # Drake's pixel-centre grid
+        assert pixel[:2] == pytest.approx(centre, abs=1e-6)
         assert in_camera[2] > 0.3  # in front of the camera, inside the depth range
         assert camera.intrinsics[1, 1] == pytest.approx(240 / math.tan(math.radians(22.5)))
     pile = np.array([*SCENARIO.pile_center, 0.0])

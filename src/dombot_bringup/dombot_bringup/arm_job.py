@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from geometry_msgs.msg import Point, Pose, Quaternion
-from pydrake.math import RigidTransform, RotationMatrix
 from scipy.spatial.transform import Rotation
 
 from dombot_bringup.cell_client import CallFailedError, CellClient
@@ -33,11 +32,11 @@ from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement
 from dombot_bringup.process_group import ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import pick_grasps
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
 NodeCommand = Callable[[str, str, dict], list[str]]
+NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
 NEEDED_SERVICES = (
     "/sim/reset",
     "/perception/detect",
@@ -65,11 +64,11 @@ class ArmJobSettings:
 
 @dataclass
 class Candidate:
-    """Something to pick: a pile detection or a fallen run domino."""
+    """Something to pick: a pile detection or a fallen run domino, with what lies near it."""
 
     pose: Pose
-    grasp_pose: Pose
     source: str  # "pile" or "run <index>"
+    neighbours: list[Pose] = field(default_factory=list)
 
 
 @dataclass
@@ -92,21 +91,6 @@ def pose_matrix(pose: Pose) -> np.ndarray:
     matrix[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
     matrix[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
     return matrix
-
-
-def matrix_pose(matrix: np.ndarray) -> Pose:
-    x, y, z, w = Rotation.from_matrix(matrix[:3, :3]).as_quat()
-    px, py, pz = (float(v) for v in matrix[:3, 3])
-    return Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(x=x, y=y, z=z, w=w))
-
-
-def grasp_for(pose: Pose) -> Pose:
-    """The preferred grasp of a domino lying at ``pose`` (dombot_description.grasp)."""
-    matrix = pose_matrix(pose)
-    grasps = pick_grasps(RigidTransform(RotationMatrix(matrix[:3, :3]), matrix[:3, 3]))
-    if not grasps:
-        raise ValueError("no grasp for this domino pose")
-    return matrix_pose(grasps[0].pose.GetAsMatrix4())
 
 
 def log(message: str) -> None:
@@ -194,7 +178,8 @@ class ArmJob:
         plan = self.client.plan_place(
             PlanPlace.Request(
                 domino_pose=candidate.pose,
-                grasp_pose=candidate.grasp_pose,
+                grasp_pose=Pose(),  # the planner picks among all grasps, regrasp included
+                pile_dominoes=candidate.neighbours,
                 grasp_width=0.0,
                 place_pose=self.targets[index],
                 standing_dominoes=list(self.state.standing.values()),
@@ -216,30 +201,39 @@ class ArmJob:
         for index, pose in sorted(self.state.fallen.items()):
             spot = np.array([pose.position.x, pose.position.y])
             if not any(np.linalg.norm(spot - f) < 0.01 for f in failed):
-                try:
-                    return Candidate(pose, grasp_for(pose), f"run {index}")
-                except ValueError:
-                    continue
-        detections = self.client.detect().detections.detections
+                return Candidate(pose, f"run {index}")
+        self._wait_for_fresh_frames()
+        answer = self.client.detect()
+        if not answer.success:
+            raise CallFailedError(f"perception: {answer.message}")
+        detections = answer.detections.detections
         for detection in detections:
             if graspable(detection, failed):
-                return Candidate(detection.pose, detection.grasp_pose, "pile")
+                return Candidate(detection.pose, "pile", neighbours_of(detection, detections))
         return None
 
-    def _execute(self, segments: Sequence[TrajectorySegment]) -> tuple[bool, str]:
+    def _execute(
+        self, segments: Sequence[TrajectorySegment], holds_domino: bool = True
+    ) -> tuple[bool, str]:
+        """Run the segments and their gripper events; a close that should hold a domino
+        is checked by where the fingers stopped (the strike closes them on nothing)."""
         for segment in segments:
             points = segment.trajectory.points
             if points:
                 duration = (
                     points[-1].time_from_start.sec + points[-1].time_from_start.nanosec * 1e-9
                 )
-                result = self.client.execute(segment.trajectory, timeout=duration * 20 + 60)
+                # Wall-clock timeouts are generous: the simulator may run well below real time.
+                result = self.client.execute(segment.trajectory, timeout=duration * 60 + 120)
                 if result.error_code != 0:
                     return False, f"{segment.label}: {result.error_string}"
             if segment.gripper_after == TrajectorySegment.GRIPPER_CLOSE:
                 closed = self.client.gripper(segment.gripper_position, segment.gripper_max_effort)
                 width = DOMINO_SIZE[1]
-                if abs(closed.position - width) > self.settings.grasp_width_tolerance:
+                if (
+                    holds_domino
+                    and abs(closed.position - width) > self.settings.grasp_width_tolerance
+                ):
                     self.client.gripper(0.1, 0.0)
                     return False, (
                         f"{segment.label}: grasp missed (fingers stopped at "
@@ -250,9 +244,14 @@ class ArmJob:
         return True, ""
 
     # ------------------------------------------------------------------ checks
+    def _wait_for_fresh_frames(self, settle: float = 0.0) -> None:
+        """Let ``settle`` simulated seconds pass, then one camera period, so the next
+        frames perception uses were taken after the arm stopped."""
+        self.client.wait_for_sim_time(settle + 1.0 / self.settings.camera_rate + 0.05)
+
     def _check(self, index: int) -> bool:
         """Perception looks at every domino placed so far; fallen ones are queued again."""
-        self.client.wait_for_sim_time(self.settings.settle_after_place)
+        self._wait_for_fresh_frames(self.settings.settle_after_place)
         indices = sorted(set(self.state.standing) | {index})
         answer = self.client.check_placement([self.targets[i] for i in indices])
         if not answer.success:
@@ -304,13 +303,13 @@ class ArmJob:
             self.report.message = f"strike planning failed: {plan.message}"
             log(self.report.message)
             return
-        executed, why = self._execute(plan.segments)
+        executed, why = self._execute(plan.segments, holds_domino=False)
         if not executed:
             self.report.message = f"strike failed: {why}"
             log(self.report.message)
             return
         self.report.struck = True
-        self.client.wait_for_sim_time(self.settings.topple_wait)
+        self._wait_for_fresh_frames(self.settings.topple_wait)
         answer = self.client.check_placement(self.targets)
         fallen = [s != CheckPlacement.Response.STANDING for s in answer.status]
         self.report.toppled_by_perception = answer.success and all(fallen)
@@ -362,6 +361,18 @@ def graspable(detection: DominoDetection, failed: list[np.ndarray]) -> bool:
     )
 
 
+def neighbours_of(detection: DominoDetection, detections: Sequence[DominoDetection]) -> list[Pose]:
+    """The other detections close enough to matter for the fingers."""
+    centre = np.array([detection.pose.position.x, detection.pose.position.y])
+    return [
+        other.pose
+        for other in detections
+        if other is not detection
+        and np.linalg.norm([other.pose.position.x, other.pose.position.y] - centre)
+        < NEIGHBOUR_RADIUS
+    ]
+
+
 def check_words(status: int, error: float, tilt: float) -> str:
     name = {0: "standing", 1: "fallen", 2: "missing", 3: "not seen"}.get(status, str(status))
     return f"{name}, {error * 1e3:.1f} mm and {math.degrees(tilt):.1f}° from the target"
@@ -376,16 +387,18 @@ def run_arm_job(
 ) -> int:
     """Start the nodes, run the job, write the report; exit status 0 only on full success."""
     sim_parameters = {
-        "domino_count": settings.pile,
-        "seed": settings.seed,
+        "domino_count": 0,  # the job's reset pours the pile
         "real_time_factor": settings.real_time_factor,
         "camera_rate": settings.camera_rate,
         "meshcat": settings.meshcat,
     }
     with ProcessGroup() as group:
         group.start("sim_node", node_command("dombot_sim", "sim_node", sim_parameters))
-        group.start("perception_node", node_command("dombot_perception", "perception_node", {}))
-        group.start("planner_node", node_command("dombot_planner", "planner_node", {}))
+        on_sim_time = {"use_sim_time": True}  # frame ages and timers in simulated seconds
+        group.start(
+            "perception_node", node_command("dombot_perception", "perception_node", on_sim_time)
+        )
+        group.start("planner_node", node_command("dombot_planner", "planner_node", on_sim_time))
         rclpy.init()
         client = CellClient(watchdog=group.check)
         try:

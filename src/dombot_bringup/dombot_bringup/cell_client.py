@@ -138,7 +138,7 @@ class CellClient:
         goal = ExecuteTrajectory.Goal(trajectory=trajectory, goal_time_tolerance=Duration(sec=1))
         return self._run_action(self._trajectory, goal, timeout, "/execute_trajectory")
 
-    def gripper(self, position: float, max_effort: float, timeout: float = 30.0):
+    def gripper(self, position: float, max_effort: float, timeout: float = 180.0):
         goal = GripperCommand.Goal(position=float(position), max_effort=float(max_effort))
         return self._run_action(self._gripper, goal, timeout, "/gripper_command")
 

@@ -4,13 +4,16 @@
 so the bring-up starts its nodes with this small supervisor: each child gets its
 own process group, its output is forwarded line by line with a ``[name]`` prefix,
 the last lines are kept for the report when a node dies, and stopping sends
-SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses.
+SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses. On Linux each
+child also gets SIGTERM from the kernel if the supervisor dies without stopping it
+(``PR_SET_PDEATHSIG``), so a killed bring-up leaves no orphaned nodes behind.
 """
 
 from __future__ import annotations
 
 import collections
 import contextlib
+import ctypes
 import os
 import signal
 import subprocess
@@ -22,6 +25,13 @@ from dataclasses import dataclass, field
 from typing import TextIO
 
 TAIL_LINES = 20
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _die_with_parent() -> None:
+    """In the child before exec: ask for SIGTERM when the supervising process dies."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 class NodeDiedError(RuntimeError):
@@ -58,6 +68,7 @@ class ManagedProcess:
             text=True,
             bufsize=1,
             start_new_session=True,
+            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
         )
         self._reader = threading.Thread(target=self._forward, args=(sink, lock), daemon=True)
         self._reader.start()

@@ -36,8 +36,12 @@ class CameraSpec:
 
     @property
     def intrinsics(self) -> np.ndarray:
+        """3x3 K with the principal point at the image centre, (w − 1)/2 and (h − 1)/2:
+        pixel (0, 0) is the centre of the first pixel, the convention Drake renders with."""
         f = self.focal_length
-        return np.array([[f, 0.0, self.width / 2.0], [0.0, f, self.height / 2.0], [0.0, 0.0, 1.0]])
+        return np.array(
+            [[f, 0.0, (self.width - 1) / 2.0], [0.0, f, (self.height - 1) / 2.0], [0.0, 0.0, 1.0]]
+        )
 
     def pose(self) -> np.ndarray:
         """4x4 X_WC of the optical frame (z forward, x right, y down), looking at ``look_at``."""

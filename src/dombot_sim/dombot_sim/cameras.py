@@ -37,7 +37,7 @@ class CameraFrame:
     time: float  # simulated seconds
     rgb: np.ndarray  # (H, W, 3) uint8
     depth: np.ndarray  # (H, W) float32 metres; NaN where there is no return
-    label: np.ndarray  # (H, W) int32: domino index, or -1 for anything else
+    label: np.ndarray | None  # (H, W) int32: domino index, or -1; None when not rendered
     K: np.ndarray  # 3x3 pinhole intrinsics
     X_WC: np.ndarray  # 4x4 pose of the optical frame (z forward, x right, y down) in world
 
@@ -49,7 +49,10 @@ def add_renderer(scene_graph: SceneGraph) -> None:
 
 def add_camera(builder: DiagramBuilder, scene_graph: SceneGraph, spec: CameraSpec) -> RgbdSensor:
     """An RgbdSensor fixed at the scenario's pose; its body frame is the optical frame."""
-    intrinsics = CameraInfo(spec.width, spec.height, spec.fov_y)
+    matrix = spec.intrinsics  # rendered with exactly the matrix perception is told about
+    intrinsics = CameraInfo(
+        spec.width, spec.height, matrix[0, 0], matrix[1, 1], matrix[0, 2], matrix[1, 2]
+    )
     near, far = spec.depth_range
     core = RenderCameraCore(
         RENDERER, intrinsics, ClippingRange(NEAR_CLIP, far + 1.0), RigidTransform()
@@ -76,14 +79,19 @@ def label_lookup(label_to_domino: dict[int, int]) -> np.ndarray:
 
 
 def render(
-    sensor: RgbdSensor, spec: CameraSpec, context: Context, lookup: np.ndarray
+    sensor: RgbdSensor, spec: CameraSpec, context: Context, lookup: np.ndarray, labels: bool
 ) -> CameraFrame:
-    """Evaluate the sensor's image ports at ``context`` (the sensor's own context)."""
+    """Evaluate the sensor's image ports at ``context`` (the sensor's own context).
+
+    The label image costs a third render pass; only ground-truth users ask for it.
+    """
     rgba = sensor.color_image_output_port().Eval(context).data
     depth = np.array(sensor.depth_image_32F_output_port().Eval(context).data[:, :, 0], copy=True)
     depth[~np.isfinite(depth) | (depth <= 0.0)] = np.nan
-    raw_label = sensor.label_image_output_port().Eval(context).data[:, :, 0]
-    label = lookup[np.clip(raw_label, 0, lookup.size - 1)]
+    label = None
+    if labels:
+        raw_label = sensor.label_image_output_port().Eval(context).data[:, :, 0]
+        label = lookup[np.clip(raw_label, 0, lookup.size - 1)]
     return CameraFrame(
         name=spec.name,
         time=context.get_time(),

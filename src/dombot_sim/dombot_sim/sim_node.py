@@ -10,12 +10,14 @@ ROS callbacks run on a multi-threaded executor and reach the world under one loc
 from __future__ import annotations
 
 import math
+import queue
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 import rclpy
@@ -41,6 +43,7 @@ from dombot_sim.sleeping import SleepSettings
 from dombot_sim.trajectory import TrajectoryError, build_trajectory
 from dombot_sim.world import CONTACT_APPROXIMATIONS, CellWorld, WorldConfig
 
+T = TypeVar("T")
 MAX_DOMINOES = 200
 FEEDBACK_PERIOD = 0.1  # s wall between action feedback messages
 DEFAULT_GOAL_TOLERANCE = 0.01  # rad
@@ -107,6 +110,7 @@ class SimNode(Node):
         super().__init__("sim_node")
         self._declare_parameters()
         self._lock = WorldLock()
+        self._loop_tasks: queue.Queue[Callable[[], None]] = queue.Queue()
         self._generation = 0  # bumped by reset and by new trajectory goals (preemption)
         self.rates = self._read_rates()
         config = WorldConfig(
@@ -131,7 +135,7 @@ class SimNode(Node):
             "scenario": "",
             "domino_count": 30,
             "seed": 0,
-            "time_step": 0.002,
+            "time_step": 0.001,
             "contact_approximation": "similar",
             "real_time_factor": 1.0,
             "joint_state_rate": 100.0,
@@ -251,11 +255,13 @@ class SimNode(Node):
                     rates.real_time_factor,
                 )
             with self._lock.loop_turn():
+                while not self._loop_tasks.empty():
+                    self._loop_tasks.get()()
                 self.world.advance(1.0 / rates.joint_states)
                 now = self.world.time
                 self._publish_state(now)
                 if rates.cameras > 0.0 and now >= next_camera and self.world.camera_names:
-                    self._publish_cameras(self.world.render())
+                    self._publish_cameras(self.world.render(labels=False))
                     next_camera = now + 1.0 / rates.cameras
                 if rates.ground_truth > 0.0 and now >= next_truth:
                     self._publish_truth(now)
@@ -335,7 +341,7 @@ class SimNode(Node):
             response.message = f"domino_count must be 0..{MAX_DOMINOES}, got {request.domino_count}"
             self.get_logger().error(f"/sim/reset refused: {response.message}")
             return response
-        report = self._reset(request.domino_count, request.seed)
+        report = self._in_loop(lambda: self._reset(request.domino_count, request.seed))
         response.success = report.settled
         response.settle_time = report.settle_time
         response.message = (
@@ -344,6 +350,28 @@ class SimNode(Node):
             + f" after {report.settle_time:.2f} s simulated ({report.wall_time:.1f} s wall)"
         )
         return response
+
+    def _in_loop(self, task: Callable[[], T]) -> T:
+        """Run ``task`` in the simulation thread and wait for it.
+
+        Resets may rebuild the world, and VTK's render window belongs to the thread that
+        renders; a rebuild in a callback thread left the cameras without a GL context.
+        """
+        done = threading.Event()
+        outcome: dict[str, object] = {}
+
+        def wrapped() -> None:
+            try:
+                outcome["value"] = task()
+            except Exception as error:  # handed to the waiting callback
+                outcome["error"] = error
+            done.set()
+
+        self._loop_tasks.put(wrapped)
+        done.wait()
+        if "error" in outcome:
+            raise outcome["error"]
+        return outcome["value"]
 
     def _reset(self, count: int, seed: int):
         self.get_logger().info(f"pouring {count} dominoes (seed {seed}) ...")
@@ -616,7 +644,8 @@ def main(args: list[str] | None = None) -> int:
         pass
     finally:
         stop.set()
-        executor.shutdown(timeout_sec=1.0)
+        executor.shutdown(timeout_sec=2.0)
+        spinner.join(timeout=2.0)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

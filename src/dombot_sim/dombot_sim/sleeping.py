@@ -17,9 +17,11 @@ of it and no robot part is that close. A displacement window, not an instantaneo
 decides: a slowly tipping domino keeps moving away from its anchor and stays awake, while
 sub-millimetre contact jitter does not keep a whole pile awake. A body *moves* when some
 point of it is faster than ``moving_speed``; a sleeper wakes as soon as a moving body (an
-awake domino, the arm or the gripper) comes within ``wake_distance``, checked after every
-simulator step. Contacts between an awake body and a
-sleeping one are always computed, so a sleeper is a solid support until it wakes.
+awake domino, the arm or the gripper) comes within ``wake_distance``, checked every
+``check_period`` of simulated time (the distance query is the expensive part; at 1 m/s
+a body moves 4 mm in 4 ms, well inside the 10 mm wake distance). Contacts between an
+awake body and a sleeping one are always computed, so a sleeper is a solid support
+until it wakes.
 """
 
 from __future__ import annotations
@@ -44,7 +46,8 @@ class SleepSettings:
     rest_motion: float = 5e-4  # m any point may move during the rest window
     rest_time: float = 0.25  # s
     moving_speed: float = 0.005  # m/s of a body's fastest point (bounding radius)
-    wake_distance: float = 0.006  # m
+    wake_distance: float = 0.010  # m
+    check_period: float = 0.004  # s simulated between neighbourhood checks
 
 
 class SleepManager:
@@ -80,6 +83,7 @@ class SleepManager:
         self._anchor: list[RigidTransform | None] = [None] * len(self._dominoes)
         self._anchor_time = np.zeros(len(self._dominoes))
         self._filter_id = None
+        self._next_check = -np.inf
 
     @property
     def asleep(self) -> np.ndarray:
@@ -106,8 +110,10 @@ class SleepManager:
 
     def update(self, root: Context) -> None:
         """After a simulator step: wake sleepers near moving bodies, put resting ones to sleep."""
-        if not self.enabled:
+        now = root.get_time()
+        if not self.enabled or now < self._next_check:
             return
+        self._next_check = now + self._settings.check_period - 1e-9
         plant_context = self._plant.GetMyMutableContextFromRoot(root)
         domino_moving = self._domino_moving(plant_context)
         near_moving, near_robot = self._neighbourhood(root, plant_context, domino_moving)
@@ -115,7 +121,7 @@ class SleepManager:
         for index in np.flatnonzero(self._asleep & near_moving):
             self._set_asleep(plant_context, int(index), False)
             changed = True
-        resting = self._resting(plant_context, root.get_time())
+        resting = self._resting(plant_context, now)
         ready = resting & ~self._asleep & ~near_moving & ~near_robot
         for index in np.flatnonzero(ready):
             self._set_asleep(plant_context, int(index), True)

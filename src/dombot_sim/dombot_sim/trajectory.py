@@ -23,7 +23,11 @@ from pydrake.trajectories import PiecewisePolynomial
 
 INVALID_GOAL = -1
 INVALID_JOINTS = -2
-LIMIT_MARGIN = 1e-6  # rad, rad/s: rounding allowed at a limit
+LIMIT_MARGIN = 1e-6  # rad: rounding allowed at a position limit
+POINT_SPEED_MARGIN = 1e-3  # relative: a time-optimal plan's points sit on the limit
+# Between the given points the spline may overshoot a velocity limit the points respect
+# (a time-optimal trajectory rides the limit); like a robot driver, allow a little.
+INTERPOLATION_SPEED_MARGIN = 0.05
 SPEED_SAMPLES_PER_SEGMENT = 20
 
 
@@ -128,7 +132,7 @@ def _check_values(
     if v is not None:
         if not np.all(np.isfinite(v)):
             raise TrajectoryError(INVALID_GOAL, "velocities must be finite numbers")
-        _check_speeds(np.abs(v), limits, "velocity at point")
+        _check_speeds(np.abs(v), limits, "velocity at point", POINT_SPEED_MARGIN)
 
 
 def _check_spline_speed(
@@ -138,15 +142,19 @@ def _check_spline_speed(
         [np.linspace(a, b, SPEED_SAMPLES_PER_SEGMENT) for a, b in itertools.pairwise(times)]
     )
     speed = np.abs(np.column_stack([spline.EvalDerivative(t, 1) for t in samples]).T)
-    _check_speeds(speed, limits, "interpolated velocity, sample")
+    _check_speeds(speed, limits, "interpolated velocity, sample", INTERPOLATION_SPEED_MARGIN)
 
 
-def _check_speeds(speed: np.ndarray, limits: JointLimits, where: str) -> None:
-    over = speed > limits.velocity + LIMIT_MARGIN
+def _check_speeds(
+    speed: np.ndarray, limits: JointLimits, where: str, allowance: float = 0.0
+) -> None:
+    allowed = limits.velocity * (1.0 + allowance) + LIMIT_MARGIN
+    over = speed > allowed
     if over.any():
         row, joint = np.argwhere(over)[0]
         raise TrajectoryError(
             INVALID_GOAL,
             f"{where} {row}: {limits.names[joint]} moves at {speed[row, joint]:.3f} rad/s, "
-            f"over its limit {limits.velocity[joint]:.3f} rad/s",
+            f"over its limit {limits.velocity[joint]:.3f} rad/s"
+            + (f" (+{allowance:.1%} allowed)" if allowance else ""),
         )

@@ -65,7 +65,7 @@ WAVE_FALL_TIME = 0.35  # s simulated between pour waves
 @dataclass(frozen=True)
 class WorldConfig:
     scenario_path: str | None = None  # None: dombot_description's default scenario
-    time_step: float = 0.002  # s
+    time_step: float = 0.001  # s
     contact_approximation: str = "similar"
     contact_model: str = "hydroelastic"
     cameras: bool = True
@@ -138,11 +138,14 @@ class CellWorld:
         self.scenario = scenario or load_scenario(self.config.scenario_path)
         self.meshcat = Meshcat() if self.config.meshcat else None
         self._in_use: list[int] = []
+        self._root = None
         self._build(self.config.domino_capacity)
 
     # ------------------------------------------------------------------ construction
     def _build(self, capacity: int) -> None:
+        """(Re)build the diagram for ``capacity`` dominoes; simulated time carries on."""
         config, scenario = self.config, self.scenario
+        now = 0.0 if self._root is None else self._root.get_time()
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=config.time_step)
         plant.set_discrete_contact_approximation(
@@ -211,6 +214,7 @@ class CellWorld:
         self._root = self._simulator.get_mutable_context()
         self._plant_context = plant.GetMyMutableContextFromRoot(self._root)
         self._capacity = capacity
+        self._root.SetTime(now)
         self._go_home()
         self._park(range(capacity))
         self._simulator.Initialize()
@@ -487,16 +491,17 @@ class CellWorld:
     def camera_names(self) -> tuple[str, ...]:
         return tuple(self._sensors)
 
-    def render(self, names: Sequence[str] | None = None) -> dict[str, CameraFrame]:
-        """Colour, depth and labels of the named cameras (default: all), rendered now."""
+    def render(
+        self, names: Sequence[str] | None = None, labels: bool = True
+    ) -> dict[str, CameraFrame]:
+        """Colour, depth and (if ``labels``) label images of the named cameras, rendered now."""
         if not self._sensors:
             raise RuntimeError("this world was built without cameras (WorldConfig.cameras=False)")
         frames = {}
         for name in names or self._sensors:
             sensor, spec = self._sensors[name]
-            frames[name] = render(
-                sensor, spec, sensor.GetMyContextFromRoot(self._root), self._label_lookup
-            )
+            context = sensor.GetMyContextFromRoot(self._root)
+            frames[name] = render(sensor, spec, context, self._label_lookup, labels)
         return frames
 
 

@@ -1,0 +1,119 @@
+"""Pinhole back-projection of depth pixels to world points (the paper's eqs (1)-(3)).
+
+X = z (u - cx) / fx,  Y = z (v - cy) / fy,  Z = z   in the optical frame, then camera_pose.
+Vectorized over the whole image; surface normals come from the same organised cloud,
+cropped to the window that sees the work region so later stages touch few pixels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dombot_perception.frames import CameraView
+
+
+@dataclass(frozen=True)
+class WorkRegion:
+    """Where dominoes can be: a vertical cylinder above the table (world frame)."""
+
+    center: tuple[float, float] = (0.55, -0.30)
+    radius: float = 0.16  # m
+    min_height: float = 0.0015  # m above the table: below this is the table itself
+    max_height: float = 0.07  # m: above this is the arm, not the pile
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        with np.errstate(invalid="ignore"):
+            radial = np.hypot(points[..., 0] - self.center[0], points[..., 1] - self.center[1])
+            return (
+                (radial < self.radius)
+                & (points[..., 2] > self.min_height)
+                & (points[..., 2] < self.max_height)
+            )
+
+
+def valid_depth(depth: np.ndarray, depth_range: tuple[float, float]) -> np.ndarray:
+    """Pixels with a real return inside the sensor's range (NaN, inf, 0 are no return)."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(depth) & (depth > depth_range[0]) & (depth < depth_range[1])
+
+
+def backproject(depth: np.ndarray, intrinsics: np.ndarray, camera_pose: np.ndarray) -> np.ndarray:
+    """HxWx3 world points for every pixel (NaN where the depth is NaN)."""
+    height, width = depth.shape
+    v, u = np.mgrid[0:height, 0:width]
+    z = depth.astype(np.float64)
+    z[~np.isfinite(z)] = np.nan  # inf would turn into NaN with a warning below
+    x = z * (u - intrinsics[0, 2]) / intrinsics[0, 0]
+    y = z * (v - intrinsics[1, 2]) / intrinsics[1, 1]
+    points_c = np.stack([x, y, z], axis=-1)
+    return points_c @ camera_pose[:3, :3].T + camera_pose[:3, 3]
+
+
+def image_normals(points: np.ndarray, camera_position: np.ndarray) -> np.ndarray:
+    """HxWx3 unit normals from central differences, turned towards the camera.
+
+    NaN where a neighbour is missing; callers treat such pixels as boundaries.
+    """
+    du = np.full_like(points, np.nan)
+    dv = np.full_like(points, np.nan)
+    du[:, 1:-1] = points[:, 2:] - points[:, :-2]
+    dv[1:-1, :] = points[2:, :] - points[:-2, :]
+    normals = np.cross(du, dv)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+        facing = np.einsum("hwk,hwk->hw", normals, camera_position - points)
+    normals[facing < 0] *= -1.0
+    return normals
+
+
+@dataclass
+class OrganisedCloud:
+    """World points and normals of one view, cropped to the pixels that see the work region.
+
+    ``valid`` marks crop pixels with a return inside the region and a usable normal.
+    Masks everywhere are flat indices into the *full* image; ``full_index`` and
+    ``crop_index`` convert.
+    """
+
+    top: int
+    left: int
+    image_width: int
+    points: np.ndarray  # hxwx3, world
+    normals: np.ndarray  # hxwx3, unit, towards the camera
+    valid: np.ndarray  # hxw
+    pixel_size: np.ndarray  # hxw: metres one pixel spans at that depth (0 where invalid)
+
+    def full_index(self, crop_flat: np.ndarray) -> np.ndarray:
+        rows, cols = np.divmod(crop_flat, self.valid.shape[1])
+        return (rows + self.top) * self.image_width + cols + self.left
+
+    def crop_index(self, full_flat: np.ndarray) -> np.ndarray:
+        rows, cols = np.divmod(full_flat, self.image_width)
+        return (rows - self.top) * self.valid.shape[1] + cols - self.left
+
+    def valid_points(self) -> np.ndarray:
+        return self.points[self.valid]
+
+
+def organised_cloud(
+    view: CameraView, region: WorkRegion, depth_range: tuple[float, float]
+) -> OrganisedCloud | None:
+    """Back-project ``view``, keep the bounding window of pixels ``inside`` the work region.
+
+    None when no pixel sees the region.
+    """
+    points = backproject(view.depth, view.K, view.X_WC)
+    seen = valid_depth(view.depth, depth_range) & region.contains(points)
+    rows, cols = np.nonzero(seen)
+    if rows.size == 0:
+        return None
+    height, width = seen.shape
+    top, bottom = max(rows.min() - 1, 0), min(rows.max() + 2, height)
+    left, right = max(cols.min() - 1, 0), min(cols.max() + 2, width)
+    points = points[top:bottom, left:right]
+    normals = image_normals(points, view.X_WC[:3, 3])
+    valid = seen[top:bottom, left:right] & np.isfinite(normals[..., 0])
+    pixel_size = np.where(valid, view.depth[top:bottom, left:right], 0.0) / view.K[0, 0]
+    return OrganisedCloud(int(top), int(left), width, points, normals, valid, pixel_size)

@@ -1,0 +1,195 @@
+"""Fit the known domino box (48 x 24 x 7.5 mm) to one domino's fused surface points.
+
+A minimal bounding box of a partial surface is easily turned the wrong way (the
+paper's Fig. 12). Here the box's size is known, so the fit only has to decide which
+of the three faces the camera sees most of and how the box is turned in that face's
+plane: the dominant normal direction gives the face's normal, the minimum-area
+rectangle of the points projected on that face gives the in-plane axes, and the
+face whose size best matches the rectangle says which body axis the normal is. A
+robust point-to-plane fit of the points to the box's faces then refines all six
+degrees of freedom. The box always lies behind the visible surface, seen from the cameras.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from dombot_perception.domino_model import (
+    DOMINO_SIZE,
+    HALF_SIZE,
+    box_signed_distance,
+    dominant_face,
+)
+
+RECTANGLE_POINTS = 500  # points whose hull gives the initial in-plane axes
+
+
+@dataclass(frozen=True)
+class BoxFitConfig:
+    size_tolerance: float = 0.004  # m: observed extents may exceed the domino's by this
+    max_fit_points: int = 250  # points used by the least-squares refinement (subsampled)
+    inlier_distance: float = 0.002  # m: points further from the box belong to something else
+    passes: int = 2  # fits; each after the first uses only the previous fit's inliers
+    loss_scale: float = 0.001  # m: residuals beyond this count less (Huber)
+    iterations: int = 15  # Gauss-Newton steps of the refinement at most
+    damping: float = 1e-3  # relative Levenberg damping: directions no point pins stay put
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class BoxFit:
+    X_WD: np.ndarray  # 4x4, body axes in the fit's own order (canonical signs come later)
+    fit_error: float  # RMS point-to-box distance [m]
+    extents: np.ndarray  # observed extents of the inlier points along body x, y, z [m]
+    inlier_fraction: float  # of the points within ``inlier_distance`` of the box surface
+
+
+class BoxFitError(ValueError):
+    """Too few or degenerate points to fit a box."""
+
+
+def fit_domino_box(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) -> BoxFit:
+    """Pose of the domino whose visible surface is ``points`` (normals face the camera)."""
+    if points.shape[0] < 10:
+        raise BoxFitError(f"{points.shape[0]} points are too few for a box fit")
+    rng = np.random.default_rng(config.seed)
+    inliers = np.ones(points.shape[0], dtype=bool)
+    for _ in range(config.passes):  # fit, drop points off the box (a neighbour's), refit
+        pose = initial_pose(points[inliers], normals[inliers], config)
+        pose = refine_pose(pose, _subsample(points[inliers], config.max_fit_points, rng), config)
+        residuals = box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3])
+        trimmed = np.abs(residuals) < config.inlier_distance
+        if trimmed.sum() < 10 or np.array_equal(trimmed, inliers):
+            break
+        inliers = trimmed
+    body = (points[inliers] - pose[:3, 3]) @ pose[:3, :3]
+    return BoxFit(
+        X_WD=pose,
+        fit_error=float(np.sqrt(np.mean(residuals[inliers] ** 2))),
+        extents=body.max(axis=0) - body.min(axis=0),
+        inlier_fraction=float(inliers.mean()),
+    )
+
+
+def _subsample(points: np.ndarray, limit: int, rng: np.random.Generator) -> np.ndarray:
+    if points.shape[0] <= limit:
+        return points
+    return points[rng.choice(points.shape[0], limit, replace=False)]
+
+
+def initial_pose(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) -> np.ndarray:
+    """Box pose from the dominant face and its minimum-area rectangle."""
+    face = dominant_face(normals)
+    normal = normals[face].mean(axis=0)
+    normal /= np.linalg.norm(normal)
+    u, v = _plane_basis(normal)
+    stride = max(1, points.shape[0] // RECTANGLE_POINTS)  # only a starting guess: ICP refines
+    planar = np.column_stack([points[::stride] @ u, points[::stride] @ v])
+    center_2d, long_2d, dims_2d = min_area_rectangle(planar)
+    face_axis = _which_face(dims_2d, config.size_tolerance)
+    in_plane = [axis for axis in range(3) if axis != face_axis]  # longer body axis first
+    rotation = np.zeros((3, 3))
+    rotation[:, face_axis] = normal
+    rotation[:, in_plane[0]] = long_2d[0] * u + long_2d[1] * v
+    rotation[:, in_plane[1]] = np.cross(
+        rotation[:, (in_plane[1] + 1) % 3], rotation[:, (in_plane[1] + 2) % 3]
+    )
+    face_offset = np.median(points[face] @ normal)
+    center = center_2d[0] * u + center_2d[1] * v + (face_offset - HALF_SIZE[face_axis]) * normal
+    pose = np.eye(4)
+    pose[:3, :3] = rotation
+    pose[:3, 3] = center
+    return pose
+
+
+def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centre, unit long-side direction and (long, short) sides of the smallest rectangle."""
+    try:
+        hull = planar[ConvexHull(planar).vertices]
+    except (QhullError, ValueError) as error:
+        raise BoxFitError(f"points are degenerate in the face plane: {error}") from None
+    edges = np.roll(hull, -1, axis=0) - hull
+    angles = np.unique(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2))
+    cos, sin = np.cos(angles), np.sin(angles)
+    axes_x = np.stack([cos, sin], axis=1)
+    axes_y = np.stack([-sin, cos], axis=1)
+    px, py = hull @ axes_x.T, hull @ axes_y.T
+    width = px.max(axis=0) - px.min(axis=0)
+    height = py.max(axis=0) - py.min(axis=0)
+    best = np.argmin(width * height)
+    mid_x = (px[:, best].max() + px[:, best].min()) / 2
+    mid_y = (py[:, best].max() + py[:, best].min()) / 2
+    center = mid_x * axes_x[best] + mid_y * axes_y[best]
+    if width[best] >= height[best]:
+        return center, axes_x[best], np.array([width[best], height[best]])
+    return center, axes_y[best], np.array([height[best], width[best]])
+
+
+def _which_face(dims_2d: np.ndarray, tolerance: float) -> int:
+    """Body axis normal to the face whose (long, short) sides best explain ``dims_2d``.
+
+    Sides longer than the face's cost a lot (they cannot be); shorter ones cost a
+    little (that part of the face is hidden).
+    """
+    costs = []
+    for axis in range(3):
+        face_dims = np.sort(np.delete(DOMINO_SIZE, axis))[::-1]
+        excess = np.maximum(dims_2d - face_dims - tolerance, 0.0)
+        shortfall = np.maximum(face_dims - dims_2d, 0.0)
+        costs.append(100.0 * np.sum(excess**2) + np.sum(shortfall**2))
+    return int(np.argmin(costs))
+
+
+def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(normal, helper)
+    u /= np.linalg.norm(u)
+    return u, np.cross(normal, u)
+
+
+def refine_pose(initial: np.ndarray, points: np.ndarray, config: BoxFitConfig) -> np.ndarray:
+    """Point-to-plane ICP against the box model, 6 DoF, started at ``initial``.
+
+    Each point is paired with the box face it is closest to; one damped, Huber-weighted
+    Gauss-Newton step on the point-to-face distances updates the pose. Written out
+    (a few lines of numpy) because a general solver costs tens of milliseconds per box.
+    """
+    rotation, centre = initial[:3, :3].copy(), initial[:3, 3].copy()
+    for _ in range(config.iterations):
+        body = (points - centre) @ rotation
+        axis = np.argmax(np.abs(body) - HALF_SIZE, axis=1)
+        rows = np.arange(body.shape[0])
+        normal = np.zeros_like(body)
+        normal[rows, axis] = np.sign(body[rows, axis])
+        residual = np.abs(body[rows, axis]) - HALF_SIZE[axis]
+        jacobian = np.hstack([-_cross(body, normal), -normal])
+        weight = np.minimum(1.0, config.loss_scale / np.maximum(np.abs(residual), 1e-12))
+        hessian = jacobian.T @ (weight[:, None] * jacobian)
+        hessian += config.damping * np.trace(hessian) / 6.0 * np.eye(6)
+        step = np.linalg.solve(hessian, -jacobian.T @ (weight * residual))
+        centre = centre + rotation @ step[3:]
+        rotation = rotation @ _rodrigues(step[:3])
+        if np.linalg.norm(step[3:]) < 1e-5 and np.linalg.norm(step[:3]) < 1e-4:
+            break
+    pose = np.eye(4)
+    pose[:3, :3] = rotation
+    pose[:3, 3] = centre
+    return pose
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product (np.cross costs more than the rest of an ICP step here)."""
+    return a[:, [1, 2, 0]] * b[:, [2, 0, 1]] - a[:, [2, 0, 1]] * b[:, [1, 2, 0]]
+
+
+def _rodrigues(rotation_vector: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (Rodrigues' formula)."""
+    angle = float(np.linalg.norm(rotation_vector))
+    if angle < 1e-12:
+        return np.eye(3)
+    x, y, z = rotation_vector / angle
+    skew = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle) * skew + (1.0 - np.cos(angle)) * skew @ skew

@@ -1,0 +1,52 @@
+"""The known domino: its size, its box distance function and its symmetries."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dombot_description import DOMINO_SIZE as _SIZE
+
+DOMINO_SIZE = np.asarray(_SIZE, dtype=float)  # m: length (x), width (y), thickness (z)
+HALF_SIZE = DOMINO_SIZE / 2.0
+
+# The box looks the same after a half turn about any body axis: the four proper
+# rotations of its symmetry group (identity, Rx(pi), Ry(pi), Rz(pi)).
+SYMMETRIES = np.array(
+    [
+        np.diag([1.0, 1.0, 1.0]),
+        np.diag([1.0, -1.0, -1.0]),
+        np.diag([-1.0, 1.0, -1.0]),
+        np.diag([-1.0, -1.0, 1.0]),
+    ]
+)
+
+
+def face_areas() -> np.ndarray:
+    """Area of the faces whose normal is body x, y, z [m^2]."""
+    length, width, thickness = DOMINO_SIZE
+    return np.array([width * thickness, length * thickness, length * width])
+
+
+def box_signed_distance(points_body: np.ndarray, half_size: np.ndarray = HALF_SIZE) -> np.ndarray:
+    """Signed distance of body-frame points to the box surface (negative inside)."""
+    excess = np.abs(points_body) - half_size
+    outside = np.linalg.norm(np.maximum(excess, 0.0), axis=-1)
+    inside = np.minimum(excess.max(axis=-1), 0.0)
+    return outside + inside
+
+
+def dominant_face(normals: np.ndarray, cos_limit: float = 0.94, samples: int = 120) -> np.ndarray:
+    """Mask of the normals that agree with the most common normal direction.
+
+    Votes among an evenly strided subset (deterministic, cheap: samples^2 products).
+    """
+    voters = normals[:: max(1, normals.shape[0] // samples)]
+    support = (voters @ voters.T > cos_limit).sum(axis=1)
+    return normals @ voters[np.argmax(support)] > cos_limit
+
+
+def orientation_error(estimated: np.ndarray, truth: np.ndarray) -> float:
+    """Angle [rad] between two domino orientations, modulo the box symmetries."""
+    relative = truth.T @ estimated
+    traces = np.einsum("sij,ji->s", SYMMETRIES, relative)
+    return float(np.arccos(np.clip((traces.max() - 1.0) / 2.0, -1.0, 1.0)))

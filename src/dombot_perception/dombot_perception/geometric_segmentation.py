@@ -1,0 +1,223 @@
+"""Default segmentation backend: depth geometry alone, no learned weights.
+
+Dominoes are boxes, so each one's visible surface is a set of planar faces meeting at
+convex edges, while two different dominoes meet at a depth jump (one occludes the
+other) or at a concave crease (one rests on the other). Neighbouring pixels are
+linked when neither happens; linked regions are the masks. Dominoes lying side by
+side at the same height form one coplanar region with no crease at all: a region
+larger than one domino is split into as many parts as its area holds dominoes:
+k-means first, then boxes of the domino's size fitted to the parts claim the points
+on their surfaces (see ``split_oversized``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.cluster.vq import kmeans2
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from dombot_perception.backprojection import OrganisedCloud
+from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.domino_model import (
+    DOMINO_SIZE,
+    box_signed_distance,
+    dominant_face,
+    face_areas,
+)
+from dombot_perception.frames import CameraView
+
+SPLIT_ROUNDS = 2  # box-fit / reassign rounds when splitting a region
+MAX_SPLIT_DEPTH = 3  # a part of a split region may be split again this often
+SPLIT_FIT_POINTS = 600  # points of a region used to fit the boxes that split it
+SPLIT_GOOD_FIT = 0.9  # share of a region's points on their part's box that ends the search
+ON_BOX_DISTANCE = 0.002  # m
+
+
+@dataclass(frozen=True)
+class GeometricSegmenterConfig:
+    max_step: float = 0.0025  # m: neighbour distance above this (or 3.5 px) is a depth jump
+    max_step_pixels: float = 3.5
+    max_normal_angle: float = 25.0  # deg: smoother than this is one face
+    convex_margin: float = 1e-5  # m: (p-q).(n_p-n_q) above this is a convex edge
+    min_pixels: int = 25
+    oversize_margin: float = 0.008  # m beyond the domino's extents means several dominoes
+    seed: int = 0
+
+
+class GeometricSegmenter:
+    """Masks from depth discontinuities and concave creases; see the module docstring."""
+
+    name = "geometric"
+
+    def __init__(self, config: GeometricSegmenterConfig | None = None) -> None:
+        self.config = config or GeometricSegmenterConfig()
+
+    def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
+        """Flat pixel indices of each mask, one per domino candidate."""
+        config = self.config
+        if cloud is None or cloud.valid.sum() < config.min_pixels:
+            return []
+        components = _linked_components(cloud, config)
+        flat_points = cloud.points.reshape(-1, 3)
+        flat_normals = cloud.normals.reshape(-1, 3)
+        surface_areas = _surface_areas(
+            flat_points, flat_normals, cloud.pixel_size.ravel(), view.X_WC[:3, 3]
+        )
+        masks: list[np.ndarray] = []
+        for pixels in components:
+            parts = split_oversized(
+                pixels,
+                flat_points[pixels],
+                flat_normals[pixels],
+                surface_areas[pixels],
+                config.oversize_margin,
+                config.seed,
+            )
+            masks.extend(cloud.full_index(part) for part in parts if part.size >= config.min_pixels)
+        return masks
+
+
+def _linked_components(cloud: OrganisedCloud, config: GeometricSegmenterConfig) -> list[np.ndarray]:
+    """Connected regions of crop pixels linked right/down when on the same convex surface."""
+    points, normals, valid, pixel_size = cloud.points, cloud.normals, cloud.valid, cloud.pixel_size
+    height, width = valid.shape
+    index = np.arange(height * width).reshape(height, width)
+    cos_limit = np.cos(np.radians(config.max_normal_angle))
+    sources, targets = [], []
+    for here, there in (
+        ((slice(None), slice(0, -1)), (slice(None), slice(1, None))),
+        ((slice(0, -1), slice(None)), (slice(1, None), slice(None))),
+    ):
+        p, q = points[here], points[there]
+        n_p, n_q = normals[here], normals[there]
+        both = valid[here] & valid[there]
+        gap = np.linalg.norm(p - q, axis=-1)
+        limit = np.maximum(config.max_step, config.max_step_pixels * pixel_size[here])
+        smooth = np.einsum("hwk,hwk->hw", n_p, n_q) > cos_limit
+        convex = np.einsum("hwk,hwk->hw", p - q, n_p - n_q) > config.convex_margin
+        with np.errstate(invalid="ignore"):
+            linked = both & (gap < limit) & (smooth | convex)
+        sources.append(index[here][linked])
+        targets.append(index[there][linked])
+    source = np.concatenate(sources)
+    target = np.concatenate(targets)
+    graph = coo_matrix(
+        (np.ones(source.size, dtype=np.int8), (source, target)), shape=(height * width,) * 2
+    )
+    _, labels = connected_components(graph, directed=False)
+    labels = np.where(valid.ravel(), labels, -1)
+    order = np.argsort(labels, kind="stable")
+    sorted_labels = labels[order]
+    starts = np.flatnonzero(np.diff(sorted_labels, prepend=-2))
+    groups = np.split(order, starts[1:])
+    return [group for group in groups if labels[group[0]] >= 0]
+
+
+def _surface_areas(
+    points: np.ndarray, normals: np.ndarray, pixel_size: np.ndarray, camera_position: np.ndarray
+) -> np.ndarray:
+    """Area [m^2] of the surface patch each pixel sees: its footprint over the view cosine."""
+    rays = points - camera_position
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cosine = np.abs(np.einsum("nk,nk->n", normals, rays)) / np.linalg.norm(rays, axis=1)
+        return pixel_size**2 / np.maximum(cosine, 0.2)
+
+
+def split_oversized(
+    pixels: np.ndarray,
+    points: np.ndarray,
+    normals: np.ndarray,
+    surface_areas: np.ndarray,
+    margin: float,
+    seed: int,
+    depth: int = 0,
+) -> list[np.ndarray]:
+    """Split a region too big for one domino into k parts, k = its largest face's area
+    over a domino's largest face (48 x 24 mm), by seeded k-means on the 3-D points; a
+    part still too big (dominoes at different slopes share no dominant face) is split
+    again, up to ``MAX_SPLIT_DEPTH`` times."""
+    if depth >= MAX_SPLIT_DEPTH or points.shape[0] < 8 or not _too_big(points, margin):
+        return [pixels]
+    face = dominant_face(normals)
+    count = int(np.clip(np.round(surface_areas[face].sum() / face_areas().max()), 2, 6))
+    assignment, count = _best_split(points, normals, count, seed)
+    parts = []
+    for k in range(count):
+        part = assignment == k
+        if np.any(part):
+            parts += split_oversized(
+                pixels[part],
+                points[part],
+                normals[part],
+                surface_areas[part],
+                margin,
+                seed,
+                depth + 1,
+            )
+    return parts
+
+
+def _best_split(
+    points: np.ndarray, normals: np.ndarray, count: int, seed: int
+) -> tuple[np.ndarray, int]:
+    """Part labels (and how many parts) that put the most points on their part's box.
+
+    The first k-means start usually explains the region; when it leaves more than
+    ``SPLIT_GOOD_FIT`` of the points off the boxes, other starts and one more part are
+    tried and the best kept.
+    """
+    best: tuple[float, np.ndarray, int] | None = None
+    for parts, start in ((count, seed), (count, seed + 1), (count, seed + 2), (count + 1, seed)):
+        _, initial = kmeans2(points - points.mean(axis=0), parts, minit="++", seed=start)
+        assignment, on_box = _assign_to_boxes(points, normals, initial, parts)
+        if best is None or on_box > best[0]:
+            best = (on_box, assignment, parts)
+        if on_box >= SPLIT_GOOD_FIT:
+            break
+    return best[1], best[2]
+
+
+def _assign_to_boxes(
+    points: np.ndarray, normals: np.ndarray, assignment: np.ndarray, count: int
+) -> tuple[np.ndarray, float]:
+    """Refine a k-means split with the domino's shape: fit a box to each part, give each
+    point to the box whose surface it lies on, repeat until nothing moves. Also returns
+    the share of points within 2 mm of their box.
+
+    k-means cuts between centroids; dominoes side by side are cut along their edges.
+    """
+    config = BoxFitConfig(max_fit_points=120, iterations=8, passes=1)
+    stride = max(1, points.shape[0] // SPLIT_FIT_POINTS)  # fit on a subset, assign all
+    for _ in range(SPLIT_ROUNDS):
+        distances = np.full((count, points.shape[0]), np.inf)
+        for k in range(count):
+            part = np.flatnonzero(assignment == k)[::stride]
+            if part.size < 10:
+                continue
+            try:
+                pose = fit_domino_box(points[part], normals[part], config).X_WD
+            except BoxFitError:
+                continue
+            distances[k] = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
+        nearest = distances.min(axis=0)
+        if not np.all(np.isfinite(nearest)):
+            return assignment, 0.0
+        on_box = float(np.mean(nearest < ON_BOX_DISTANCE))
+        updated = distances.argmin(axis=0)
+        if np.array_equal(updated, assignment):
+            break
+        assignment = updated
+    return assignment, on_box
+
+
+def _too_big(points: np.ndarray, margin: float) -> bool:
+    """Principal extents beyond the domino's own (longest first)."""
+    centred = points - points.mean(axis=0)
+    _, _, axes = np.linalg.svd(centred, full_matrices=False)
+    projected = centred @ axes.T
+    extents = projected.max(axis=0) - projected.min(axis=0)
+    limits = np.sort(DOMINO_SIZE)[::-1] + margin
+    return bool(np.any(extents[:2] > limits[:2]))

@@ -1,0 +1,536 @@
+"""perception_node: camera images in, domino poses and ranked grasps out.
+
+A thin ROS adapter over ``pipeline``: it keeps the latest synchronised colour/depth/
+camera_info of each camera, runs the pipeline continuously at ``rate`` (when
+``continuous``) and on demand through ``/perception/detect``, and publishes
+``/domino_poses`` (best grasp first), ``/domino_detections`` and a debug picture.
+Camera poses come from the scenario file, or from ``<camera>.optical_pose``
+parameters. Missing, stale or malformed images give an empty result and a warning;
+the node keeps serving. ``/perception/check_placement`` looks at where the dominoes of a
+run should stand (``placement_check``), with the build-area camera by default.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from collections import deque
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import Pose, PoseArray, Vector3
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import CameraInfo, Image
+
+from dombot_description.scenario import ScenarioError, load_scenario
+from dombot_msgs.msg import DominoDetection, DominoDetectionArray
+from dombot_msgs.srv import CheckPlacement, DetectDominoes
+from dombot_perception.debug_image import draw_detections, mask_overlay
+from dombot_perception.frames import CameraView, Detection
+from dombot_perception.pipeline import PerceptionPipeline, PipelineResult, build_pipeline
+from dombot_perception.placement_check import PlacementConfig, check_placements
+from dombot_perception.segmentation import SegmenterError
+
+DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
+SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
+DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
+
+
+@dataclass
+class CameraInput:
+    """The last few messages of one camera and when a colour image last arrived."""
+
+    colors: deque = field(default_factory=lambda: deque(maxlen=SYNC_BUFFER))
+    depths: deque = field(default_factory=lambda: deque(maxlen=SYNC_BUFFER))
+    info: CameraInfo | None = None
+    received: float = -math.inf
+
+    def latest_pair(self, tolerance: float) -> tuple[Image, Image] | None:
+        """The newest colour and depth images whose stamps agree within ``tolerance`` s."""
+        for color in reversed(self.colors):
+            stamp = _seconds(color.header.stamp)
+            for depth in reversed(self.depths):
+                if abs(_seconds(depth.header.stamp) - stamp) <= tolerance:
+                    return color, depth
+        return None
+
+
+class PerceptionNode(Node):
+    def __init__(self) -> None:
+        super().__init__("perception_node")
+        self._declare_parameters()
+        self.scenario = load_scenario(self._param("scenario") or None)
+        self.camera_names: list[str] = list(self._param("cameras"))
+        for name in self.camera_names:
+            self.declare_parameter(
+                f"{name}.optical_pose",
+                Parameter.Type.DOUBLE_ARRAY,
+                ParameterDescriptor(
+                    description="optical frame in world [x y z qx qy qz qw]; unset: scenario"
+                ),
+            )
+        self.inputs = {name: CameraInput() for name in self.camera_names}
+        try:
+            self.pipeline = self._build_pipeline(self._parameter_values())
+        except (ValueError, SegmenterError, OSError, RuntimeError) as error:
+            self.get_logger().error(f"bad parameters ({error}); using the default settings")
+            self.pipeline = build_pipeline(self.scenario)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self.poses_pub = self.create_publisher(PoseArray, "domino_poses", 10)
+        self.detections_pub = self.create_publisher(DominoDetectionArray, "domino_detections", 10)
+        self.debug_pub = self.create_publisher(Image, "perception/debug_image", 2)
+        inputs = ReentrantCallbackGroup()
+        for name in self.camera_names:
+            self._subscribe(name, inputs)
+        work = MutuallyExclusiveCallbackGroup()
+        self.create_service(
+            DetectDominoes, "perception/detect", self._on_detect, callback_group=work
+        )
+        self.create_service(
+            CheckPlacement,
+            "perception/check_placement",
+            self._on_check_placement,
+            callback_group=work,
+        )
+        self.last_processed: dict[str, float] = {}
+        self.timer = self.create_timer(
+            1.0 / self._param("rate"), self._on_timer, callback_group=work
+        )
+        mode = f"continuous at {self._param('rate')} Hz" if self._param("continuous") else ""
+        self.get_logger().info(
+            f"ready: backend {self.pipeline.segmenter.name}, cameras {self.camera_names}, "
+            f"{mode or 'on demand only'}; services /perception/detect, /perception/check_placement"
+        )
+
+    # ------------------------------------------------------------------ parameters
+    def _declare_parameters(self) -> None:
+        self.parameter_names: list[str] = []
+        for name, default, description in (
+            ("scenario", "", "scenario file; empty: dombot_description's default"),
+            ("cameras", ["camera_0", "camera_1", "camera_2"], "cameras to subscribe (/<name>/...)"),
+            ("detect_cameras", ["camera_0", "camera_1"], "cameras that watch the pile"),
+            ("placement_cameras", ["camera_2"], "cameras that watch the build area"),
+            ("backend", "geometric", "segmentation backend: geometric | sam"),
+            ("sam_checkpoint", "", "path of a SAM checkpoint (.pth), needed by backend sam"),
+            ("sam_model_type", "vit_b", "SAM model type of the checkpoint: vit_b | vit_l | vit_h"),
+            ("sam_points_per_side", 32, "SAM prompt grid: points per image side"),
+            ("continuous", True, "process new frames at 'rate' without being asked"),
+            ("rate", 1.0, "continuous processing rate [Hz]"),
+            ("max_frame_age", 5.0, "frames older than this [s] count as a stopped camera"),
+            ("sync_tolerance", 0.05, "colour and depth stamps may differ by this [s]"),
+            ("max_fit_error", 0.0015, "reject boxes whose RMS point distance exceeds this [m]"),
+            ("min_coverage", 0.85, "fraction of a large face that must be seen"),
+            ("min_clearance", 0.0015, "finger clearance below this predicts a failed grasp [m]"),
+            ("work_region_center", [0.0, 0.0], "region centre [x y] in world; [0 0]: the pile's"),
+            ("work_region_radius", 0.0, "region radius [m]; 0: scenario pile radius + margin"),
+            ("publish_debug_image", True, "publish /perception/debug_image"),
+        ):
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+            self.parameter_names.append(name)
+
+    def _param(self, name: str):
+        return self.get_parameter(name).value
+
+    def _parameter_values(self, overrides: dict | None = None) -> dict:
+        values = {name: self.get_parameter(name).value for name in self.parameter_names}
+        values.update(overrides or {})
+        return values
+
+    def _build_pipeline(self, values: dict) -> PerceptionPipeline:
+        """A pipeline for these parameter values; raises ValueError naming a bad one."""
+        for name in ("rate", "max_frame_age", "sync_tolerance", "max_fit_error", "min_coverage"):
+            value = values[name]
+            if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not 0 < values["min_coverage"] <= 1:
+            raise ValueError(f"min_coverage must be in (0, 1], got {values['min_coverage']}")
+        pipeline = build_pipeline(
+            self.scenario,
+            backend=values["backend"],
+            sam_checkpoint=values["sam_checkpoint"],
+            sam_model_type=values["sam_model_type"],
+            sam_points_per_side=int(values["sam_points_per_side"]),
+        )
+        config = pipeline.config
+        region = config.region
+        centre = [float(v) for v in values["work_region_center"]]
+        if len(centre) != 2 or not np.all(np.isfinite(centre)):
+            raise ValueError(f"work_region_center needs two finite numbers, got {centre}")
+        if any(centre):
+            region = replace(region, center=(centre[0], centre[1]))
+        if values["work_region_radius"] > 0:
+            region = replace(region, radius=float(values["work_region_radius"]))
+        pipeline.config = replace(
+            config,
+            region=region,
+            filtering=replace(
+                config.filtering,
+                max_fit_error=float(values["max_fit_error"]),
+                min_coverage=float(values["min_coverage"]),
+            ),
+            scoring=replace(config.scoring, min_clearance=float(values["min_clearance"])),
+        )
+        return pipeline
+
+    def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        changed = {p.name: p.value for p in parameters}
+        if "cameras" in changed or "scenario" in changed:
+            reason = "cameras and scenario are read at start-up; restart the node to change them"
+            self.get_logger().error(f"rejected parameter update: {reason}")
+            return SetParametersResult(successful=False, reason=reason)
+        try:
+            pipeline = self._build_pipeline(self._parameter_values(changed))
+        except (ValueError, SegmenterError, OSError, RuntimeError) as error:
+            self.get_logger().error(f"rejected parameter update: {error}")
+            return SetParametersResult(successful=False, reason=str(error))
+        self.pipeline = pipeline
+        self.get_logger().info(f"parameters updated: {changed}")
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ inputs
+    def _subscribe(self, name: str, group: ReentrantCallbackGroup) -> None:
+        camera = self.inputs[name]
+
+        def on_color(message: Image) -> None:
+            camera.colors.append(message)
+            camera.received = self._seconds_now()
+
+        def on_depth(message: Image) -> None:
+            camera.depths.append(message)
+
+        def on_info(message: CameraInfo) -> None:
+            camera.info = message
+
+        self.create_subscription(
+            Image, f"{name}/color/image_raw", on_color, 2, callback_group=group
+        )
+        self.create_subscription(
+            Image, f"{name}/depth/image_raw", on_depth, 2, callback_group=group
+        )
+        self.create_subscription(
+            CameraInfo, f"{name}/color/camera_info", on_info, 2, callback_group=group
+        )
+
+    def _known(self, names: list[str]) -> list[str]:
+        return [name for name in names if name in self.inputs]
+
+    def _seconds_now(self) -> float:
+        """The node clock: simulated time under use_sim_time, so a simulator running slower
+        than real time does not look like a camera that stopped."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _is_stale(self, camera: CameraInput) -> bool:
+        return self._seconds_now() - camera.received > float(self._param("max_frame_age"))
+
+    def _views(self, names: list[str]) -> tuple[list[CameraView], list[str]]:
+        """Usable synchronised views of ``names`` and the warnings about the others."""
+        views, warnings = [], []
+        max_age = float(self._param("max_frame_age"))
+        for name in names:
+            camera = self.inputs[name]
+            if not camera.colors or not camera.depths or camera.info is None:
+                warnings.append(f"{name}: no colour, depth and camera_info received yet")
+                continue
+            age = self._seconds_now() - camera.received
+            if age > max_age:
+                warnings.append(
+                    f"{name}: last frame {age:.1f} s old; the camera stopped publishing"
+                )
+                continue
+            try:
+                views.append(self._view(name, camera))
+            except ValueError as error:
+                warnings.append(f"{name}: {error}")
+        return views, warnings
+
+    def _view(self, name: str, camera: CameraInput) -> CameraView:
+        tolerance = float(self._param("sync_tolerance"))
+        pair = camera.latest_pair(tolerance)
+        if pair is None:
+            raise ValueError(f"no colour and depth images with stamps within {tolerance} s")
+        color, depth = pair
+        view = CameraView(
+            name,
+            rgb_array(color),
+            depth_array(depth),
+            np.asarray(camera.info.k, dtype=float).reshape(3, 3),
+            self._camera_pose(name),
+        )
+        problem = view.check()
+        if problem:
+            raise ValueError(problem)
+        return view
+
+    def _camera_pose(self, name: str) -> np.ndarray:
+        try:
+            values = self.get_parameter(f"{name}.optical_pose").value
+        except ParameterUninitializedException:
+            values = None
+        if values is not None and len(values) > 0:
+            if len(values) != 7 or not np.all(np.isfinite(values)):
+                raise ValueError(f"{name}.optical_pose needs 7 finite numbers [x y z qx qy qz qw]")
+            quaternion = np.asarray(values[3:], dtype=float)
+            if abs(np.linalg.norm(quaternion) - 1.0) > 1e-3:
+                raise ValueError(f"{name}.optical_pose quaternion is not unit length")
+            pose = np.eye(4)
+            pose[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
+            pose[:3, 3] = values[:3]
+            return pose
+        for spec in self.scenario.cameras:
+            if spec.name == name:
+                return spec.pose()
+        raise ValueError(f"camera {name} is not in the scenario and has no optical_pose")
+
+    # ------------------------------------------------------------------ processing
+    def _on_timer(self) -> None:
+        if not self._param("continuous"):
+            return
+        names = self._known(self._param("detect_cameras"))
+        fresh = {
+            name: _seconds(self.inputs[name].colors[-1].header.stamp)
+            for name in names
+            if self.inputs[name].colors
+        }
+        if not fresh or fresh == self.last_processed:
+            silent = [name for name in names if self._is_stale(self.inputs[name])]
+            if silent:
+                self.get_logger().warning(
+                    f"no new frames from {silent}; waiting", throttle_duration_sec=10.0
+                )
+            return
+        self.last_processed = fresh
+        self._detect(names)
+
+    def _on_detect(
+        self, request: DetectDominoes.Request, response: DetectDominoes.Response
+    ) -> DetectDominoes.Response:
+        names = list(request.cameras) or list(self._param("detect_cameras"))
+        unknown = [name for name in names if name not in self.inputs]
+        if unknown:
+            response.success = False
+            response.message = f"unknown cameras {unknown}; configured: {self.camera_names}"
+            self.get_logger().error(response.message)
+            return response
+        result, message = self._detect(names)
+        response.success = result is not None
+        response.message = message
+        response.detections = self._detection_array(result.detections if result else [])
+        return response
+
+    def _on_check_placement(
+        self, request: CheckPlacement.Request, response: CheckPlacement.Response
+    ) -> CheckPlacement.Response:
+        names = list(request.cameras) or list(self._param("placement_cameras"))
+        problem = self._placement_request_problem(request, names)
+        if problem:
+            response.success, response.message = False, problem
+            self.get_logger().error(f"check_placement rejected: {problem}")
+            return response
+        config = PlacementConfig(search_radius=request.search_radius or DEFAULT_SEARCH_RADIUS)
+        expected = [pose_matrix(pose) for pose in request.expected]
+        try:
+            views, warnings = self._views(names)
+            placements = check_placements(expected, views, self.pipeline, config) if views else []
+        except Exception as error:  # one bad frame set must never take the node down
+            self.get_logger().error(f"placement check failed: {error!r}\n{traceback.format_exc()}")
+            views, warnings, placements = [], [f"placement check failed: {error!r}"], []
+        for warning in warnings:
+            self.get_logger().warning(warning)
+        if not views:
+            response.success = False
+            response.message = "; ".join(["no usable camera for the placement check", *warnings])
+            return response
+        response.success = True
+        response.status = [p.status for p in placements]
+        response.measured = [pose_message(p.measured) for p in placements]
+        response.position_error = [p.position_error for p in placements]
+        response.tilt = [p.tilt for p in placements]
+        counts = np.bincount(response.status, minlength=4)
+        response.message = "; ".join(
+            [
+                f"{counts[0]} standing, {counts[1]} fallen, {counts[2]} missing, "
+                f"{counts[3]} not seen",
+                *warnings,
+            ]
+        )
+        self.get_logger().info(f"placement check of {len(expected)}: {response.message}")
+        return response
+
+    def _placement_request_problem(
+        self, request: CheckPlacement.Request, names: list[str]
+    ) -> str | None:
+        unknown = [name for name in names if name not in self.inputs]
+        if unknown:
+            return f"unknown cameras {unknown}; configured: {self.camera_names}"
+        if not math.isfinite(request.search_radius) or request.search_radius < 0:
+            return f"search_radius must be >= 0, got {request.search_radius}"
+        for index, pose in enumerate(request.expected):
+            q = pose.orientation
+            values = [pose.position.x, pose.position.y, pose.position.z, q.x, q.y, q.z, q.w]
+            if not all(math.isfinite(v) for v in values):
+                return f"expected pose {index} is not finite"
+            if abs(math.sqrt(q.x**2 + q.y**2 + q.z**2 + q.w**2) - 1.0) > 1e-3:
+                return f"expected pose {index}: quaternion is not unit length (within 1e-3)"
+        return None
+
+    def _detect(self, names: list[str]) -> tuple[PipelineResult | None, str]:
+        """Run the pipeline on the latest frames of ``names``; publish; say what happened."""
+        started = time.perf_counter()
+        try:
+            views, warnings = self._views(names)
+            result = self.pipeline.run(views) if views else None
+        except Exception as error:  # one bad frame set must never take the node down
+            self.get_logger().error(f"perception failed: {error!r}\n{traceback.format_exc()}")
+            views, warnings, result = [], [f"perception failed on this frame set: {error!r}"], None
+        if result is not None:
+            warnings += result.warnings
+            stages = ", ".join(f"{k} {v * 1000:.0f}" for k, v in result.timings.items())
+            self.get_logger().info(
+                f"{len(result.detections)} dominoes from {[v.name for v in views]} in "
+                f"{time.perf_counter() - started:.2f} s ({stages} ms); "
+                f"{len(result.rejected)} candidates rejected"
+            )
+        for warning in warnings:
+            self.get_logger().warning(warning)
+        detections = result.detections if result else []
+        self._publish(detections)
+        if result is not None and self._param("publish_debug_image"):
+            self.debug_pub.publish(self._debug_image(views, result))
+        summary = f"{len(detections)} dominoes found"
+        return result, "; ".join([summary, *warnings])
+
+    # ------------------------------------------------------------------ outputs
+    def _publish(self, detections: list[Detection]) -> None:
+        array = self._detection_array(detections)
+        poses = PoseArray(header=array.header, poses=[d.pose for d in array.detections])
+        self.poses_pub.publish(poses)
+        self.detections_pub.publish(array)
+
+    def _detection_array(self, detections: list[Detection]) -> DominoDetectionArray:
+        array = DominoDetectionArray()
+        array.header.frame_id = "world"
+        array.header.stamp = self.get_clock().now().to_msg()
+        array.detections = [detection_message(i, d) for i, d in enumerate(detections)]
+        return array
+
+    def _debug_image(self, views: list[CameraView], result: PipelineResult) -> Image:
+        tiles = [
+            draw_detections(
+                mask_overlay(view, result.masks.get(view.name, [])), view, result.detections
+            )
+            for view in views
+        ]
+        height = max(tile.shape[0] for tile in tiles)
+        tiles = [np.pad(t, ((0, height - t.shape[0]), (0, 0), (0, 0))) for t in tiles]
+        picture = np.concatenate(tiles, axis=1)
+        message = Image(height=picture.shape[0], width=picture.shape[1], encoding="rgb8")
+        message.header.frame_id = "world"
+        message.header.stamp = self.get_clock().now().to_msg()
+        message.step = picture.shape[1] * 3
+        message.data = picture.tobytes()
+        return message
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def rgb_array(message: Image) -> np.ndarray:
+    if message.encoding not in ("rgb8", "bgr8"):
+        raise ValueError(f"colour encoding {message.encoding!r} is not rgb8 or bgr8")
+    rows = _rows(message, np.uint8, 3)
+    return rows[:, :, ::-1] if message.encoding == "bgr8" else rows
+
+
+def depth_array(message: Image) -> np.ndarray:
+    """Depth in metres (float32); 16UC1 millimetres are converted, 0 becomes NaN."""
+    if message.encoding not in DEPTH_ENCODINGS:
+        raise ValueError(f"depth encoding {message.encoding!r} is not 32FC1 or 16UC1")
+    dtype, scale = DEPTH_ENCODINGS[message.encoding]
+    depth = _rows(message, dtype, 1)[:, :, 0].astype(np.float32) * np.float32(scale)
+    depth[depth <= 0] = np.nan
+    return depth
+
+
+def _rows(message: Image, dtype: type, channels: int) -> np.ndarray:
+    """The image as an HxWxC array, honouring the row step; ValueError when inconsistent."""
+    item = np.dtype(dtype).itemsize * channels
+    if message.height == 0 or message.width == 0:
+        raise ValueError("empty image")
+    if message.step < message.width * item or len(message.data) < message.step * message.height:
+        raise ValueError(
+            f"{message.width}x{message.height} {message.encoding} image has step "
+            f"{message.step} and {len(message.data)} bytes"
+        )
+    data = np.frombuffer(bytes(message.data), dtype=np.uint8).reshape(message.height, -1)
+    row_bytes = data[:, : message.width * item].copy()
+    return row_bytes.view(dtype).reshape(message.height, message.width, channels)
+
+
+def detection_message(index: int, detection: Detection) -> DominoDetection:
+    return DominoDetection(
+        id=index,
+        pose=pose_message(detection.X_WD),
+        size=_vector(detection.size),
+        posture=detection.posture,
+        score=float(detection.score),
+        fit_error=float(detection.fit_error),
+        clearance=float(detection.clearance),
+        num_points=int(detection.num_points),
+        num_cameras=len(detection.cameras),
+        grasp_pose=pose_message(detection.grasp_pose),
+        grasp_width=float(detection.grasp_width),
+    )
+
+
+def pose_matrix(pose: Pose) -> np.ndarray:
+    q = pose.orientation
+    matrix = np.eye(4)
+    matrix[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    matrix[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
+    return matrix
+
+
+def pose_message(matrix: np.ndarray) -> Pose:
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in matrix[:3, 3])
+    x, y, z, w = Rotation.from_matrix(matrix[:3, :3]).as_quat()
+    pose.orientation.x, pose.orientation.y = float(x), float(y)
+    pose.orientation.z, pose.orientation.w = float(z), float(w)
+    return pose
+
+
+def _vector(values: np.ndarray) -> Vector3:
+    return Vector3(x=float(values[0]), y=float(values[1]), z=float(values[2]))
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    try:
+        node = PerceptionNode()
+    except (ScenarioError, SegmenterError, ValueError) as error:
+        print(f"perception_node: cannot start: {error}", flush=True)
+        rclpy.try_shutdown()
+        raise SystemExit(2) from None
+    executor = MultiThreadedExecutor(num_threads=2)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,292 @@
+"""RGB-D views in, ranked domino detections out: every stage in order, each timed.
+
+segmentation -> back-projection (+ outlier removal) -> multi-camera fusion -> box fit
+-> filtering -> canonical frame -> grasp scoring. Each stage lives in its own
+module; this one only wires them and records how long each took and why anything
+was dropped, so a caller can show it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from dombot_description.scenario import Scenario
+from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
+from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.canonical import canonical_pose, posture
+from dombot_perception.domino_model import DOMINO_SIZE, orientation_error
+from dombot_perception.filtering import (
+    FilterConfig,
+    rejection_reason,
+    remove_outliers,
+    see_through_fraction,
+)
+from dombot_perception.frames import CameraView, Detection
+from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
+from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
+from dombot_perception.segmentation import Segmenter, make_segmenter
+
+REJOIN_DISTANCE = 0.032  # m: halves of one domino have centres about 24 mm apart
+REJOIN_SIDEWAYS = 0.005  # m: and are offset across the length by less than this
+PILE_MARGIN = 0.12  # m around the pile disc where dominoes may have slid
+STAGES = ("segmentation", "backprojection", "fusion", "box_fit", "scoring")
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    region: WorkRegion = field(default_factory=WorkRegion)
+    depth_range: tuple[float, float] = (0.1, 2.0)
+    fusion: FusionConfig = field(default_factory=FusionConfig)
+    box_fit: BoxFitConfig = field(default_factory=BoxFitConfig)
+    filtering: FilterConfig = field(default_factory=FilterConfig)
+    # two fragments fitted as one must fit tightly and show a side face: a loose fit, or
+    # two coplanar patches of buried dominoes, is not one domino
+    rejoin_filtering: FilterConfig = field(
+        default_factory=lambda: FilterConfig(
+            max_fit_error=0.0007, min_inlier_fraction=0.95, min_thickness_coverage=0.5
+        )
+    )
+    scoring: GraspScoringConfig = field(default_factory=GraspScoringConfig)
+    duplicate_distance: float = 0.012  # m: boxes closer than this are one domino seen twice
+    max_scene_points: int = 15000  # obstacle points kept for the clearance check
+    seed: int = 0
+
+
+@dataclass
+class PipelineResult:
+    detections: list[Detection]  # best grasp first
+    timings: dict[str, float]  # s per stage
+    masks: dict[str, list[np.ndarray]]  # per camera, for debug images
+    rejected: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+class PerceptionPipeline:
+    def __init__(self, segmenter: Segmenter, config: PipelineConfig | None = None) -> None:
+        self.segmenter = segmenter
+        self.config = config or PipelineConfig()
+
+    def run(self, views: list[CameraView]) -> PipelineResult:
+        """Detect dominoes in ``views`` (one frame per camera, same instant)."""
+        timings = dict.fromkeys(STAGES, 0.0)
+        result = PipelineResult([], timings, {})
+        usable = []
+        for view in views:
+            problem = view.check()
+            if problem:
+                result.warnings.append(problem)
+            else:
+                usable.append(view)
+        if not usable:
+            result.warnings.append("no usable camera view")
+            return result
+        with _timed(timings, "backprojection"):
+            clouds = {
+                view.name: organised_cloud(view, self.config.region, self.config.depth_range)
+                for view in usable
+            }
+        with _timed(timings, "segmentation"):
+            result.masks = {
+                view.name: self.segmenter.segment(view, clouds[view.name]) for view in usable
+            }
+        with _timed(timings, "backprojection"):
+            mask_clouds = self._mask_clouds(clouds, result.masks)
+            scene = self._scene_points(clouds)
+        if not mask_clouds:
+            result.warnings.append("no domino-like surface above the table in the work region")
+            return result
+        with _timed(timings, "fusion"):
+            fused = fuse(mask_clouds, self.config.fusion)
+        with _timed(timings, "box_fit"):
+            detections = self._fit(fused, usable, result.rejected)
+        with _timed(timings, "scoring"):
+            result.detections = score_detections(detections, scene, self.config.scoring)
+        return result
+
+    def _mask_clouds(
+        self, clouds: dict[str, OrganisedCloud | None], masks: dict[str, list[np.ndarray]]
+    ) -> list[MaskCloud]:
+        """Each mask's points and normals (from its camera's organised cloud), outliers removed."""
+        result = []
+        for name, cloud in clouds.items():
+            if cloud is None:
+                continue
+            points = cloud.points.reshape(-1, 3)
+            normals = cloud.normals.reshape(-1, 3)
+            valid = cloud.valid.ravel()
+            size = valid.size
+            for pixels in masks[name]:
+                local = cloud.crop_index(pixels)
+                inside = (local >= 0) & (local < size)
+                pixels, local = pixels[inside], local[inside]
+                usable = valid[local]
+                pixels, local = pixels[usable], local[usable]
+                kept = remove_outliers(points[local], self.config.filtering)
+                if kept.size:
+                    result.append(
+                        MaskCloud(name, pixels[kept], points[local[kept]], normals[local[kept]])
+                    )
+        return result
+
+    def _scene_points(self, clouds: dict[str, OrganisedCloud | None]) -> np.ndarray:
+        """Every point seen in the work region (all cameras), subsampled, for clearance checks."""
+        seen = [cloud.valid_points() for cloud in clouds.values() if cloud is not None]
+        scene = np.concatenate(seen) if seen else np.zeros((0, 3))
+        if scene.shape[0] > self.config.max_scene_points:
+            rng = np.random.default_rng(self.config.seed)
+            scene = scene[rng.choice(scene.shape[0], self.config.max_scene_points, replace=False)]
+        return scene
+
+    def _fit(
+        self, fused: list[FusedCloud], views: list[CameraView], rejected: list[str]
+    ) -> list[Detection]:
+        """Box-fit each fused cloud, rejoin fragments, merge duplicates, apply the filters."""
+        detections, fragments = [], []
+        filtering = self.config.filtering
+        for cloud in fused:
+            detection, fit = self._fit_one(cloud, views, rejected)
+            if detection is not None:
+                detections.append(detection)
+            elif (
+                fit is not None
+                and fit.extents[0] < filtering.min_coverage * DOMINO_SIZE[0]
+                and fit.fit_error <= filtering.max_fit_error
+            ):
+                fragments.append((cloud, fit))  # a clean fit, just too short: half a domino?
+        detections += self._rejoin(fragments, views, rejected)
+        return self._merge_duplicates(detections, rejected)
+
+    def _rejoin(
+        self,
+        fragments: list[tuple[FusedCloud, BoxFit]],
+        views: list[CameraView],
+        rejected: list[str],
+    ) -> list[Detection]:
+        """Fit pairs of fragments as one: a region split once too often leaves two fragments
+        of one domino, each too short to pass on its own. Only pairs that line up (same
+        orientation, one behind the other along the length) are tried."""
+        found: list[Detection] = []
+        used: set[int] = set()
+        for first, second in _aligned_pairs([fit for _, fit in fragments]):
+            if first in used or second in used:
+                continue
+            joined = FusedCloud(fragments[first][0].parts + fragments[second][0].parts)
+            detection, _ = self._fit_one(joined, views, [], self.config.rejoin_filtering)
+            if detection is not None:
+                used.update((first, second))
+                found.append(detection)
+                where = np.round(detection.X_WD[:3, 3], 3)
+                rejected.append(f"two fragments rejoined into the box at {where}")
+        return found
+
+    def _fit_one(
+        self,
+        cloud: FusedCloud,
+        views: list[CameraView],
+        rejected: list[str],
+        filtering: FilterConfig | None = None,
+    ) -> tuple[Detection | None, BoxFit | None]:
+        """The detection (None when rejected, with the reason in ``rejected``) and the fit."""
+        points, normals = cloud.points, cloud.normals
+        try:
+            fit = fit_domino_box(points, normals, self.config.box_fit)
+        except BoxFitError as error:
+            rejected.append(str(error))
+            return None, None
+        filtering = filtering or self.config.filtering
+        reason = rejection_reason(fit, points.shape[0], filtering)
+        if reason is None:
+            seen_through = see_through_fraction(fit.X_WD, views, filtering.free_space_margin)
+            if seen_through > filtering.max_see_through:
+                reason = f"cameras see behind {seen_through:.0%} of its surface"
+        if reason:
+            rejected.append(f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}")
+            return None, fit
+        pose = canonical_pose(fit.X_WD)
+        detection = Detection(
+            X_WD=pose,
+            size=np.abs(pose[:3, :3].T @ fit.X_WD[:3, :3]) @ fit.extents,
+            posture=posture(pose[:3, :3]),
+            fit_error=fit.fit_error,
+            num_points=points.shape[0],
+            cameras=cloud.cameras,
+            points=points,
+        )
+        return detection, fit
+
+    def _merge_duplicates(
+        self, detections: list[Detection], rejected: list[str]
+    ) -> list[Detection]:
+        """Keep one box per domino: of boxes whose centres nearly coincide, the best supported."""
+        if len(detections) < 2:
+            return detections
+        centres = np.array([d.X_WD[:3, 3] for d in detections])
+        order = np.argsort([-d.num_points for d in detections])
+        tree = cKDTree(centres)
+        dropped = np.zeros(len(detections), dtype=bool)
+        for index in order:
+            if dropped[index]:
+                continue
+            for other in tree.query_ball_point(centres[index], self.config.duplicate_distance):
+                if other != index and not dropped[other]:
+                    dropped[other] = True
+                    rejected.append(f"duplicate of the box at {np.round(centres[index], 3)}")
+        return [d for d, drop in zip(detections, dropped, strict=True) if not drop]
+
+
+@contextmanager
+def _timed(timings: dict[str, float], stage: str) -> Iterator[None]:
+    start = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[stage] += time.perf_counter() - start
+
+
+def config_for_scenario(scenario: Scenario) -> PipelineConfig:
+    """Work region around the scenario's pile and reach hint from its build reach."""
+    region = WorkRegion(
+        center=(float(scenario.pile_center[0]), float(scenario.pile_center[1])),
+        radius=scenario.pile_radius + PILE_MARGIN,
+    )
+    depth_range = scenario.cameras[0].depth_range if scenario.cameras else (0.1, 2.0)
+    return PipelineConfig(
+        region=region,
+        depth_range=depth_range,
+        scoring=GraspScoringConfig(reach=scenario.build_reach),
+    )
+
+
+def build_pipeline(
+    scenario: Scenario,
+    backend: str = "geometric",
+    config: PipelineConfig | None = None,
+    **backend_options: object,
+) -> PerceptionPipeline:
+    """A pipeline for ``scenario`` whose segmenter works in the same region and depth range."""
+    config = config or config_for_scenario(scenario)
+    segmenter = make_segmenter(backend, **backend_options)
+    return PerceptionPipeline(segmenter, config)
+
+
+def _aligned_pairs(fits: list[BoxFit]) -> list[tuple[int, int]]:
+    """Index pairs of fits turned alike (10 degrees) whose centres lie one behind the other
+    along the length (sideways and in depth within a few millimetres), nearest first."""
+    if len(fits) < 2:
+        return []
+    centres = np.array([fit.X_WD[:3, 3] for fit in fits])
+    pairs = []
+    for first, second in cKDTree(centres).query_pairs(REJOIN_DISTANCE):
+        rotation = fits[first].X_WD[:3, :3]
+        if orientation_error(fits[second].X_WD[:3, :3], rotation) > np.radians(10.0):
+            continue
+        offset = np.abs(rotation.T @ (centres[second] - centres[first]))
+        if offset[1] < REJOIN_SIDEWAYS and offset[2] < REJOIN_SIDEWAYS:
+            pairs.append((float(offset[0]), first, second))
+    return [(first, second) for _, first, second in sorted(pairs)]

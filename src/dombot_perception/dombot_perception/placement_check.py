@@ -1,0 +1,188 @@
+"""Check a domino run against where its dominoes should stand (``/perception/check_placement``).
+
+Each expected pose is a strong prior, so a standing domino is found by fitting the
+known box to the points around its expected place *starting from the expected pose*
+(the same point-to-plane ICP as ``box_fit``, with points shared between neighbouring
+places handed to the nearest expected box). Only the visible part of a domino is
+needed, which matters in a run where neighbours hide each other's lower halves. A
+place where that local fit fails is looked up in the full pipeline's detections
+(a fallen domino lies somewhere near); with no detection there either, the place is
+MISSING when the cameras see almost nothing above the table there, FALLEN otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from dombot_perception.backprojection import WorkRegion, organised_cloud
+from dombot_perception.box_fit import BoxFitConfig, refine_pose
+from dombot_perception.domino_model import DOMINO_SIZE, HALF_SIZE, box_signed_distance
+from dombot_perception.filtering import see_through_fraction
+from dombot_perception.frames import CameraView, Detection
+from dombot_perception.pipeline import PerceptionPipeline
+
+STANDING, FALLEN, MISSING, NOT_SEEN = 0, 1, 2, 3  # values of dombot_msgs/CheckPlacement
+
+
+@dataclass(frozen=True)
+class PlacementConfig:
+    search_radius: float = 0.03  # m around the expected centre (horizontal)
+    min_points: int = 30  # on the fitted box (within inlier_distance) to call it there
+    inlier_distance: float = 0.002  # m
+    max_tilt: float = np.radians(15.0)  # body x from vertical: beyond this it has fallen
+    region_margin: float = 0.06  # m around the run for the work region
+    min_height_seen: float = 0.5  # of the domino's length, along its (vertical) length axis
+    free_space_margin: float = 0.005  # m, as in FilterConfig
+    max_see_through: float = 0.2
+
+
+@dataclass
+class Placement:
+    status: int
+    measured: np.ndarray  # 4x4; the expected pose when MISSING or NOT_SEEN
+    position_error: float  # m, horizontal
+    tilt: float  # rad, body x from vertical
+
+
+def check_placements(
+    expected: list[np.ndarray],
+    views: list[CameraView],
+    pipeline: PerceptionPipeline,
+    config: PlacementConfig,
+) -> list[Placement]:
+    """What stands at each expected pose, seen through ``views``."""
+    if not expected:
+        return []
+    region = _run_region(expected, pipeline.config.region, config)
+    clouds = [organised_cloud(v, region, pipeline.config.depth_range) for v in views]
+    seen = [c.valid_points() for c in clouds if c is not None]
+    points = np.concatenate(seen) if seen else np.zeros((0, 3))
+    owner = _nearest_expected(points, expected)
+    detections: list[Detection] | None = None
+    claimed: dict[int, int] = {}  # detection -> the expected place nearest to it
+    results = []
+    for index, pose in enumerate(expected):
+        if not any(_in_view(pose, view) for view in views):
+            results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
+            continue
+        near = _near(points, pose, config.search_radius) & (owner == index)
+        fitted = _local_fit(pose, points[near], views, config)
+        if fitted is not None:
+            results.append(_placement(STANDING, fitted, pose))
+            continue
+        if detections is None:
+            local = replace(pipeline.config, region=region)
+            detections = PerceptionPipeline(pipeline.segmenter, local).run(views).detections
+            claimed = _claim(detections, expected)
+        mine = [d for k, d in enumerate(detections) if claimed.get(k) == index]
+        results.append(_from_detections(pose, mine, detections, points, config))
+    return results
+
+
+def _claim(detections: list[Detection], expected: list[np.ndarray]) -> dict[int, int]:
+    """Each detection belongs to the expected place nearest to it (horizontally)."""
+    return {
+        k: int(np.argmin([_horizontal(d.X_WD, pose) for pose in expected]))
+        for k, d in enumerate(detections)
+    }
+
+
+def _run_region(expected: list[np.ndarray], base: WorkRegion, config: PlacementConfig):
+    centres = np.array([pose[:2, 3] for pose in expected])
+    middle = centres.mean(axis=0)
+    radius = float(np.max(np.linalg.norm(centres - middle, axis=1)))
+    return replace(
+        base,
+        center=(float(middle[0]), float(middle[1])),
+        radius=radius + config.search_radius + config.region_margin,
+    )
+
+
+def _in_view(pose: np.ndarray, view: CameraView) -> bool:
+    local = (pose[:3, 3] - view.X_WC[:3, 3]) @ view.X_WC[:3, :3]
+    if local[2] <= 0:
+        return False
+    u = local[0] / local[2] * view.K[0, 0] + view.K[0, 2]
+    v = local[1] / local[2] * view.K[1, 1] + view.K[1, 2]
+    height, width = view.depth.shape
+    return 0 <= u < width and 0 <= v < height
+
+
+def _nearest_expected(points: np.ndarray, expected: list[np.ndarray]) -> np.ndarray:
+    """Index of the expected box each point lies closest to."""
+    if points.shape[0] == 0:
+        return np.zeros(0, dtype=int)
+    distances = np.stack(
+        [np.abs(box_signed_distance((points - p[:3, 3]) @ p[:3, :3])) for p in expected]
+    )
+    return distances.argmin(axis=0)
+
+
+def _near(points: np.ndarray, pose: np.ndarray, radius: float) -> np.ndarray:
+    return np.hypot(points[:, 0] - pose[0, 3], points[:, 1] - pose[1, 3]) < radius
+
+
+def _local_fit(
+    expected: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
+) -> np.ndarray | None:
+    """The box fitted from the expected pose, if it stands there: enough points on it,
+    spread over most of its height, and no camera seeing through it."""
+    if points.shape[0] < config.min_points:
+        return None
+    fit_config = BoxFitConfig()
+    pose = refine_pose(expected, points, fit_config)
+    on_box = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
+    inliers = on_box < config.inlier_distance
+    if inliers.sum() < config.min_points:
+        return None
+    pose = refine_pose(pose, points[inliers], fit_config)
+    lengthwise = (points[inliers] - pose[:3, 3]) @ pose[:3, 0]
+    if (
+        _tilt(pose) > config.max_tilt
+        or _horizontal(pose, expected) > config.search_radius
+        or np.ptp(lengthwise) < config.min_height_seen * DOMINO_SIZE[0]
+        or see_through_fraction(pose, views, config.free_space_margin) > config.max_see_through
+    ):
+        return None
+    return pose
+
+
+def _from_detections(
+    expected: np.ndarray,
+    mine: list[Detection],
+    detections: list[Detection],
+    points: np.ndarray,
+    config: PlacementConfig,
+) -> Placement:
+    """From the pipeline: this place's nearest detection, else what its points say.
+
+    Points on any detected box are explained; unexplained points on the place's
+    footprint mean something lies there that no box fits (FALLEN, pose unknown).
+    """
+    nearby = [d for d in mine if _horizontal(d.X_WD, expected) < config.search_radius]
+    if nearby:
+        found = min(nearby, key=lambda d: _horizontal(d.X_WD, expected))
+        status = STANDING if _tilt(found.X_WD) <= config.max_tilt else FALLEN
+        return _placement(status, found.X_WD, expected)
+    footprint = points[_near(points, expected, HALF_SIZE[1])]
+    for detection in detections:
+        local = (footprint - detection.X_WD[:3, 3]) @ detection.X_WD[:3, :3]
+        footprint = footprint[np.abs(box_signed_distance(local)) > config.inlier_distance]
+    if footprint.shape[0] < config.min_points:
+        return Placement(MISSING, expected, 0.0, 0.0)
+    return Placement(FALLEN, expected, 0.0, 0.0)
+
+
+def _placement(status: int, measured: np.ndarray, expected: np.ndarray) -> Placement:
+    return Placement(status, measured, _horizontal(measured, expected), _tilt(measured))
+
+
+def _tilt(pose: np.ndarray) -> float:
+    """Angle of the body x (length) axis from vertical, either direction."""
+    return float(np.arccos(np.clip(abs(pose[2, 0]), 0.0, 1.0)))
+
+
+def _horizontal(pose: np.ndarray, expected: np.ndarray) -> float:
+    return float(np.hypot(pose[0, 3] - expected[0, 3], pose[1, 3] - expected[1, 3]))

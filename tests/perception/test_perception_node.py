@@ -1,0 +1,222 @@
+"""perception_node over real DDS: camera topics in, poses and detections out, bad input
+answered with a message while the node keeps serving."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from geometry_msgs.msg import PoseArray
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image
+
+from dombot_description.grasp import upright_pose
+from dombot_msgs.msg import DominoDetection, DominoDetectionArray
+from dombot_msgs.srv import CheckPlacement, DetectDominoes
+from dombot_perception.domino_model import orientation_error
+from dombot_perception.perception_node import pose_message
+from support.perception_scenes import PILE_CENTRE, flat
+from support.ros_processes import installed_node, spin_until
+
+TRUTH = flat(*PILE_CENTRE, yaw=0.4)
+STANDING_IN_RUN = upright_pose(0.52, 0.15, 0.4).GetAsMatrix4()  # seen by camera_2
+
+
+def image_messages(view, stamp, depth_encoding: str = "32FC1") -> tuple[Image, Image, CameraInfo]:
+    height, width = view.depth.shape
+    color = Image(height=height, width=width, encoding="rgb8", step=width * 3)
+    color.data = view.rgb.tobytes()
+    depth = Image(height=height, width=width, encoding=depth_encoding, step=width * 4)
+    depth.data = view.depth.astype(np.float32).tobytes()
+    info = CameraInfo(height=height, width=width, k=view.K.ravel().tolist())
+    for message in (color, depth, info):
+        message.header.stamp = stamp
+        message.header.frame_id = f"{view.name}_optical"
+    return color, depth, info
+
+
+class Cameras:
+    """Test-side node: plays rendered frames on the camera topics, calls the node."""
+
+    def __init__(self, views) -> None:
+        self.node = Node("camera_player")
+        self.views = views
+        self.depth_encoding = "32FC1"
+        self.playing = {view.name for view in views}
+        self.publishers = {
+            view.name: (
+                self.node.create_publisher(Image, f"/{view.name}/color/image_raw", 2),
+                self.node.create_publisher(Image, f"/{view.name}/depth/image_raw", 2),
+                self.node.create_publisher(CameraInfo, f"/{view.name}/color/camera_info", 2),
+            )
+            for view in views
+        }
+        self.poses: list[PoseArray] = []
+        self.detections: list[DominoDetectionArray] = []
+        self.debug: list[Image] = []
+        self.node.create_subscription(PoseArray, "/domino_poses", self.poses.append, 10)
+        self.node.create_subscription(
+            DominoDetectionArray, "/domino_detections", self.detections.append, 10
+        )
+        self.node.create_subscription(Image, "/perception/debug_image", self.debug.append, 2)
+        self.node.create_timer(0.2, self.play)
+
+    def play(self) -> None:
+        stamp = self.node.get_clock().now().to_msg()
+        for view in self.views:
+            if view.name in self.playing:
+                messages = image_messages(view, stamp, self.depth_encoding)
+                for publisher, message in zip(self.publishers[view.name], messages, strict=True):
+                    publisher.publish(message)
+
+    def call(self, service_type, name: str, request, timeout: float = 30.0):
+        client = self.node.create_client(service_type, name)
+        assert spin_until(self.node, client.service_is_ready, timeout=30)
+        future = client.call_async(request)
+        assert spin_until(self.node, future.done, timeout=timeout)
+        return future.result()
+
+    def detect(self, cameras: list[str] | None = None) -> DetectDominoes.Response:
+        return self.call(
+            DetectDominoes, "/perception/detect", DetectDominoes.Request(cameras=cameras or [])
+        )
+
+    def check_placement(self, expected: list[np.ndarray]) -> CheckPlacement.Response:
+        request = CheckPlacement.Request(expected=[pose_message(pose) for pose in expected])
+        return self.call(CheckPlacement, "/perception/check_placement", request)
+
+    def set_parameter(self, name: str, value: ParameterValue):
+        request = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
+        return self.call(SetParameters, "/perception_node/set_parameters", request).results[0]
+
+    def settle(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        spin_until(self.node, lambda: time.monotonic() > deadline, timeout=seconds + 1)
+
+
+@pytest.fixture(scope="module")
+def cameras(world):
+    world.set_domino_poses({0: TRUTH, 1: STANDING_IN_RUN})
+    from dombot_perception.frames import CameraView
+
+    views = [CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC) for f in world.render().values()]
+    rclpy.init()
+    with installed_node(
+        "dombot_perception", "perception_node", "--ros-args", "-p", "rate:=2.0"
+    ) as process:
+        player = Cameras(views)
+
+        def both_cameras_seen() -> bool:
+            return any(d.num_cameras == 2 for array in player.detections for d in array.detections)
+
+        assert spin_until(player.node, both_cameras_seen, timeout=60), process.poll()
+        yield player
+        player.node.destroy_node()
+        assert process.poll() is None, "perception_node died during the tests"
+    rclpy.shutdown()
+
+
+def test_detect_service_finds_the_domino_and_topics_carry_it(cameras: Cameras) -> None:
+    response = cameras.detect()
+    assert response.success, response.message
+    assert response.detections.header.frame_id == "world"
+    [detection] = response.detections.detections
+    position = detection.pose.position
+    assert np.linalg.norm([position.x, position.y, position.z] - TRUTH[:3, 3]) < 0.003
+    quaternion = detection.pose.orientation
+    from scipy.spatial.transform import Rotation
+
+    rotation = Rotation.from_quat([quaternion.x, quaternion.y, quaternion.z, quaternion.w])
+    assert orientation_error(rotation.as_matrix(), TRUTH[:3, :3]) < np.radians(3)
+    assert detection.posture == DominoDetection.POSTURE_FLAT
+    assert detection.num_cameras == 2, response.message
+    assert detection.score > 0.5
+    assert detection.grasp_width > 0.024
+    assert spin_until(cameras.node, lambda: bool(cameras.debug), timeout=20)
+    assert cameras.debug[-1].width == 2 * 640 and cameras.debug[-1].encoding == "rgb8"
+    latest = cameras.poses[-1]
+    assert latest.header.frame_id == "world" and len(latest.poses) == 1
+    assert len(cameras.detections[-1].detections) == 1
+
+
+def test_placement_check_over_dds(cameras: Cameras) -> None:
+    empty_place = STANDING_IN_RUN.copy()
+    empty_place[:2, 3] += [0.06, 0.03]
+    response = cameras.check_placement([STANDING_IN_RUN, empty_place])
+    assert response.success, response.message
+    assert list(response.status) == [
+        CheckPlacement.Response.STANDING,
+        CheckPlacement.Response.MISSING,
+    ]
+    assert response.position_error[0] < 0.003 and response.tilt[0] < np.radians(2)
+    assert "1 standing" in response.message
+
+
+def test_placement_check_rejects_a_non_unit_quaternion(cameras: Cameras) -> None:
+    request = CheckPlacement.Request(expected=[pose_message(STANDING_IN_RUN)])
+    request.expected[0].orientation.w *= 2.0
+    response = cameras.call(CheckPlacement, "/perception/check_placement", request)
+    assert not response.success and "quaternion" in response.message
+
+
+def test_one_camera_on_request(cameras: Cameras) -> None:
+    response = cameras.detect(["camera_1"])
+    assert response.success, response.message
+    assert [d.num_cameras for d in response.detections.detections] == [1]
+
+
+def test_unknown_camera_is_an_error_not_a_crash(cameras: Cameras) -> None:
+    response = cameras.detect(["camera_9"])
+    assert not response.success
+    assert "camera_9" in response.message
+
+
+def test_wrong_depth_encoding_gives_an_empty_result_and_a_warning(cameras: Cameras) -> None:
+    cameras.depth_encoding = "mono8"
+    try:
+        cameras.settle(1.5)  # every buffered depth image is now mono8
+        response = cameras.detect()
+        assert not response.success
+        assert "encoding" in response.message
+        assert response.detections.detections == []
+    finally:
+        cameras.depth_encoding = "32FC1"
+        cameras.settle(1.5)
+    assert cameras.detect().success
+
+
+def test_a_camera_that_stops_publishing_is_left_out_with_a_warning(cameras: Cameras) -> None:
+    double = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=1.0)
+    assert cameras.set_parameter("max_frame_age", double).successful
+    cameras.playing.discard("camera_0")
+    try:
+        cameras.settle(3.0)  # well past max_frame_age, even if the node drained a backlog late
+        response = cameras.detect()
+        assert response.success, response.message
+        assert "camera_0" in response.message and "stopped" in response.message
+        assert [d.num_cameras for d in response.detections.detections] == [1]
+    finally:
+        cameras.playing.add("camera_0")
+        double.double_value = 5.0
+        cameras.set_parameter("max_frame_age", double)
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("backend", ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="magic")),
+        ("backend", ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="sam")),
+        ("min_coverage", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=2.0)),
+        ("rate", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-1.0)),
+    ],
+)
+def test_bad_parameters_are_rejected_and_the_node_keeps_serving(
+    cameras: Cameras, name: str, value: ParameterValue
+) -> None:
+    result = cameras.set_parameter(name, value)
+    assert not result.successful and result.reason
+    assert cameras.detect().success

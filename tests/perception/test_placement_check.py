@@ -1,0 +1,65 @@
+"""Placement checks on a rendered run seen by the build-area camera."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dombot_description.grasp import flat_pose, upright_pose
+from dombot_description.scenario import load_scenario
+from dombot_perception.pipeline import build_pipeline
+from dombot_perception.placement_check import (
+    FALLEN,
+    MISSING,
+    NOT_SEEN,
+    STANDING,
+    PlacementConfig,
+    check_placements,
+)
+
+HEADING = 0.4
+SPACING = 0.0288  # m between dominoes of the run
+
+
+@pytest.fixture(scope="module")
+def run_poses() -> list[np.ndarray]:
+    step = SPACING * np.array([np.cos(HEADING), np.sin(HEADING)])
+    start = np.array([0.50, 0.12])
+    return [upright_pose(*(start + i * step), HEADING).GetAsMatrix4() for i in range(5)]
+
+
+@pytest.fixture(scope="module")
+def pipeline():
+    return build_pipeline(load_scenario())
+
+
+def test_standing_fallen_and_missing_dominoes_are_told_apart(
+    run_poses, pipeline, render_build_area
+) -> None:
+    fallen = flat_pose(*(run_poses[3][:2, 3] + 0.01), HEADING + 0.5).GetAsMatrix4()
+    views = render_build_area({0: run_poses[0], 1: run_poses[1], 2: run_poses[2], 3: fallen})
+    results = check_placements(run_poses, views, pipeline, PlacementConfig())
+    assert [r.status for r in results] == [STANDING, STANDING, STANDING, FALLEN, MISSING]
+    for result in results[:3]:
+        assert result.position_error < 0.003  # incl. the simulator's half-pixel K offset
+        assert result.tilt < np.radians(1.0)
+    assert np.linalg.norm(results[3].measured[:3, 3] - fallen[:3, 3]) < 0.003
+    assert results[3].tilt > np.radians(80)
+
+
+def test_a_leaning_domino_is_not_standing(run_poses, pipeline, render_build_area) -> None:
+    leaning = run_poses[0].copy()
+    turn = np.array([[np.cos(0.5), 0, np.sin(0.5)], [0, 1, 0], [-np.sin(0.5), 0, np.cos(0.5)]])
+    leaning[:3, :3] = leaning[:3, :3] @ turn  # 29 degrees about its width axis
+    leaning[2, 3] = 0.024 * np.cos(0.5) + 0.00375 * np.sin(0.5)
+    views = render_build_area({0: leaning})
+    [result] = check_placements(run_poses[:1], views, pipeline, PlacementConfig())
+    assert result.status != STANDING
+
+
+def test_a_place_outside_every_image_is_not_seen(run_poses, pipeline, render_build_area) -> None:
+    views = render_build_area({0: run_poses[0]})
+    far = run_poses[0].copy()
+    far[:2, 3] = [3.0, 3.0]
+    results = check_placements([run_poses[0], far], views, pipeline, PlacementConfig())
+    assert [r.status for r in results] == [STANDING, NOT_SEEN]

@@ -1,0 +1,145 @@
+"""The whole pipeline on scenes the simulator renders: poses, separation, postures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from dombot_description.scenario import load_scenario
+from dombot_perception.domino_model import orientation_error
+from dombot_perception.filtering import see_through_fraction
+from dombot_perception.frames import POSTURE_FLAT, POSTURE_ON_EDGE, POSTURE_UPRIGHT, CameraView
+from dombot_perception.pipeline import build_pipeline
+from support.perception_scenes import FLAT_HEIGHT, PILE_CENTRE, domino_pose, flat
+
+X0, Y0 = PILE_CENTRE
+POSITION_TOLERANCE = 0.003  # m: 2 mm accuracy plus the scenario's half-pixel K offset
+ANGLE_TOLERANCE = np.radians(3.0)
+
+
+@pytest.fixture(scope="module")
+def pipeline():
+    return build_pipeline(load_scenario())
+
+
+def closest(detections, truth: np.ndarray):
+    return min(detections, key=lambda d: np.linalg.norm(d.X_WD[:3, 3] - truth[:3, 3]))
+
+
+def assert_found(detections, truth: np.ndarray) -> None:
+    found = closest(detections, truth)
+    assert np.linalg.norm(found.X_WD[:3, 3] - truth[:3, 3]) < POSITION_TOLERANCE
+    assert orientation_error(found.X_WD[:3, :3], truth[:3, :3]) < ANGLE_TOLERANCE
+
+
+def test_single_flat_domino_is_found_with_its_pose_and_canonical_signs(pipeline, render_scene):
+    truth = flat(X0, Y0, yaw=2.6)  # body x pointing back towards the arm base
+    result = pipeline.run(render_scene({0: truth}))
+    assert len(result.detections) == 1, result.rejected
+    detection = result.detections[0]
+    assert_found(result.detections, truth)
+    assert detection.posture == POSTURE_FLAT
+    assert detection.cameras == ("camera_0", "camera_1")
+    rotation = detection.X_WD[:3, :3]
+    assert rotation[2, 2] > 0.99, "flat: body z points up"
+    assert rotation[:, 0] @ np.array([X0, Y0, 0.0]) > 0, "body x points away from the base"
+    assert np.allclose(detection.size, [0.048, 0.024, 0.0075], atol=0.004)
+    assert detection.fit_error < 0.001
+    assert detection.score > 0.5 and detection.clearance > 0.004  # nothing near it
+
+
+def test_two_touching_dominoes_side_by_side_are_separated(pipeline, render_scene):
+    yaw = 0.3
+    rotation = Rotation.from_euler("z", yaw).as_matrix()
+    first = flat(X0, Y0, yaw)
+    second = first.copy()
+    second[:3, 3] += rotation @ np.array([0.012, 0.024, 0.0])  # long faces touching
+    result = pipeline.run(render_scene({0: first, 1: second}))
+    assert len(result.detections) == 2, result.rejected
+    assert_found(result.detections, first)
+    assert_found(result.detections, second)
+    for detection in result.detections:
+        assert detection.clearance < 0.004, "the neighbour leaves no room for a finger"
+
+
+def test_two_dominoes_touching_end_to_end_are_separated(pipeline, render_scene):
+    first, second = flat(X0 - 0.024, Y0, 0.0), flat(X0 + 0.024, Y0, 0.0)
+    result = pipeline.run(render_scene({0: first, 1: second}))
+    assert len(result.detections) == 2, result.rejected
+    assert_found(result.detections, first)
+    assert_found(result.detections, second)
+
+
+def test_upright_domino_is_classified_upright(pipeline, render_scene):
+    rotation = (
+        Rotation.from_euler("y", -90, degrees=True) * Rotation.from_euler("x", 30, degrees=True)
+    ).as_matrix()
+    truth = domino_pose((X0, Y0, 0.024), rotation)
+    result = pipeline.run(render_scene({0: truth}))
+    assert len(result.detections) == 1, result.rejected
+    detection = result.detections[0]
+    assert detection.posture == POSTURE_UPRIGHT
+    assert detection.X_WD[2, 0] > 0.99, "upright: body x points up"
+    assert_found(result.detections, truth)
+
+
+def test_domino_on_edge_is_classified_on_edge(pipeline, render_scene):
+    truth = domino_pose((X0, Y0, 0.012), Rotation.from_euler("x", 90, degrees=True).as_matrix())
+    result = pipeline.run(render_scene({0: truth}))
+    assert [d.posture for d in result.detections] == [POSTURE_ON_EDGE]
+    assert_found(result.detections, truth)
+
+
+def test_stacked_dominoes_are_both_found_and_the_top_one_ranks_first(pipeline, render_scene):
+    lower = flat(X0, Y0, 0.0)
+    upper = flat(X0 + 0.01, Y0 + 0.005, 0.8)
+    upper[2, 3] = 3 * FLAT_HEIGHT
+    result = pipeline.run(render_scene({0: lower, 1: upper}))
+    assert_found(result.detections, upper)
+    assert np.linalg.norm(result.detections[0].X_WD[:3, 3] - upper[:3, 3]) < POSITION_TOLERANCE
+    assert result.detections[0].score_terms["uncovered"] == 1.0
+
+
+def test_empty_table_gives_no_detections_and_says_why(pipeline, render_scene):
+    result = pipeline.run(render_scene({}))
+    assert result.detections == []
+    assert result.warnings
+
+
+@pytest.mark.parametrize(
+    "garbage",
+    [
+        lambda depth, rng: np.full_like(depth, np.nan),
+        lambda depth, rng: rng.uniform(0.0, 3.0, depth.shape).astype(np.float32),
+        lambda depth, rng: np.where(rng.random(depth.shape) < 0.5, np.inf, -depth),
+    ],
+    ids=["no_returns", "noise", "inf_and_negative"],
+)
+def test_garbage_depth_gives_no_crash(pipeline, render_scene, garbage):
+    rng = np.random.default_rng(3)
+    views = render_scene({0: flat(X0, Y0, 0.0)})
+    broken = [
+        CameraView(v.name, v.rgb, garbage(v.depth, rng).astype(np.float32), v.K, v.X_WC)
+        for v in views
+    ]
+    result = pipeline.run(broken)
+    assert all(d.fit_error < 0.0015 for d in result.detections)
+    assert len(result.detections) <= 1
+
+
+def test_malformed_view_is_skipped_with_a_warning(pipeline, render_scene):
+    good, other = render_scene({0: flat(X0, Y0, 0.0)})
+    bad = CameraView(other.name, other.rgb, other.depth, np.full((3, 3), np.nan), other.X_WC)
+    result = pipeline.run([good, bad])
+    assert any("camera matrix" in w for w in result.warnings)
+    assert len(result.detections) == 1
+    assert result.detections[0].cameras == (good.name,)
+
+
+def test_a_box_where_the_cameras_see_the_table_fails_the_free_space_check(render_scene) -> None:
+    truth = flat(X0, Y0, 0.3)
+    views = render_scene({0: truth})
+    assert see_through_fraction(truth, views, margin=0.005) < 0.05
+    phantom = flat(X0 + 0.06, Y0, 0.3)  # nothing there: both cameras see the table behind
+    assert see_through_fraction(phantom, views, margin=0.005) > 0.8  # low sides: < margin

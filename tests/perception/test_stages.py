@@ -1,0 +1,267 @@
+"""Each pipeline stage on synthetic data with a known answer (no rendering, no ROS)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from dombot_perception.backprojection import WorkRegion, backproject, image_normals
+from dombot_perception.box_fit import BoxFitConfig, fit_domino_box, min_area_rectangle
+from dombot_perception.canonical import canonical_rotation, posture
+from dombot_perception.domino_model import (
+    DOMINO_SIZE,
+    HALF_SIZE,
+    SYMMETRIES,
+    box_signed_distance,
+    orientation_error,
+)
+from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
+from dombot_perception.frames import (
+    POSTURE_FLAT,
+    POSTURE_TILTED,
+    POSTURE_UPRIGHT,
+    CameraView,
+    Detection,
+)
+from dombot_perception.fusion import FusionConfig, MaskCloud, fuse
+from dombot_perception.grasp_scoring import (
+    GraspScoringConfig,
+    predicted_success,
+    score_detections,
+    weighted_geometric_mean,
+)
+from support.perception_scenes import PILE_CENTRE, domino_pose, flat
+
+RNG_SEED = 11
+
+
+def visible_surface(pose: np.ndarray, camera: np.ndarray, spacing: float = 0.001):
+    """Points and outward normals of the box faces that face ``camera`` (a camera's view)."""
+    points, normals = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            normal_body = np.zeros(3)
+            normal_body[axis] = sign
+            normal = pose[:3, :3] @ normal_body
+            centre = pose[:3, 3] + normal * HALF_SIZE[axis]
+            if normal @ (camera - centre) <= 0:
+                continue
+            others = [a for a in range(3) if a != axis]
+            grids = [np.arange(-HALF_SIZE[a], HALF_SIZE[a] + 1e-9, spacing) for a in others]
+            u, v = np.meshgrid(*grids, indexing="ij")
+            local = np.zeros((u.size, 3))
+            local[:, others[0]], local[:, others[1]] = u.ravel(), v.ravel()
+            local[:, axis] = sign * HALF_SIZE[axis]
+            points.append(local @ pose[:3, :3].T + pose[:3, 3])
+            normals.append(np.repeat(normal[None], u.size, axis=0))
+    return np.concatenate(points), np.concatenate(normals)
+
+
+CAMERA = np.array([0.55, -0.72, 0.50])  # camera_0's position in the default scenario
+
+
+def test_backprojection_follows_the_pinhole_equations() -> None:
+    intrinsics = np.array([[500.0, 0, 320], [0, 510.0, 240], [0, 0, 1]])
+    pose = np.eye(4)
+    pose[:3, 3] = [1.0, 2.0, 3.0]
+    depth = np.full((480, 640), 2.0, dtype=np.float32)
+    depth[0, 0] = np.nan
+    points = backproject(depth, intrinsics, pose)
+    assert np.allclose(points[100, 400], [1 + 2.0 * 80 / 500, 2 + 2.0 * -140 / 510, 5.0])
+    assert np.all(np.isnan(points[0, 0]))
+    normals = image_normals(points, camera_position=np.array([1.0, 2.0, 3.0]))
+    assert np.allclose(normals[100, 400], [0, 0, -1])  # plane faces the camera
+
+
+def test_work_region_keeps_only_the_cylinder_above_the_table() -> None:
+    region = WorkRegion(center=(0.0, 0.0), radius=0.1, min_height=0.001, max_height=0.05)
+    points = np.array([[0.0, 0.0, 0.01], [0.2, 0.0, 0.01], [0.0, 0.0, 0.0], [0, 0, 0.06]])
+    assert region.contains(points).tolist() == [True, False, False, False]
+
+
+def test_box_distance_is_signed() -> None:
+    points = np.array([[0, 0, 0], [0.024, 0, 0], [0.03, 0, 0]])
+    assert np.allclose(box_signed_distance(points), [-HALF_SIZE[2], 0.0, 0.006])
+
+
+@pytest.mark.parametrize(
+    "rotation",
+    [
+        Rotation.from_euler("z", 0.7).as_matrix(),  # flat
+        Rotation.from_euler("xz", [0.4, 1.9]).as_matrix(),  # tilted
+        Rotation.from_euler("yz", [np.pi / 2, 0.3]).as_matrix(),  # upright
+    ],
+    ids=["flat", "tilted", "upright"],
+)
+def test_box_fit_recovers_a_pose_from_the_visible_faces_only(rotation) -> None:
+    truth = domino_pose((0.55, -0.30, 0.03), rotation)
+    points, normals = visible_surface(truth, CAMERA)
+    rng = np.random.default_rng(RNG_SEED)
+    noisy = points + rng.normal(0.0, 0.0003, points.shape)
+    fit = fit_domino_box(noisy, normals, BoxFitConfig())
+    assert np.linalg.norm(fit.X_WD[:3, 3] - truth[:3, 3]) < 0.0005
+    assert orientation_error(fit.X_WD[:3, :3], truth[:3, :3]) < np.radians(0.5)
+    assert fit.fit_error < 0.0006 and fit.inlier_fraction > 0.95
+
+
+def test_box_fit_trims_a_neighbours_stray_points() -> None:
+    truth = flat(0.55, -0.30, 0.2)
+    points, normals = visible_surface(truth, CAMERA)
+    stray = points[:150] + np.array([0.0, 0.0, 0.02])  # a patch of something 2 cm above
+    fit = fit_domino_box(
+        np.vstack([points, stray]), np.vstack([normals, normals[:150]]), BoxFitConfig()
+    )
+    assert np.linalg.norm(fit.X_WD[:3, 3] - truth[:3, 3]) < 0.0005
+    assert fit.inlier_fraction < 0.95
+
+
+def test_min_area_rectangle_of_a_turned_rectangle() -> None:
+    rng = np.random.default_rng(RNG_SEED)
+    local = rng.uniform([-0.024, -0.012], [0.024, 0.012], size=(500, 2))
+    angle = 0.5
+    turn = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    centre, direction, sides = min_area_rectangle(local @ turn.T + [0.1, 0.2])
+    assert np.allclose(sides, [0.048, 0.024], atol=0.001)
+    assert abs(abs(direction @ turn[:, 0]) - 1) < 1e-3
+    assert np.allclose(centre, [0.1, 0.2], atol=0.001)
+
+
+def test_canonical_rotation_picks_one_of_the_four_equivalents() -> None:
+    position = np.array([0.55, -0.30, 0.0])
+    for rotation in (
+        Rotation.from_euler("z", 2.5).as_matrix(),
+        Rotation.from_euler("yz", [np.pi / 2, 1.0]).as_matrix(),
+        Rotation.from_euler("xz", [np.pi / 2, -2.0]).as_matrix(),
+        Rotation.from_euler("xyz", [0.5, 0.3, 0.2]).as_matrix(),
+    ):
+        chosen = {
+            tuple(np.round(canonical_rotation(rotation @ s, position), 9).ravel())
+            for s in SYMMETRIES
+        }
+        assert len(chosen) == 1
+        canonical = canonical_rotation(rotation, position)
+        up_axis = int(np.argmax(np.abs(canonical[2])))
+        reference = 2 if up_axis == 0 else 0
+        assert canonical[2, up_axis] > 0
+        assert canonical[:, reference] @ [position[0], position[1], 0] >= 0
+        assert np.isclose(np.linalg.det(canonical), 1.0)
+
+
+def test_posture_from_the_most_vertical_axis() -> None:
+    assert posture(np.eye(3)) == POSTURE_FLAT
+    assert posture(Rotation.from_euler("y", 90, degrees=True).as_matrix()) == POSTURE_UPRIGHT
+    assert posture(Rotation.from_euler("x", 40, degrees=True).as_matrix()) == POSTURE_TILTED
+
+
+def test_orientation_error_ignores_the_box_symmetries() -> None:
+    rotation = Rotation.from_euler("xyz", [0.3, 0.2, 1.0]).as_matrix()
+    for symmetry in SYMMETRIES:
+        assert orientation_error(rotation @ symmetry, rotation) < 1e-6
+    turned = rotation @ Rotation.from_euler("z", 5, degrees=True).as_matrix()
+    assert np.isclose(np.degrees(orientation_error(turned, rotation)), 5.0)
+
+
+def test_fusion_merges_the_same_domino_seen_by_two_cameras_only() -> None:
+    a_points, a_normals = visible_surface(flat(0.50, -0.30, 0.0), CAMERA)
+    b_points, b_normals = visible_surface(flat(0.60, -0.30, 0.0), CAMERA)
+    shifted = np.array([0.0003, 0.0, 0.0])  # the second camera samples other surface points
+    masks = [
+        MaskCloud("camera_0", np.arange(len(a_points)), a_points, a_normals),
+        MaskCloud("camera_0", np.arange(len(b_points)), b_points, b_normals),
+        MaskCloud("camera_1", np.arange(len(a_points)), a_points + shifted, a_normals),
+        MaskCloud("camera_1", np.arange(len(b_points)), b_points + shifted, b_normals),
+    ]
+    fused = fuse(masks, FusionConfig())
+    assert sorted(len(cloud.parts) for cloud in fused) == [2, 2]
+    assert all(cloud.cameras == ("camera_0", "camera_1") for cloud in fused)
+
+
+def test_fusion_does_not_glue_two_masks_through_a_merged_one() -> None:
+    a_points, a_normals = visible_surface(flat(0.55, -0.312, 0.0), CAMERA)
+    b_points, b_normals = visible_surface(flat(0.55, -0.288, 0.0), CAMERA)
+    both = np.vstack([a_points, b_points])
+    masks = [
+        MaskCloud("camera_0", np.arange(len(both)), both, np.vstack([a_normals, b_normals])),
+        MaskCloud("camera_1", np.arange(len(a_points)), a_points, a_normals),
+        MaskCloud("camera_1", np.arange(len(b_points)), b_points, b_normals),
+    ]
+    assert len(fuse(masks, FusionConfig())) == 2
+
+
+def test_radius_outlier_removal_drops_isolated_points() -> None:
+    points, _ = visible_surface(flat(0.55, -0.30, 0.0), CAMERA)
+    lonely = np.array([[0.7, -0.3, 0.05]])
+    kept = remove_outliers(np.vstack([points, lonely]), FilterConfig())
+    assert kept.size == len(points) and len(points) not in kept
+
+
+def test_filter_rejects_boxes_that_cannot_be_one_well_seen_domino() -> None:
+    points, normals = visible_surface(flat(0.55, -0.30, 0.0), CAMERA)
+    config = FilterConfig()
+    good = fit_domino_box(points, normals, BoxFitConfig())
+    assert rejection_reason(good, len(points), config) is None
+    assert "points" in rejection_reason(good, 10, config)
+    half = points[:, 0] < 0.55
+    partial = fit_domino_box(points[half], normals[half], BoxFitConfig())
+    assert "of its length" in rejection_reason(partial, int(half.sum()), config)
+
+
+def _detection(pose: np.ndarray) -> Detection:
+    return Detection(pose, DOMINO_SIZE.copy(), POSTURE_FLAT, 0.0, 500, ("camera_0",))
+
+
+def test_a_neighbour_beside_the_long_face_blocks_the_fingers() -> None:
+    alone = flat(*PILE_CENTRE, yaw=0.3)
+    crowded = flat(PILE_CENTRE[0] + 0.1, PILE_CENTRE[1], yaw=0.3)
+    rotation = crowded[:3, :3]
+    neighbours = [crowded.copy(), crowded.copy()]
+    for neighbour, side in zip(neighbours, (1.0, -1.0), strict=True):
+        neighbour[:3, 3] += rotation @ np.array([0.0, side * 0.027, 0.0])  # 3 mm gaps
+    scene = np.vstack([visible_surface(p, CAMERA)[0] for p in (alone, crowded, *neighbours)])
+    config = GraspScoringConfig()
+    ranked = score_detections([_detection(crowded), _detection(alone)], scene, config)
+    assert np.allclose(ranked[0].X_WD, alone)
+    assert ranked[0].clearance > 0.01 and predicted_success(ranked[0], config)
+    assert ranked[1].clearance < config.min_clearance
+    assert not predicted_success(ranked[1], config)
+    assert ranked[1].score < 0.5 * ranked[0].score
+
+
+def test_flatness_alone_would_pick_the_blocked_domino() -> None:
+    """The paper's rule ranks by flatness only; a blocked flat domino must lose to a
+    slightly tilted free one under our score."""
+    free = domino_pose((0.50, -0.30, 0.012), Rotation.from_euler("xz", [0.15, 0.3]).as_matrix())
+    blocked = flat(0.60, -0.30, 0.3)
+    wall = blocked.copy()
+    wall[:3, 3] += blocked[:3, :3] @ np.array([0.0, 0.026, 0.0])
+    scene = np.vstack([visible_surface(p, CAMERA)[0] for p in (free, blocked, wall)])
+    ranked = score_detections([_detection(blocked), _detection(free)], scene, GraspScoringConfig())
+    assert abs(blocked[2, 2]) > abs(free[2, 2])
+    assert np.allclose(ranked[0].X_WD, free)
+
+
+def test_weighted_geometric_mean_is_zero_when_any_term_is() -> None:
+    weights = {"a": 1.0, "b": 2.0}
+    assert weighted_geometric_mean({"a": 1.0, "b": 0.0}, weights) == 0.0
+    assert np.isclose(weighted_geometric_mean({"a": 0.25, "b": 1.0}, weights), 0.25 ** (1 / 3))
+
+
+def test_camera_view_check_names_the_problem() -> None:
+    rgb = np.zeros((4, 4, 3), np.uint8)
+    depth = np.ones((4, 4), np.float32)
+    bad_pose = np.eye(4)
+    bad_pose[0, 0] = 2.0
+    assert "orthonormal" in CameraView("c", rgb, depth, np.eye(3), bad_pose).check()
+    assert "differ" in CameraView("c", rgb, depth[:2], np.eye(3), np.eye(4)).check()
+    assert CameraView("c", rgb, depth, np.eye(3), np.eye(4)).check() is None
+
+
+def test_height_only_ranks_free_dominoes() -> None:
+    low = flat(0.50, -0.30, 0.3)
+    high = flat(0.60, -0.30, 0.3)
+    high[2, 3] += 0.02  # resting on something 2 cm up
+    scene = np.vstack([visible_surface(p, CAMERA)[0] for p in (low, high)])
+    ranked = score_detections([_detection(low), _detection(high)], scene, GraspScoringConfig())
+    assert np.allclose(ranked[0].X_WD, high)
+    assert ranked[1].score > 0.5, "the lowest free domino is still a good pick"
