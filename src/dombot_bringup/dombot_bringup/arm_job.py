@@ -38,6 +38,7 @@ from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
 NodeCommand = Callable[[str, str, dict], list[str]]
+BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
 NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
 NEEDED_SERVICES = (
     "/sim/reset",
@@ -254,8 +255,10 @@ class ArmJob:
         """
         self.client.gripper(segment.gripper_position + 0.04, 0.0)
         if segment.trajectory.points:
-            backwards = reversed_trajectory(segment.trajectory)
-            self.client.execute(backwards, timeout=60.0 * seconds(backwards.points[-1]) + 120)
+            backwards = reversed_trajectory(segment.trajectory, BACK_OUT_LEAD)
+            result = self.client.execute(backwards, 60.0 * seconds(backwards.points[-1]) + 120)
+            if result.error_code != 0:
+                log(f"backing out failed: {result.error_string}")
 
     # ------------------------------------------------------------------ checks
     def _wait_for_fresh_frames(self, settle: float = 0.0) -> None:
@@ -393,12 +396,14 @@ def duration(value: float) -> Duration:
     return Duration(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
-def reversed_trajectory(trajectory: JointTrajectory) -> JointTrajectory:
-    """The same path run backwards in time (positions mirrored, velocities negated)."""
+def reversed_trajectory(trajectory: JointTrajectory, lead: float) -> JointTrajectory:
+    """The same path run backwards in time (velocities negated), starting ``lead`` seconds
+    late: the arm may have stopped short of the path's end (blocked by what it touched),
+    and the controller eases it from where it is onto the path over that time."""
     end = seconds(trajectory.points[-1])
     points = []
     for point in reversed(trajectory.points):
-        elapsed = end - seconds(point)
+        elapsed = lead + end - seconds(point)
         points.append(
             JointTrajectoryPoint(
                 positions=list(point.positions),
