@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +40,8 @@ from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 NodeCommand = Callable[[str, str, dict], list[str]]
 BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
 NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
+DETECT_TRIES = 4
+GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE,)  # about the domino, not the slot
 NEEDED_SERVICES = (
     "/sim/reset",
     "/perception/detect",
@@ -53,7 +55,8 @@ NEEDED_SERVICES = (
 class ArmJobSettings:
     pile: int = 30  # dominoes poured
     seed: int = 0
-    max_attempts: int = 4  # per domino
+    max_attempts: int = 4  # per domino: perceive, plan, move
+    max_candidates: int = 6  # per attempt: dominoes offered to the planner until one plans
     plan_budget: float = 5.0  # s of planning per request
     settle_after_place: float = 0.5  # s simulated before checking a placement
     topple_wait: float = 3.0  # s simulated after the strike
@@ -78,6 +81,7 @@ class Candidate:
 class BuildState:
     standing: dict[int, Pose] = field(default_factory=dict)  # layout index → target pose
     fallen: dict[int, Pose] = field(default_factory=dict)  # layout index → measured pose
+    unreachable: list[np.ndarray] = field(default_factory=list)  # (x, y) no grasp reaches
 
 
 def placement_pose(placement: DominoPlacement) -> Pose:
@@ -132,7 +136,7 @@ class ArmJob:
         while queue:
             index = queue.pop(0)
             if not self._place_with_retries(index):
-                self.report.message = f"domino {index} could not be placed; stopping the build"
+                self.report.message = f"domino {index + 1} could not be placed; stopping the build"
                 log(self.report.message)
                 break
             refallen = sorted(set(self.state.fallen) - set(queue))
@@ -174,11 +178,39 @@ class ArmJob:
 
     # ------------------------------------------------------------------ one attempt
     def _attempt(self, index: int, failed: list[np.ndarray]) -> tuple[bool, str, np.ndarray | None]:
-        candidate = self._choose(failed)
-        if candidate is None:
-            return False, "no graspable domino seen", None
-        spot = np.array([candidate.pose.position.x, candidate.pose.position.y])
-        plan = self.client.plan_place(
+        """Offer the planner candidates, best first, until one plans; execute and check it.
+
+        A refusal costs a planning call, not an attempt: the arm has not moved, so the
+        next candidate is tried at once. A grasp no IK reaches is remembered for the
+        whole run (until a pick nearby changes the pile).
+        """
+        refusals: list[str] = []
+        for candidate in self._candidates(failed):
+            if len(refusals) == self.settings.max_candidates:
+                break
+            spot = np.array([candidate.pose.position.x, candidate.pose.position.y])
+            plan = self._plan(index, candidate)
+            if not plan.success:
+                refusals.append(f"{candidate.source} at {spot.round(3).tolist()}: {plan.message}")
+                log(f"domino {index + 1}/{len(self.layout)}: planner refused {refusals[-1]}")
+                if plan.error_code in GRASP_REFUSALS:
+                    self.state.unreachable.append(spot)
+                else:
+                    failed.append(spot)
+                continue
+            if candidate.source.startswith("run "):
+                self.state.fallen.pop(int(candidate.source.split()[1]), None)
+            self._forget_unreachable_near(spot)  # the pick disturbs its neighbours
+            executed, why = self._execute(plan.segments)
+            if not executed:
+                return False, why, spot
+            return self._check(index), self.report.dominoes[index].check, None
+        if refusals:
+            return False, f"planning: {len(refusals)} candidates refused", None
+        return False, "no graspable domino seen", None
+
+    def _plan(self, index: int, candidate: Candidate) -> PlanPlace.Response:
+        return self.client.plan_place(
             PlanPlace.Request(
                 domino_pose=candidate.pose,
                 grasp_pose=Pose(),  # the planner picks among all grasps, regrasp included
@@ -190,30 +222,35 @@ class ArmJob:
             ),
             timeout=self.settings.plan_budget + 30.0,
         )
-        if not plan.success:
-            return False, f"planning ({candidate.source}): {plan.message}", spot
-        if candidate.source.startswith("run "):
-            self.state.fallen.pop(int(candidate.source.split()[1]), None)
-        executed, why = self._execute(plan.segments)
-        if not executed:
-            return False, why, spot
-        return self._check(index), self.report.dominoes[index].check, None
 
-    def _choose(self, failed: list[np.ndarray]) -> Candidate | None:
-        """A fallen run domino first (it blocks the run), else the best pile detection."""
+    def _candidates(self, failed: list[np.ndarray]) -> Iterator[Candidate]:
+        """Fallen run dominoes first (they block the run), then the pile's detections in
+        perception's order; perception is only asked when the run has none to offer."""
+        avoid = failed + self.state.unreachable
         for index, pose in sorted(self.state.fallen.items()):
             spot = np.array([pose.position.x, pose.position.y])
-            if not any(np.linalg.norm(spot - f) < 0.01 for f in failed):
-                return Candidate(pose, f"run {index}")
-        self._wait_for_fresh_frames()
-        answer = self.client.detect()
-        if not answer.success:
-            raise CallFailedError(f"perception: {answer.message}")
-        detections = answer.detections.detections
+            if not any(np.linalg.norm(spot - f) < 0.01 for f in avoid):
+                yield Candidate(pose, f"run {index}")
+        detections = self._detect()
         for detection in detections:
-            if graspable(detection, failed):
-                return Candidate(detection.pose, "pile", neighbours_of(detection, detections))
-        return None
+            if graspable(detection, avoid):
+                yield Candidate(detection.pose, "pile", neighbours_of(detection, detections))
+
+    def _detect(self) -> list[DominoDetection]:
+        """Perception's detections in fresh frames; a failure (e.g. the cameras' first
+        frames not yet through after the reset) is asked again a few camera periods on."""
+        for _ in range(DETECT_TRIES):
+            self._wait_for_fresh_frames()
+            answer = self.client.detect()
+            if answer.success:
+                return list(answer.detections.detections)
+            log(f"perception: {answer.message}; asking again")
+        raise CallFailedError(f"perception: {answer.message}")
+
+    def _forget_unreachable_near(self, spot: np.ndarray) -> None:
+        self.state.unreachable = [
+            u for u in self.state.unreachable if np.linalg.norm(u - spot) >= NEIGHBOUR_RADIUS
+        ]
 
     def _execute(
         self, segments: Sequence[TrajectorySegment], holds_domino: bool = True
