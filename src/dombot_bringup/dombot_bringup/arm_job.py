@@ -75,6 +75,10 @@ class Candidate:
     pose: Pose
     source: str  # "pile" or "run <index>"
     neighbours: list[Pose] = field(default_factory=list)
+    scored: bool = True  # perception found room for the fingers
+
+    def spot(self) -> np.ndarray:
+        return np.array([self.pose.position.x, self.pose.position.y])
 
 
 @dataclass
@@ -178,26 +182,35 @@ class ArmJob:
 
     # ------------------------------------------------------------------ one attempt
     def _attempt(self, index: int, failed: list[np.ndarray]) -> tuple[bool, str, np.ndarray | None]:
-        """Offer the planner candidates, best first, until one plans; execute and check it.
+        """Offer the planner candidates until one plans; execute and check it.
 
-        A refusal costs a planning call, not an attempt: the arm has not moved, so the
-        next candidate is tried at once. A grasp no IK reaches is remembered for the
-        whole run (until a pick nearby changes the pile).
+        First the candidates perception scored as free for the fingers, with their pile
+        neighbours as obstacles; when every one is refused, the best candidates again
+        without the pile (the pads may push neighbours aside, as a builder's fingers do;
+        a miss is caught by the grasp check and backed out of). A refusal costs a
+        planning call, not an attempt: the arm has not moved. A grasp no IK reaches even
+        without the pile is remembered for the run, until a pick nearby changes the pile.
         """
-        refusals: list[str] = []
-        for candidate in self._candidates(failed):
-            if len(refusals) == self.settings.max_candidates:
-                break
-            spot = np.array([candidate.pose.position.x, candidate.pose.position.y])
-            plan = self._plan(index, candidate)
+        candidates = list(self._candidates(failed))
+        count = self.settings.max_candidates
+        offers = [(c, True) for c in candidates if c.scored][:count]
+        offers += [(c, False) for c in candidates[:count]]
+        refused = 0
+        for candidate, with_pile in offers:
+            spot = candidate.spot()
+            if any(np.linalg.norm(spot - f) < 0.01 for f in failed):
+                continue  # refused for this slot already
+            plan = self._plan(index, candidate, with_pile)
             if not plan.success:
-                refusals.append(f"{candidate.source} at {spot.round(3).tolist()}: {plan.message}")
-                log(f"domino {index + 1}/{len(self.layout)}: planner refused {refusals[-1]}")
-                if plan.error_code in GRASP_REFUSALS:
-                    self.state.unreachable.append(spot)
-                else:
+                refused += 1
+                self._log_refusal(index, candidate, with_pile, plan.message)
+                if plan.error_code not in GRASP_REFUSALS:
                     failed.append(spot)
+                elif not with_pile:
+                    self.state.unreachable.append(spot)
                 continue
+            if not with_pile:
+                log(f"planned {candidate.source} at {spot.round(3).tolist()} ignoring its pile")
             if candidate.source.startswith("run "):
                 self.state.fallen.pop(int(candidate.source.split()[1]), None)
             self._forget_unreachable_near(spot)  # the pick disturbs its neighbours
@@ -205,16 +218,22 @@ class ArmJob:
             if not executed:
                 return False, why, spot
             return self._check(index), self.report.dominoes[index].check, None
-        if refusals:
-            return False, f"planning: {len(refusals)} candidates refused", None
+        if refused:
+            return False, f"planning: {refused} offers refused", None
         return False, "no graspable domino seen", None
 
-    def _plan(self, index: int, candidate: Candidate) -> PlanPlace.Response:
+    def _log_refusal(self, index: int, candidate: Candidate, with_pile: bool, why: str) -> None:
+        """One short line per refusal: the planner's reason up to its details."""
+        where = f"{candidate.source} at {candidate.spot().round(3).tolist()}"
+        pile = "" if with_pile else " ignoring its pile"
+        log(f"domino {index + 1}/{len(self.layout)}: refused {where}{pile}: {why.split(' (')[0]}")
+
+    def _plan(self, index: int, candidate: Candidate, with_pile: bool) -> PlanPlace.Response:
         return self.client.plan_place(
             PlanPlace.Request(
                 domino_pose=candidate.pose,
                 grasp_pose=Pose(),  # the planner picks among all grasps, regrasp included
-                pile_dominoes=candidate.neighbours,
+                pile_dominoes=candidate.neighbours if with_pile else [],
                 grasp_width=0.0,
                 place_pose=self.targets[index],
                 standing_dominoes=list(self.state.standing.values()),
@@ -225,7 +244,7 @@ class ArmJob:
 
     def _candidates(self, failed: list[np.ndarray]) -> Iterator[Candidate]:
         """Fallen run dominoes first (they block the run), then the pile's detections in
-        perception's order; perception is only asked when the run has none to offer."""
+        perception's order (best grasp first)."""
         avoid = failed + self.state.unreachable
         for index, pose in sorted(self.state.fallen.items()):
             spot = np.array([pose.position.x, pose.position.y])
@@ -233,8 +252,13 @@ class ArmJob:
                 yield Candidate(pose, f"run {index}")
         detections = self._detect()
         for detection in detections:
-            if graspable(detection, avoid):
-                yield Candidate(detection.pose, "pile", neighbours_of(detection, detections))
+            if pickable(detection, avoid):
+                yield Candidate(
+                    detection.pose,
+                    "pile",
+                    neighbours_of(detection, detections),
+                    scored=detection.score > 0.0,
+                )
 
     def _detect(self) -> list[DominoDetection]:
         """Perception's detections in fresh frames; a failure (e.g. the cameras' first
@@ -408,14 +432,12 @@ class ArmJob:
 PICKABLE_POSTURES = (DominoDetection.POSTURE_FLAT, DominoDetection.POSTURE_TILTED)
 
 
-def graspable(detection: DominoDetection, failed: list[np.ndarray]) -> bool:
-    """Lying flat or leaning, scored above zero by perception (free beside the fingers,
-    not covered), and not where an attempt just failed. The planner has the last word."""
+def pickable(detection: DominoDetection, avoid: list[np.ndarray]) -> bool:
+    """Lying flat or leaning, and not where an attempt failed or no grasp reaches. The
+    planner has the last word."""
     spot = np.array([detection.pose.position.x, detection.pose.position.y])
-    return (
-        detection.posture in PICKABLE_POSTURES
-        and detection.score > 0.0
-        and not any(np.linalg.norm(spot - f) < 0.01 for f in failed)
+    return detection.posture in PICKABLE_POSTURES and not any(
+        np.linalg.norm(spot - f) < 0.01 for f in avoid
     )
 
 

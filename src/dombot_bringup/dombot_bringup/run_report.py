@@ -119,7 +119,7 @@ def plot_run(report: RunReport, path: Path) -> Path:
         x, y, heading = domino.target
         axes.add_patch(Polygon(_footprint(x, y, heading), fill=False, edgecolor="0.4", lw=1))
         axes.annotate(
-            str(domino.index),
+            str(domino.index + 1),  # counted from 1, as in the log
             (x, y),
             textcoords="offset points",
             xytext=(0, 9),
