@@ -143,8 +143,10 @@ class ArmJob:
                 self.report.message = f"domino {index + 1} could not be placed; stopping the build"
                 log(self.report.message)
                 break
-            refallen = sorted(set(self.state.fallen) - set(queue))
-            queue = refallen + queue  # pick fallen run dominoes up again first
+            # Slots built earlier that no longer stand (knocked over, or their fallen domino
+            # was picked up for another slot) are built again first.
+            empty = [i for i in range(len(self.layout)) if i not in self.state.standing]
+            queue = [i for i in empty if i not in queue] + queue
         self.report.built = len(self.state.standing) == len(self.layout)
         self._record_truth(before_strike=True)
         if self.report.built:
@@ -361,6 +363,7 @@ class ArmJob:
                 ):
                     self.state.fallen[i] = answer.measured[position]
                 if i != index:
+                    self.report.dominoes[i].placed = False  # until it is built again
                     log(
                         f"domino {i + 1} is no longer standing ({check_words(status, error, tilt)})"
                     )
