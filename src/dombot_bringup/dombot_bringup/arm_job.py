@@ -76,6 +76,7 @@ class Candidate:
     source: str  # "pile" or "run <index>"
     neighbours: list[Pose] = field(default_factory=list)
     scored: bool = True  # perception found room for the fingers
+    clearance: float = math.inf  # m beside the finger contact sides, as perception measured
 
     def spot(self) -> np.ndarray:
         return np.array([self.pose.position.x, self.pose.position.y])
@@ -187,8 +188,8 @@ class ArmJob:
         """Offer the planner candidates until one plans; execute and check it.
 
         First the candidates perception scored as free for the fingers, with their pile
-        neighbours as obstacles; when every one is refused, the best candidates again
-        without the pile (the pads may push neighbours aside, as a builder's fingers do;
+        neighbours as obstacles; when every one is refused, those with the most room
+        beside the fingers (perception's clearance) again without the pile (the pads may push neighbours aside, as a builder's fingers do;
         a miss is caught by the grasp check and backed out of). A refusal costs a
         planning call, not an attempt: the arm has not moved. A grasp no IK reaches even
         without the pile is remembered for the run, until a pick nearby changes the pile.
@@ -196,7 +197,8 @@ class ArmJob:
         candidates = list(self._candidates(failed))
         count = self.settings.max_candidates
         offers = [(c, True) for c in candidates if c.scored][:count]
-        offers += [(c, False) for c in candidates[:count]]
+        roomiest = sorted(candidates, key=lambda c: (not c.scored, -c.clearance))
+        offers += [(c, False) for c in roomiest[:count]]
         refused = 0
         for candidate, with_pile in offers:
             spot = candidate.spot()
@@ -260,6 +262,7 @@ class ArmJob:
                     "pile",
                     neighbours_of(detection, detections),
                     scored=detection.score > 0.0,
+                    clearance=detection.clearance,
                 )
 
     def _detect(self) -> list[DominoDetection]:
