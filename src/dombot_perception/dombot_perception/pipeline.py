@@ -20,13 +20,9 @@ from dombot_description.scenario import Scenario
 from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_box
 from dombot_perception.canonical import canonical_pose, posture
+from dombot_perception.depth_check import DepthCheckConfig, correct_box
 from dombot_perception.domino_model import DOMINO_SIZE, orientation_error
-from dombot_perception.filtering import (
-    FilterConfig,
-    rejection_reason,
-    remove_outliers,
-    see_through_fraction,
-)
+from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
 from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
@@ -44,6 +40,7 @@ class PipelineConfig:
     depth_range: tuple[float, float] = (0.1, 2.0)
     fusion: FusionConfig = field(default_factory=FusionConfig)
     box_fit: BoxFitConfig = field(default_factory=BoxFitConfig)
+    depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
     filtering: FilterConfig = field(default_factory=FilterConfig)
     # two fragments fitted as one must fit tightly and show a side face: a loose fit, or
     # two coplanar patches of buried dominoes, is not one domino
@@ -202,9 +199,12 @@ class PerceptionPipeline:
         filtering = filtering or self.config.filtering
         reason = rejection_reason(fit, points.shape[0], filtering)
         if reason is None:
-            seen_through = see_through_fraction(fit.X_WD, views, filtering.free_space_margin)
-            if seen_through > filtering.max_see_through:
-                reason = f"cameras see behind {seen_through:.0%} of its surface"
+            fit, evidence = correct_box(
+                fit, points, views, self.config.depth_check, self.config.box_fit
+            )
+            reason = rejection_reason(fit, points.shape[0], filtering)
+            if reason is None and evidence.see_through_fraction > filtering.max_see_through:
+                reason = f"cameras see past {evidence.see_through_fraction:.0%} of it"
         if reason:
             rejected.append(f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}")
             return None, fit

@@ -12,14 +12,14 @@ MISSING when the cameras see almost nothing above the table there, FALLEN otherw
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from dombot_perception.backprojection import WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, refine_pose
+from dombot_perception.depth_check import DepthCheckConfig, depth_evidence
 from dombot_perception.domino_model import DOMINO_SIZE, HALF_SIZE, box_signed_distance
-from dombot_perception.filtering import see_through_fraction
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline
 
@@ -34,8 +34,8 @@ class PlacementConfig:
     max_tilt: float = np.radians(15.0)  # body x from vertical: beyond this it has fallen
     region_margin: float = 0.06  # m around the run for the work region
     min_height_seen: float = 0.5  # of the domino's length, along its (vertical) length axis
-    free_space_margin: float = 0.005  # m, as in FilterConfig
-    max_see_through: float = 0.2
+    depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
+    max_see_through: float = 0.2  # of the box's pixels the camera may see past
 
 
 @dataclass
@@ -143,7 +143,8 @@ def _local_fit(
         _tilt(pose) > config.max_tilt
         or _horizontal(pose, expected) > config.search_radius
         or np.ptp(lengthwise) < config.min_height_seen * DOMINO_SIZE[0]
-        or see_through_fraction(pose, views, config.free_space_margin) > config.max_see_through
+        or depth_evidence(pose, views, config.depth_check).see_through_fraction
+        > config.max_see_through
     ):
         return None
     return pose
