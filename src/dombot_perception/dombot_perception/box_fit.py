@@ -174,15 +174,11 @@ def refine_pose(
     moves the box off the ray without lifting the face the camera saw.
     """
     rotation, centre = initial[:3, :3].copy(), initial[:3, 3].copy()
-    if outside is None or outside_axis is None:
-        outside, outside_axis = np.zeros((0, 3)), np.zeros(0, dtype=int)
     for _ in range(config.iterations):
         body = (points - centre) @ rotation
         axis = np.argmax(np.abs(body) - HALF_SIZE, axis=1)
-        outside_body = (outside - centre) @ rotation
-        inside = np.all(np.abs(outside_body) < HALF_SIZE, axis=1)
-        body = np.vstack([body, outside_body[inside]])
-        axis = np.concatenate([axis, _nearest_side(outside_body[inside], outside_axis[inside])])
+        if outside is not None and outside_axis is not None and outside.shape[0]:
+            body, axis = _with_outside(body, axis, (outside - centre) @ rotation, outside_axis)
         rows = np.arange(body.shape[0])
         normal = np.zeros_like(body)
         normal[rows, axis] = np.sign(body[rows, axis])
@@ -202,11 +198,15 @@ def refine_pose(
     return pose
 
 
-def _nearest_side(body: np.ndarray, entry_axis: np.ndarray) -> np.ndarray:
-    """Per point inside the box, the axis of its nearest face, the entry face's excepted."""
-    depth = HALF_SIZE - np.abs(body)
-    depth[np.arange(body.shape[0]), entry_axis] = np.inf
-    return np.argmin(depth, axis=1)
+def _with_outside(
+    body: np.ndarray, axis: np.ndarray, outside_body: np.ndarray, entry_axis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The surface points and their faces, plus each outside point that is inside the box
+    paired with its nearest face other than the one its ray entered through."""
+    inside = np.all(np.abs(outside_body) < HALF_SIZE, axis=1)
+    depth = HALF_SIZE - np.abs(outside_body[inside])
+    depth[np.arange(depth.shape[0]), entry_axis[inside]] = np.inf
+    return np.vstack([body, outside_body[inside]]), np.concatenate([axis, depth.argmin(axis=1)])
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
