@@ -243,6 +243,7 @@ def summarise(args, settings, cases, times, failures, rows, load_before) -> dict
         "min_clearance_mm": {
             "coarse_moves": clearance_summary(checks, "coarse"),
             "final_approach_and_retreat": clearance_summary(checks, "fine"),
+            "escape_from_start": clearance_summary(checks, "escape"),
         },
         "grasp_error_max": pose_error_summary([c.grasp_error for c in checks]),
         "place_error_max": {

@@ -112,12 +112,19 @@ def execute(world: CellWorld, run: Run, planner: StrikePlanner, request: StrikeR
     world.advance(TOPPLE_WAIT)
     tilts = [math.degrees(tilt(d.X_WD)) for d in world.domino_truth()[: run.count]]
     return {
+        "pusher_lean_deg": pusher_lean(plan),
         "moved_before_push_mm": moved * 1000,
         "tilted_before_push_deg": math.degrees(tilted),
         "tilts_deg": [round(t, 1) for t in tilts],
         "all_fallen": all(t > math.degrees(FALLEN) for t in tilts),
         "wall_s": time.perf_counter() - began,
     }
+
+
+def pusher_lean(plan: StrikePlan) -> float:
+    """Degrees between the fingers and straight down at the strike pose."""
+    approach = plan.strike_pose.rotation().matrix()[:, 2]
+    return round(math.degrees(math.acos(-approach[2])), 1)
 
 
 def check_plan(scenario, settings, run: Run, request: StrikeRequest, plan: StrikePlan):
@@ -206,7 +213,7 @@ def main() -> None:
         write_strike_figure(args.figure, settings)
     planner = StrikePlanner(scenario, settings)
     load_before = os.getloadavg()
-    times, failures, checks, durations, executed = [], Counter(), [], [], []
+    times, failures, checks, durations, leans, executed = [], Counter(), [], [], [], []
     previous_end = None
     world = None
     for run in make_runs(scenario, args.count, args.seed):
@@ -237,6 +244,7 @@ def main() -> None:
         previous_end = plan.final_positions()
         checks.append(check_plan(scenario, settings, run, request, plan))
         durations.append(sum(s.duration for s in plan.segments))
+        leans.append(pusher_lean(plan))
         row = {"run": dataclasses.asdict(run), "planning_s": round(times[-1], 3)}
         if run.index < args.execute:
             if world is None:
@@ -256,6 +264,7 @@ def main() -> None:
             "max": max(times, default=None),
         },
         "min_clearance_mm": phase_clearances(checks),
+        "with_leaning_pusher": sum(lean > 1.0 for lean in leans),
         "fingertip_height_mm": summary([c.fingertip_height for c in checks], 1000),
         "push_past_contact_mm": summary([c.push_past_contact for c in checks], 1000),
         "contact_speed_m_s": summary([c.contact_speed for c in checks]),
@@ -279,6 +288,7 @@ def main() -> None:
                 (r["tilted_before_push_deg"] for r in executed), default=None
             ),
             "wall_s_per_run": percentile([r["wall_s"] for r in executed], 50),
+            "with_leaning_pusher": sum(r["pusher_lean_deg"] > 1.0 for r in executed),
             "rows": executed,
         },
         "settings": dataclasses.asdict(settings),

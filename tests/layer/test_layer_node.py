@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+import time
 
+import numpy as np
 import pytest
 import rclpy
 from geometry_msgs.msg import PoseStamped
-from nav_msgs.msg import Path
+from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.node import Node
@@ -15,6 +17,7 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import LayerKinematics, wheel_speed_ratio
+from dombot_layer.paths import rig_length
 from dombot_msgs.msg import WheelVelocities
 from support.ros_processes import installed_node, spin_until
 
@@ -150,15 +153,20 @@ def test_valid_parameter_update_changes_the_commands(probe: Probe) -> None:
         set_parameter(probe, "forward_speed", 0.1)
 
 
-def test_path_plays_a_schedule_then_stops(probe: Probe) -> None:
+def straight_path(length: float) -> Path:
     path = Path()
     path.header.frame_id = "layer_start"
-    for x, y in ((0.0, 0.0), (0.1, 0.0), (0.2, 0.0)):
+    for x in (0.0, length / 2, length):
         pose = PoseStamped()
-        pose.pose.position.x, pose.pose.position.y = x, y
+        pose.pose.position.x = x
         path.poses.append(pose)
+    return path
+
+
+def test_path_plays_a_schedule_then_stops(probe: Probe) -> None:
+    """No odometry: the schedule runs on the clock."""
     probe.status.clear()
-    probe.path_pub.publish(path)
+    probe.path_pub.publish(straight_path(0.2))
     assert spin_until(
         probe.node, lambda: any("path piece" in s.message for s in probe.status), timeout=15
     )
@@ -167,3 +175,33 @@ def test_path_plays_a_schedule_then_stops(probe: Probe) -> None:
         probe.node, lambda: any(s.message == "path finished" for s in probe.status), timeout=15
     )
     assert probe.status[-1].left == 0.0
+
+
+def test_with_odometry_the_schedule_follows_the_distance_travelled(probe: Probe) -> None:
+    odometry_pub = probe.node.create_publisher(Odometry, "/layer/odom", 10)
+
+    def report(x: float) -> None:
+        message = Odometry()
+        message.pose.pose.position.x = x
+        odometry_pub.publish(message)
+
+    # The node must hear the vehicle before the path, as in the bring-up.
+    assert spin_until(probe.node, lambda: odometry_pub.get_subscription_count() > 0, timeout=15)
+    report(0.0)
+    probe.status.clear()
+    probe.path_pub.publish(straight_path(0.2))
+    assert spin_until(
+        probe.node, lambda: any("path piece" in s.message for s in probe.status), timeout=15
+    )
+    # A stalled vehicle: 3 s is longer than the 2 s schedule, but nothing has moved.
+    deadline = time.monotonic() + 3.0
+    spin_until(probe.node, lambda: time.monotonic() > deadline, timeout=4)
+    assert not any(s.message == "path finished" for s in probe.status)
+    assert probe.status[-1].left > 0.0
+    # The path plus the rig-length lead-out the deposit point needs to finish it.
+    for x in np.linspace(0.05, 0.2 + rig_length(VehicleGeometry()) + 0.05, 8):
+        report(float(x))
+    assert spin_until(
+        probe.node, lambda: any(s.message == "path finished" for s in probe.status), timeout=15
+    )
+    probe.node.destroy_publisher(odometry_pub)

@@ -10,7 +10,7 @@ import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import flat_pose, pick_grasps, upright_pose
+from dombot_description.grasp import FINGER_SWAP, flat_pose, pick_grasps, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN
@@ -46,16 +46,20 @@ def request(**changes) -> PickPlaceRequest:
     return dataclasses.replace(base, **changes)
 
 
-def check(plan, req: PickPlaceRequest):
-    checker = TrajectoryChecker(
+def checker_for(req: PickPlaceRequest) -> TrajectoryChecker:
+    return TrajectoryChecker(
         SCENARIO,
         req.domino_pose,
         req.place_pose,
         req.standing,
         SETTINGS.acceleration_limit,
         DOMINO_SIZE[1],
+        req.pile,
     )
-    return checker.check(
+
+
+def check(plan, req: PickPlaceRequest):
+    return checker_for(req).check(
         plan.sampled(SETTINGS.sample_period),
         req.start,
         (SETTINGS.pick_approach_distance, SETTINGS.place_approach_distance),
@@ -133,11 +137,85 @@ def test_same_request_gives_the_same_plan(planner, planned) -> None:
 
 
 def test_requested_grasp_pose_is_used(planner) -> None:
-    domino = flat_pose(0.62, -0.25, -0.8)
-    grasp = pick_grasps(domino)[0].pose
+    domino = flat_pose(0.62, -0.25, 1.5)
+    grasp = pick_grasps(domino)[2].pose  # not the one the planner would rank first
     req = request(domino_pose=domino, grasp_pose=grasp, standing=())
-    result = check(planner.plan(req), req)
-    assert result.grasp_error[0] <= 1e-6  # the very pose, not an equivalent one
+    plan = planner.plan(req)
+    result = check(plan, req)
+    assert result.grasp_error[0] <= 1e-6
+    twin = grasp @ FINGER_SWAP  # the same gripper placement, fingers swapped
+    assert plan.grasp_pose.IsNearlyEqualTo(grasp, 1e-6) or plan.grasp_pose.IsNearlyEqualTo(
+        twin, 1e-6
+    )
+
+
+def test_requested_grasp_is_preferred_not_required(planner) -> None:
+    """A grasp from below cannot be used: another one is."""
+    domino = flat_pose(0.6, -0.3, 0.0)
+    from_below = pick_grasps(domino)[-1].pose
+    assert from_below.rotation().matrix()[2, 2] > 0
+    req = request(domino_pose=domino, grasp_pose=from_below)
+    plan = planner.plan(req)
+    assert plan.grasp_pose.rotation().matrix()[2, 2] < 0
+    assert check(plan, req).grasp_error[0] <= 1e-3
+
+
+def test_pads_keep_clear_of_the_pile_that_the_domino_touches(planner) -> None:
+    """A pile domino touching the picked one's side where the first-ranked grasp would put
+    a pad: another grasp is chosen; the pads, gripper and arm keep pile_clearance."""
+    domino = flat_pose(0.62, -0.25, 1.5)
+    first = pick_grasps(domino)[0].pose
+    pad_end = np.sign((domino.inverse() @ first).translation()[0])  # the pads' end of it
+    beside = domino @ RigidTransform([pad_end * 0.030, DOMINO_SIZE[1] + 0.0005, 0.0])
+    alone = planner.plan(request(domino_pose=domino))
+    assert alone.grasp_pose.IsNearlyEqualTo(first, 1e-9)
+    req = request(domino_pose=domino, pile=(beside,))
+    plan = planner.plan(req)
+    assert not plan.grasp_pose.IsNearlyEqualTo(first, 1e-6)
+    result = check(plan, req)
+    for moving in ("arm", "pads"):
+        assert result.min_clearance("fine", moving, "pile") >= SETTINGS.pile_clearance
+        assert result.min_clearance("coarse", moving, "pile") >= SETTINGS.coarse_clearance
+    assert result.min_clearance("coarse", "held", "pile") >= SETTINGS.coarse_clearance
+    assert result.grasp_error[0] <= 1e-3
+
+
+def test_domino_boxed_in_by_the_pile_is_unreachable(planner) -> None:
+    """Pile dominoes along both sides leave no room for a pad, tilted or from the top."""
+    domino = flat_pose(0.60, -0.28, 0.4)
+    sides = tuple(
+        domino @ RigidTransform([0.0, side * (DOMINO_SIZE[1] + 0.004), 0.0]) for side in (-1, 1)
+    )
+    error = failure(planner, request(domino_pose=domino, pile=sides))
+    assert error.code == ErrorCode.GRASP_UNREACHABLE
+    assert "pads–pile" in error.message
+
+
+def test_start_where_a_grasp_missed_is_left_straight_up_first(planner, planned) -> None:
+    """The arm stopped at the grasp, pads just above the table: the next plan (another
+    domino, the missed one now in the pile) begins with a straight line up; nothing comes
+    closer to the table or the pile on it, and the coarse moves keep their clearance."""
+    req, plan, _ = planned
+    down = plan.segments[1].pieces[-1]
+    at_grasp = down.sample(np.array([down.duration]))[0][0]
+    nxt = request(domino_pose=flat_pose(0.50, -0.36, 1.2), start=at_grasp, pile=(req.domino_pose,))
+    again = planner.plan(nxt)
+    escape = again.segments[1].pieces[0]
+    assert escape.label == "escape"
+    checker = checker_for(nxt)
+    ends = [checker.tcp_pose(q).translation() for q in escape.sample([0.0, escape.duration])[0]]
+    rise = ends[1] - ends[0]
+    assert 0.0 < rise[2] <= 0.08 and np.linalg.norm(rise[:2]) <= 1e-4  # straight up
+    result = checker.check(
+        again.sampled(SETTINGS.sample_period),
+        nxt.start,
+        (SETTINGS.pick_approach_distance, SETTINGS.place_approach_distance),
+    )
+    assert result.min_clearance("escape", "pads", "table") > 0.0
+    assert result.min_clearance("escape", "pads", "pile") > 0.0
+    for moving in ("arm", "pads"):
+        for obstacle in ("table", "standing", "pile"):
+            assert result.min_clearance("coarse", moving, obstacle) >= SETTINGS.coarse_clearance
 
 
 def test_radial_domino_near_the_base_is_turned_first(planner) -> None:
@@ -161,14 +239,6 @@ def test_unreachable_placement_says_so(planner) -> None:
     error = failure(planner, request(place_pose=place, standing=()))
     assert error.code == ErrorCode.PLACE_UNREACHABLE
     assert "no IK" in error.message or "line" in error.message
-
-
-def test_grasp_from_below_is_unreachable(planner) -> None:
-    domino = flat_pose(0.6, -0.3, 0.0)
-    from_below = pick_grasps(domino)[-1].pose
-    assert from_below.rotation().matrix()[2, 2] > 0
-    error = failure(planner, request(domino_pose=domino, grasp_pose=from_below))
-    assert error.code == ErrorCode.GRASP_UNREACHABLE
 
 
 @pytest.mark.parametrize(

@@ -172,6 +172,19 @@ def test_bad_requests_get_an_error_code_and_a_message(client: Client, changes, c
     assert not response.segments
 
 
+def test_pile_dominoes_reach_the_planner_and_are_checked(client: Client) -> None:
+    """A pile domino all along the side that the reachable grasps' pads would go down."""
+    side = 0.0245 * np.array([math.sin(0.4), -math.cos(0.4)])  # the picked one's −y side
+    beside = pose_message(flat_pose(0.60 + side[0], -0.28 + side[1], 0.4))
+    response = client.call(plan_request(pile_dominoes=[beside]))
+    assert response.error_code == PlanPlace.Response.GRASP_UNREACHABLE, response.message
+    assert "pads–pile" in response.message
+    nowhere = Pose(position=Point(x=0.6, y=math.inf, z=0.004))
+    response = client.call(plan_request(pile_dominoes=[beside, nowhere]))
+    assert response.error_code == PlanPlace.Response.INVALID_REQUEST
+    assert "pile_dominoes[1]" in response.message
+
+
 def test_good_strike_request_closes_the_gripper_then_pushes(client: Client) -> None:
     response = client.call(strike_request())
     assert response.success, response.message

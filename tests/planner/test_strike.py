@@ -98,6 +98,24 @@ def test_push_touches_only_the_struck_domino(planned) -> None:
         assert result.min_clearance("retreat", moving, "table") >= SETTINGS.coarse_clearance
 
 
+def test_start_where_a_push_ended_is_left_straight_up_first(planner, planned) -> None:
+    """Planned again from the end of its push (the pads where the struck domino stands,
+    as if it had not fallen): first straight up out of it, no closer to the rest of the run,
+    then the approach keeps its clearance."""
+    _, plan, _ = planned
+    push = plan.segments[2].pieces[-1]
+    again_req = request(start=push.sample([push.duration])[0][0], finger_opening=0.0)
+    again = planner.plan(again_req)
+    assert [s.label for s in again.segments] == ["approach", "push", "retreat"]
+    assert again.segments[0].pieces[0].label == "escape"
+    result = check(again, again_req)
+    assert result.min_clearance("escape", "pads", "standing") >= 0.0138 - 0.0005
+    assert result.min_clearance("escape", "arm", "standing") >= SETTINGS.coarse_clearance
+    for moving in ("arm", "pads"):
+        for obstacle in ("table", "standing", "target"):
+            assert result.min_clearance("approach", moving, obstacle) >= SETTINGS.coarse_clearance
+
+
 def test_push_is_where_and_as_far_and_fast_as_wanted(planned) -> None:
     _, _, result = planned
     assert result.fingertip_height == pytest.approx(0.75 * DOMINO_SIZE[0], abs=1e-3)

@@ -24,8 +24,10 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Point, Pose, Quaternion
 from scipy.spatial.transform import Rotation
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_bringup.cell_client import CallFailedError, CellClient
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement
@@ -36,6 +38,7 @@ from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
 NodeCommand = Callable[[str, str, dict], list[str]]
+BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
 NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
 NEEDED_SERVICES = (
     "/sim/reset",
@@ -215,26 +218,27 @@ class ArmJob:
     def _execute(
         self, segments: Sequence[TrajectorySegment], holds_domino: bool = True
     ) -> tuple[bool, str]:
-        """Run the segments and their gripper events; a close that should hold a domino
-        is checked by where the fingers stopped (the strike closes them on nothing)."""
+        """Run the segments and their gripper events.
+
+        A close that should hold a domino is checked by where the fingers stopped (the
+        strike closes them on nothing). When a grasp fails, the arm backs out the way it
+        came before anything else is tried.
+        """
         for segment in segments:
             points = segment.trajectory.points
             if points:
-                duration = (
-                    points[-1].time_from_start.sec + points[-1].time_from_start.nanosec * 1e-9
-                )
                 # Wall-clock timeouts are generous: the simulator may run well below real time.
-                result = self.client.execute(segment.trajectory, timeout=duration * 60 + 120)
+                result = self.client.execute(segment.trajectory, seconds(points[-1]) * 60 + 120)
                 if result.error_code != 0:
+                    if is_approach(segment):
+                        self._back_out(segment)
                     return False, f"{segment.label}: {result.error_string}"
             if segment.gripper_after == TrajectorySegment.GRIPPER_CLOSE:
                 closed = self.client.gripper(segment.gripper_position, segment.gripper_max_effort)
                 width = DOMINO_SIZE[1]
-                if (
-                    holds_domino
-                    and abs(closed.position - width) > self.settings.grasp_width_tolerance
-                ):
-                    self.client.gripper(0.1, 0.0)
+                missed = abs(closed.position - width) > self.settings.grasp_width_tolerance
+                if holds_domino and missed:
+                    self._back_out(segment)
                     return False, (
                         f"{segment.label}: grasp missed (fingers stopped at "
                         f"{closed.position * 1e3:.1f} mm, domino {width * 1e3:.0f} mm)"
@@ -242,6 +246,19 @@ class ArmJob:
             elif segment.gripper_after == TrajectorySegment.GRIPPER_OPEN:
                 self.client.gripper(segment.gripper_position, 0.0)
         return True, ""
+
+    def _back_out(self, segment: TrajectorySegment) -> None:
+        """After a failed grasp: open, and retrace the approach to where it started.
+
+        The way in was collision-free, so the way back is too, and it takes the arm out
+        of the cameras' view of the pile before perception looks again.
+        """
+        self.client.gripper(segment.gripper_position + 0.04, 0.0)
+        if segment.trajectory.points:
+            backwards = reversed_trajectory(segment.trajectory, BACK_OUT_LEAD)
+            result = self.client.execute(backwards, 60.0 * seconds(backwards.points[-1]) + 120)
+            if result.error_code != 0:
+                log(f"backing out failed: {result.error_string}")
 
     # ------------------------------------------------------------------ checks
     def _wait_for_fresh_frames(self, settle: float = 0.0) -> None:
@@ -351,14 +368,50 @@ class ArmJob:
             self.report.toppled_by_truth = down == len(self.layout)
 
 
+PICKABLE_POSTURES = (DominoDetection.POSTURE_FLAT, DominoDetection.POSTURE_TILTED)
+
+
 def graspable(detection: DominoDetection, failed: list[np.ndarray]) -> bool:
-    """Lying flat, scored, and not where an attempt just failed."""
+    """Lying flat or leaning, scored above zero by perception (free beside the fingers,
+    not covered), and not where an attempt just failed. The planner has the last word."""
     spot = np.array([detection.pose.position.x, detection.pose.position.y])
     return (
-        detection.posture == DominoDetection.POSTURE_FLAT
+        detection.posture in PICKABLE_POSTURES
         and detection.score > 0.0
         and not any(np.linalg.norm(spot - f) < 0.01 for f in failed)
     )
+
+
+def is_approach(segment: TrajectorySegment) -> bool:
+    """The segment that brings the open gripper down to a domino (regrasps included)."""
+    return segment.label.endswith("approach_grasp")
+
+
+def seconds(point) -> float:
+    return point.time_from_start.sec + point.time_from_start.nanosec * 1e-9
+
+
+def duration(value: float) -> Duration:
+    nanoseconds = round(value * 1e9)
+    return Duration(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+def reversed_trajectory(trajectory: JointTrajectory, lead: float) -> JointTrajectory:
+    """The same path run backwards in time (velocities negated), starting ``lead`` seconds
+    late: the arm may have stopped short of the path's end (blocked by what it touched),
+    and the controller eases it from where it is onto the path over that time."""
+    end = seconds(trajectory.points[-1])
+    points = []
+    for point in reversed(trajectory.points):
+        elapsed = lead + end - seconds(point)
+        points.append(
+            JointTrajectoryPoint(
+                positions=list(point.positions),
+                velocities=[-v for v in point.velocities],
+                time_from_start=duration(elapsed),
+            )
+        )
+    return JointTrajectory(joint_names=list(trajectory.joint_names), points=points)
 
 
 def neighbours_of(detection: DominoDetection, detections: Sequence[DominoDetection]) -> list[Pose]:
@@ -395,8 +448,9 @@ def run_arm_job(
     with ProcessGroup() as group:
         group.start("sim_node", node_command("dombot_sim", "sim_node", sim_parameters))
         on_sim_time = {"use_sim_time": True}  # frame ages and timers in simulated seconds
+        on_demand = on_sim_time | {"continuous": False}  # the job asks; no CPU spent otherwise
         group.start(
-            "perception_node", node_command("dombot_perception", "perception_node", on_sim_time)
+            "perception_node", node_command("dombot_perception", "perception_node", on_demand)
         )
         group.start("planner_node", node_command("dombot_planner", "planner_node", on_sim_time))
         rclpy.init()

@@ -60,7 +60,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     run.add_argument("--heading", type=float, default=90.0, help="line/s-curve heading [deg]")
     run.add_argument("--center", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"))
     run.add_argument("--radius", type=float, help="arc/circle radius [m] (arc 0.6; layer 0.5)")
-    run.add_argument("--start-angle", type=float, default=-2.0, help="arc start [deg]")
+    run.add_argument("--start-angle", type=float, default=5.0, help="arc start [deg] (5)")
     run.add_argument("--inner-radius", type=float, default=0.08, help="spiral [m]")
     run.add_argument("--pitch", type=float, default=0.06, help="spiral [m per turn]")
     run.add_argument("--length", type=float, default=0.45, help="s-curve length [m]")

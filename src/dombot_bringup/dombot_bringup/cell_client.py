@@ -53,6 +53,7 @@ class CellClient:
         self._joint_state: JointState | None = None
         self._truth: DominoStateArray | None = None
         self._sim_time = 0.0
+        self._received = 0  # joint states so far
         self.node.create_subscription(JointState, "/joint_states", self._on_joint_state, 10)
         self.node.create_subscription(
             DominoStateArray, "/sim/domino_ground_truth", self._on_truth, 2
@@ -70,6 +71,7 @@ class CellClient:
     def _on_joint_state(self, message: JointState) -> None:
         with self._lock:
             self._joint_state = message
+            self._received += 1
             self._sim_time = message.header.stamp.sec + message.header.stamp.nanosec * 1e-9
 
     def _on_truth(self, message: DominoStateArray) -> None:
@@ -95,8 +97,14 @@ class CellClient:
 
         return self._wait(fresh, timeout, "/sim/domino_ground_truth")
 
-    def wait_for_sim_time(self, seconds: float, timeout: float = 60.0) -> None:
-        """Block until simulated time has advanced by ``seconds``."""
+    def wait_for_sim_time(self, seconds: float, timeout: float = 120.0) -> None:
+        """Block until simulated time has advanced by ``seconds`` from now.
+
+        "Now" is the first joint state received after the call: the latest one may be
+        older than the last answer (a reset blocks the simulator's publishing).
+        """
+        received = self._received
+        self._wait(lambda: self._received > received or None, timeout, "/joint_states")
         target = self.sim_time + seconds
         self._wait(lambda: self.sim_time >= target or None, timeout, "simulated time")
 

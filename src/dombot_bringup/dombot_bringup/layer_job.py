@@ -83,6 +83,7 @@ class LayerClient(Node):
         )
         self.status: WheelVelocities | None = None
         self.deposits = np.empty((0, 2))
+        self.vehicle_seen = False
         self.create_subscription(WheelVelocities, "/layer/wheel_velocities", self._on_status, 10)
         self.create_subscription(PoseArray, "/layer/deposits", self._on_deposits, 10)
         self.path_pub = self.create_publisher(PathMessage, "/layer/path", 10)
@@ -91,6 +92,7 @@ class LayerClient(Node):
         self.status = message
 
     def _on_deposits(self, message: PoseArray) -> None:
+        self.vehicle_seen = True
         self.deposits = np.array([[p.position.x, p.position.y] for p in message.poses]).reshape(
             -1, 2
         )
@@ -125,6 +127,9 @@ def run_layer_job(
             client = LayerClient()
             spin_while(
                 group, client, lambda: client.status is None, 60, "layer_node's first command"
+            )
+            spin_while(
+                group, client, lambda: not client.vehicle_seen, 60, "vehicle_sim_node's first tick"
             )
             spin_while(
                 group,

@@ -4,8 +4,12 @@ A thin ROS adapter over ``kinematics`` and ``paths``: parameters hold the vehicl
 geometry and speed (validated; a rejected update keeps the old values), a target
 radius sets a steady command, a path plays a time-stamped schedule. Commands are
 streamed at ``command_rate`` on the ros2_control forward-command topic and as the
-richer ``dombot_msgs/WheelVelocities``. Anything unreachable or malformed stops
-the wheels and says why; the node keeps serving.
+richer ``dombot_msgs/WheelVelocities``. While ``layer/odom`` arrives, a path's
+schedule advances with the distance the drive axle really travelled (wheel
+odometry), so a vehicle that starts late or lags still steers each piece where
+it belongs and lays the whole path; without odometry it advances with the clock.
+Anything unreachable or malformed stops the wheels and says why; the node keeps
+serving.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from dataclasses import fields
 import numpy as np
 import rclpy
 import rclpy.executors
-from nav_msgs.msg import Path
+from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -69,11 +73,14 @@ class LayerNode(Node):
         self.status_pub = self.create_publisher(WheelVelocities, "layer/wheel_velocities", 10)
         self.create_subscription(Float64, "layer/target_radius", self._on_target_radius, 10)
         self.create_subscription(Path, "layer/path", self._on_path, 10)
+        self.create_subscription(Odometry, "layer/odom", self._on_odometry, 10)
         self.command = self._stop_command(
             WheelVelocities.STATUS_STOPPED, "waiting for a target radius or path"
         )
         self.schedule: WheelSchedule | None = None
         self.schedule_start = 0.0
+        self.last_position: np.ndarray | None = None
+        self.travelled: float | None = None  # m by the drive axle since the path started
         self.timer = self.create_timer(
             1.0 / self.get_parameter("command_rate").value, self._publish
         )
@@ -177,10 +184,12 @@ class LayerNode(Node):
             )
             return
         self.schedule_start = self._now()
+        self.travelled = 0.0 if self.last_position is not None else None
         self.get_logger().info(
             f"path accepted: {len(segments)} pieces, {self.schedule.duration:.1f} s, "
             f"{len(self.schedule.deposit_times)} dominoes"
         )
+        self._publish()  # the wheels start when the schedule's clock does, not a tick later
 
     @staticmethod
     def _segments_from(points: np.ndarray) -> list:
@@ -193,9 +202,25 @@ class LayerNode(Node):
         return polyline_segments(points)
 
     # ------------------------------------------------------------------ output
+    def _on_odometry(self, message: Odometry) -> None:
+        position = np.array([message.pose.pose.position.x, message.pose.pose.position.y])
+        if not np.all(np.isfinite(position)):
+            return
+        if self.travelled is not None and self.last_position is not None:
+            self.travelled += float(np.linalg.norm(position - self.last_position))
+        elif self.schedule is not None:
+            self.travelled = 0.0  # odometry came up after the path: count from here
+        self.last_position = position
+
+    def _schedule_time(self) -> float:
+        """Where the vehicle is in the schedule: odometry distance over the axle speed."""
+        if self.travelled is None:
+            return self._now() - self.schedule_start
+        return self.travelled / float(self.get_parameter("forward_speed").value)
+
     def _publish(self) -> None:
         if self.schedule is not None:
-            self.command = self._schedule_command(self._now() - self.schedule_start)
+            self.command = self._schedule_command(self._schedule_time())
         self.command.header.stamp = self.get_clock().now().to_msg()
         self.status_pub.publish(self.command)
         self.command_pub.publish(Float64MultiArray(data=[self.command.left, self.command.right]))

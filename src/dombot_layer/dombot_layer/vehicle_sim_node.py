@@ -48,6 +48,7 @@ class VehicleSimNode(Node):
         self.create_subscription(
             Float64MultiArray, "wheel_velocity_controller/commands", self._on_command, 10
         )
+        self.last_step = self._now()
         self.create_timer(self.period, self._step)
         self.get_logger().info(f"simulating {self.simulator.geometry}, spacing {spacing} m")
 
@@ -60,8 +61,19 @@ class VehicleSimNode(Node):
             return
         self.command = (values[0], values[1])
 
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
     def _step(self) -> None:
-        laid = self.simulator.step(*self.command, self.period)
+        """Integrate over the time that really passed, not the nominal period: a late
+        timer on a loaded CPU must not slow the vehicle down against the layer's schedule."""
+        now = self._now()
+        elapsed, self.last_step = now - self.last_step, now
+        if elapsed > 5 * self.period:
+            self.get_logger().warning(
+                f"integration tick {elapsed * 1e3:.0f} ms late (period {self.period * 1e3:.0f} ms)"
+            )
+        laid = self.simulator.step(*self.command, elapsed)
         if laid.size:
             self.deposits.extend(laid)
             self.get_logger().info(

@@ -41,6 +41,7 @@ from dombot_perception.segmentation import SegmenterError
 
 DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
 SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
+SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one stream late
 DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
 
 
@@ -255,6 +256,10 @@ class PerceptionNode(Node):
     def _view(self, name: str, camera: CameraInput) -> CameraView:
         tolerance = float(self._param("sync_tolerance"))
         pair = camera.latest_pair(tolerance)
+        deadline = time.monotonic() + SYNC_WAIT
+        while pair is None and time.monotonic() < deadline:
+            time.sleep(0.02)  # the input callbacks run on the executor's other thread
+            pair = camera.latest_pair(tolerance)
         if pair is None:
             raise ValueError(f"no colour and depth images with stamps within {tolerance} s")
         color, depth = pair

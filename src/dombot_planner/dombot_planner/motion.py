@@ -23,7 +23,17 @@ from dombot_description.scenario import Scenario
 from dombot_planner import coarse
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.ik import PoseIK, straight_line
-from dombot_planner.scene import MOVING, OBSTACLES, SELF, ClearanceRules, Scene, ShadowPlants
+from dombot_planner.scene import (
+    MOVING,
+    OBSTACLES,
+    PILE,
+    QUERY_DISTANCE,
+    SELF,
+    TARGET,
+    ClearanceRules,
+    Scene,
+    ShadowPlants,
+)
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
 
@@ -32,7 +42,12 @@ MAX_JOINT_STEP = 0.1  # rad between line waypoints; more means the arm flips
 COARSE_CHECK_SAMPLES = 120  # at least this many clearance checks of each KTO result ...
 CHECK_JOINT_STEP = 0.01  # rad ... and no joint moving more than this between them
 CHECK_MARGIN = 5e-4  # m the planner's own check adds to the required clearance
+LIMIT_SAMPLES = 10  # per line piece, for the joint limit check of its spline
 LINE_GRID_POINTS = 100  # TOPP-RA grid on a line (its end point is only loosely constrained)
+LINE_END_MARGIN = 1e-3  # m beyond coarse_clearance where a line meets a coarse move
+ESCAPE_DISTANCE = 0.08  # m: the longest straight line out of a start close to something
+ESCAPE_TOLERANCE = 5e-4  # m an escape may come closer to anything than the start was
+PERCEIVED = (TARGET, PILE)  # obstacles known only from perception (± 2 mm)
 UP = np.array([0.0, 0.0, 1.0])
 
 # A clearance check: the scene and the rules it must keep there.
@@ -175,6 +190,10 @@ class ArmPlanner:
         """The coarse rules with ``changes`` (-inf: that pair may touch)."""
         return ClearanceRules({**self.coarse_rules().minimum, **changes})
 
+    def line_end_rules(self) -> ClearanceRules:
+        """Where a straight line meets a coarse move: LINE_END_MARGIN more than coarse."""
+        return self.coarse_rules(self.settings.coarse_clearance + LINE_END_MARGIN)
+
 
 class RequestMotions:
     """The moves of one request: its random seeds, deadline and start configuration."""
@@ -185,11 +204,65 @@ class RequestMotions:
         self.rng = np.random.default_rng(self.settings.seed)
 
     def check_start(self, scene: Scene) -> None:
-        violations = self.planner.coarse_rules(floor=0.0).violations(scene.clearance(self.start))
+        """A start inside the table, a standing domino or the arm itself is refused.
+
+        Perceived dominoes (the target, the pile) are ±2 mm: the arm may already touch them
+        where it stopped (e.g. after a grasp that missed).
+        """
+        touching = self.planner.coarse_rules(floor=0.0).minimum
+        rules = ClearanceRules(
+            {pair: -np.inf if pair[1] in PERCEIVED else low for pair, low in touching.items()}
+        )
+        violations = rules.violations(scene.clearance(self.start))
         if violations:
             raise PlanningError(
                 ErrorCode.INVALID_REQUEST, "start", f"start state in collision: {violations[0]}"
             )
+
+    def escape(self, scene: Scene) -> np.ndarray | None:
+        """Waypoints moving the TCP straight out of a start that is close to something.
+
+        A coarse move cannot begin where its clearance does not hold (KTO then fails or
+        times out): e.g. where a missed grasp left the pads a few millimetres above the
+        table. None when the start keeps the line-end rules; otherwise a line straight up,
+        else back along the approach axis (TCP z), ending at the first waypoint that keeps
+        them, on which nothing comes closer to anything than it was at the start.
+        """
+        clearance = scene.clearance(self.start)
+        end_rules = self.planner.line_end_rules()
+        too_close = end_rules.violations(clearance)
+        if not too_close:
+            return None
+        no_closer = ClearanceRules(
+            {
+                pair: min(minimum, clearance.get(pair, QUERY_DISTANCE) - ESCAPE_TOLERANCE)
+                for pair, minimum in self.planner.coarse_rules().minimum.items()
+            }
+        )
+        tcp = scene.tcp_pose(self.start)
+        ik = PoseIK(scene, tcp.rotation())
+        backwards = -tcp.rotation().matrix()[:, 2]
+        failures: Counter = Counter()
+        for direction in [UP] + ([backwards] if backwards @ UP < 0.99 else []):
+            self.deadline.check("escape")
+            line = straight_line(
+                ik,
+                self.start,
+                tcp.translation(),
+                ESCAPE_DISTANCE * direction,
+                self.settings.waypoint_spacing,
+                MAX_JOINT_STEP,
+            )
+            escape, why = self._escape_part(line, scene, no_closer, end_rules)
+            if escape is not None:
+                return escape
+            failures[why] += 1
+        raise PlanningError(
+            ErrorCode.PLANNING_FAILED,
+            "escape",
+            f"the start is too close ({too_close[0]}) and no straight line of "
+            f"{ESCAPE_DISTANCE * 1000:.0f} mm gets clear ({reasons(failures)})",
+        )
 
     def seeds(self, first: list[np.ndarray]) -> list[np.ndarray]:
         """IK seeds: ``first``, home, then seeded random configurations inside the limits."""
@@ -198,6 +271,21 @@ class RequestMotions:
         count = self.settings.ik_random_seeds
         random = self.rng.uniform(middle - half, middle + half, (count, len(lower)))
         return [*first, self.planner.scenario.home_position, *random]
+
+    def _escape_part(
+        self,
+        line: np.ndarray | None,
+        scene: Scene,
+        rules: ClearanceRules,
+        end_rules: ClearanceRules,
+    ) -> tuple[np.ndarray | None, str]:
+        """``line`` up to its first waypoint that keeps ``end_rules``, checked, or why not."""
+        if line is None:
+            return None, "line leaves the reach"
+        for index, q in enumerate(line[2:], start=2):  # a C2 spline needs 3 waypoints
+            if not first_violation(q, [(scene, end_rules)]):
+                return self.checked_line(line[: index + 1], [(scene, rules)], end_rules)
+        return None, "no waypoint clear"
 
     def clear_solutions(
         self,
@@ -245,6 +333,18 @@ class RequestMotions:
         line = straight_line(ik, q, start, offset, self.settings.waypoint_spacing, MAX_JOINT_STEP)
         if line is None:
             return None, "line leaves the reach"
+        return self.checked_line(line, checks, end_rules)
+
+    def checked_line(
+        self,
+        line: np.ndarray,
+        checks: Sequence[Check],
+        end_rules: ClearanceRules | None = None,
+    ) -> tuple[np.ndarray | None, str]:
+        """``line`` if its spline keeps the joint limits and its waypoints ``checks`` (the
+        last one ``end_rules`` instead, when given), else None and why."""
+        if not self._spline_within_limits(line):
+            return None, "line leaves the joint limits"
         if end_rules is not None:
             too_close = first_violation(line[-1], [(scene, end_rules) for scene, _ in checks])
             if too_close:
@@ -254,6 +354,14 @@ class RequestMotions:
             if too_close:
                 return None, f"line too close ({too_close})"
         return line, ""
+
+    def _spline_within_limits(self, waypoints: np.ndarray) -> bool:
+        """The executed spline through the waypoints (each within the limits) may
+        overshoot a joint limit between two of them; checked at LIMIT_SAMPLES per piece."""
+        path = line_path(waypoints, self.settings.waypoint_spacing)
+        times = np.linspace(0.0, path.end_time(), LIMIT_SAMPLES * (len(waypoints) - 1) + 1)
+        q = path.vector_values(times).T
+        return bool(np.all(q >= self.planner.lower) and np.all(q <= self.planner.upper))
 
     def timed_line(
         self, label: str, waypoints: np.ndarray, scene: Scene, tcp_speed: float | None = None

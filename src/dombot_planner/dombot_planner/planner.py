@@ -7,11 +7,16 @@ Plan of a request (docs/PLANNER.md has the picture):
    IK-continued every ``waypoint_spacing``; check its clearances with the open fingers
    (approach) and with the closed fingers holding the domino (lift). Then the same for the
    place pose's symmetric equivalents (ranked so the gripper leans over the run's free
-   side), checked holding the domino (descent) and with released fingers (retreat).
+   side), checked holding the domino (descent) and with released fingers (retreat). The
+   request's grasp, when given, is tried first. Pile dominoes (perceived around the one
+   to pick) keep ``pile_clearance`` from pads, gripper and arm on the approach line, at
+   the grasp and on the lift; the picked domino may touch them.
 2. *Coarse moves* by KinematicTrajectoryOptimization: start → above the grasp (open
    fingers), above the grasp → above the placement (holding the domino), seeded by the
    straight joint line, then by a raised via configuration, then by perturbed ones;
-   every result is checked at dense samples before it is accepted.
+   every result is checked at dense samples before it is accepted. A start closer to
+   something than a coarse move may begin (e.g. where a missed grasp left the arm) is
+   left first by a straight line up (``RequestMotions.escape``).
 3. *Timing:* every piece is retimed by TOPP-RA and pieces join at rest. Segments:
    open the gripper; approach and grasp (close); lift, transfer, descend (open); retreat.
 """
@@ -51,9 +56,23 @@ from dombot_planner.motion import (
     reasons,
 )
 from dombot_planner.request import PickPlaceRequest, check_request
-from dombot_planner.scene import HELD, PADS, STANDING, TABLE, TARGET, ClearanceRules, Scene
+from dombot_planner.scene import (
+    ARM,
+    HELD,
+    OBSTACLES,
+    PADS,
+    PILE,
+    STANDING,
+    TABLE,
+    TARGET,
+    ClearanceRules,
+    Scene,
+)
 
 FREE_SIDE_RADIUS = 0.1  # m: standing dominoes this close decide the free side
+# Where the pads and the held domino are depends only on the TCP pose: when one of these
+# pairs is too close at an IK solution, it is at every other one.
+TCP_FIXED_PAIRS = tuple(f"{moving}–{other}" for moving in (PADS, HELD) for other in OBSTACLES)
 
 
 @dataclass(kw_only=True)
@@ -119,16 +138,21 @@ class EndSearch:
 class PickPlacePlanner(ArmPlanner):
     """Plans /plan_place requests; keeps shadow plants between requests (not thread-safe)."""
 
-    def fine_rules(self) -> ClearanceRules:
-        """Within the lines only pads and the held domino come near the table and dominoes."""
+    def fine_rules(self, at_pick: bool) -> ClearanceRules:
+        """Within the lines only pads and the held domino come near the table and dominoes,
+        and pads, gripper and arm come pile_clearance near the pile; at the pick the held
+        domino may drag along the pile dominoes it lies among."""
         s = self.settings
         return self.relaxed_rules(
             {
                 (PADS, TABLE): s.pad_table_clearance,
                 (PADS, STANDING): s.fine_obstacle_clearance,
                 (PADS, TARGET): s.fine_obstacle_clearance,
+                (PADS, PILE): s.pile_clearance,
+                (ARM, PILE): s.pile_clearance,
                 (HELD, TABLE): -s.release_height - 1e-3,  # lies on the table at pick
                 (HELD, STANDING): s.fine_obstacle_clearance,
+                (HELD, PILE): -math.inf if at_pick else s.fine_obstacle_clearance,
             }
         )
 
@@ -143,11 +167,7 @@ class PickPlacePlanner(ArmPlanner):
         try:
             plan = RequestPlanning(self, request, deadline).plan()
         except PlanningError as error:
-            if not (
-                error.code == ErrorCode.GRASP_UNREACHABLE
-                and request.grasp_pose is None
-                and self.settings.allow_regrasp
-            ):
+            if not (error.code == ErrorCode.GRASP_UNREACHABLE and self.settings.allow_regrasp):
                 raise
             plan = self._plan_with_regrasp(request, deadline, error)
         plan.planning_time = deadline.elapsed()
@@ -169,9 +189,11 @@ class PickPlacePlanner(ArmPlanner):
         )
         top = pick_grasps(domino, tcp_in_domino=top_grasp())[0].pose
         try:
-            turn = replace(request, place_pose=turned, grasp_pose=top)
-            first = RequestPlanning(self, turn, deadline).plan()
-            pick_again = replace(request, domino_pose=turned, start=first.final_positions())
+            turn = replace(request, place_pose=turned)
+            first = RequestPlanning(self, turn, deadline, grasps=[top]).plan()
+            pick_again = replace(
+                request, domino_pose=turned, grasp_pose=None, start=first.final_positions()
+            )
             second = RequestPlanning(self, pick_again, deadline).plan()
         except PlanningError as regrasp_error:
             if regrasp_error.code == ErrorCode.TIMEOUT:
@@ -200,10 +222,17 @@ class RequestPlanning(RequestMotions):
     """The planning of one request: its scenes, random seeds, deadline and search record."""
 
     def __init__(
-        self, planner: PickPlacePlanner, request: PickPlaceRequest, deadline: Deadline
+        self,
+        planner: PickPlacePlanner,
+        request: PickPlaceRequest,
+        deadline: Deadline,
+        grasps: list[RigidTransform] | None = None,
     ) -> None:
+        """``grasps``: exactly these TCP poses to grasp with (the regrasp's top grasp);
+        default: the request's grasp first, then the ranked canonical grasps."""
         super().__init__(planner, request.start, deadline)
         self.request = request
+        self.grasps = grasps if grasps is not None else self._ranked_grasps()
         closed = request.grasp_width or DOMINO_SIZE[1]
         self.openings = {
             "pregrasp": pregrasp_opening(closed),
@@ -213,13 +242,35 @@ class RequestPlanning(RequestMotions):
         self.approach = self._scene("pregrasp", target=request.domino_pose)
         self.retreat = self._scene("release", target=request.place_pose)
         self.search = EndSearch()
+        self.escape_line: np.ndarray | None = None  # out of a start close to something
 
     def _scene(self, opening: str, **dominoes) -> Scene:
         shadow = self.planner.plants.get(self.openings[opening])
-        return Scene(shadow, self.planner.scenario.tcp_frame, self.request.standing, **dominoes)
+        return Scene(
+            shadow,
+            self.planner.scenario.tcp_frame,
+            self.request.standing,
+            pile=self.request.pile,
+            **dominoes,
+        )
+
+    def _ranked_grasps(self) -> list[RigidTransform]:
+        """The request's grasp and its finger-swapped twin (the same gripper placement),
+        then dombot_description.grasp's ranked grasps; only those coming from above.
+
+        A request's grasp (e.g. perception's, which cleared its point cloud, undetected
+        dominoes included) is preferred, not required: the pile the planner knows is only
+        what perception detected.
+        """
+        ranked = [g.pose for g in pick_grasps(self.request.domino_pose)]
+        given = self.request.grasp_pose
+        first = [] if given is None else [given, given @ FINGER_SWAP]
+        rest = [g for g in ranked if not any(g.IsNearlyEqualTo(f, 1e-6) for f in first)]
+        return [g for g in first + rest if comes_from_above(g)]
 
     def plan(self) -> PickPlacePlan:
         self.check_start(self.approach)
+        self.escape_line = self.escape(self.approach)
         connect_error = None
         for pick, place, transfer in self._ends():
             try:
@@ -234,10 +285,7 @@ class RequestPlanning(RequestMotions):
     def _ends(self) -> Iterator[tuple[End, End, Scene]]:
         """Pick and place ends that pass their checks, best candidates first."""
         request, s = self.request, self.settings
-        if request.grasp_pose is not None:
-            grasps = [request.grasp_pose, request.grasp_pose @ FINGER_SWAP]
-        else:
-            grasps = [g.pose for g in pick_grasps(request.domino_pose) if comes_from_above(g.pose)]
+        grasps = self.grasps
         self.search.grasp_candidates = len(grasps)
         release = RigidTransform(s.release_height * UP) @ request.place_pose
         free = self._free_direction()
@@ -250,6 +298,7 @@ class RequestPlanning(RequestMotions):
                 s.pick_approach_distance,
                 lift_directions(grasp),
                 [self.approach, transfer],
+                self.planner.fine_rules(at_pick=True),
                 self.seeds([request.start]),
                 self.search.grasp_failures,
             )
@@ -264,6 +313,7 @@ class RequestPlanning(RequestMotions):
                     s.place_approach_distance,
                     [UP],
                     [transfer, self.retreat],
+                    self.planner.fine_rules(at_pick=False),
                     self.seeds([pick.line[0], request.start]),
                     self.search.place_failures,
                 )
@@ -291,18 +341,21 @@ class RequestPlanning(RequestMotions):
         distance: float,
         directions: list[np.ndarray],
         scenes: list[Scene],
+        rules: ClearanceRules,
         seeds: list[np.ndarray],
         failures: Counter,
     ) -> End | None:
-        """IK at ``tcp_pose`` and a straight line away from it, clear in every scene.
+        """IK at ``tcp_pose`` and a straight line away from it, keeping ``rules`` in every
+        scene.
 
         ``directions`` are tried in order for the line; ``failures`` counts why seeds failed.
         """
         ik = PoseIK(scenes[0], tcp_pose.rotation())
         target = tcp_pose.translation()
-        checks = [(scene, self.planner.fine_rules()) for scene in scenes]
-        top_rules = self.planner.coarse_rules(self.settings.coarse_clearance + 1e-3)
-        for q in self.clear_solutions(ik, target, seeds, checks, failures):
+        checks = [(scene, rules) for scene in scenes]
+        top_rules = self.planner.line_end_rules()
+        solutions = self.clear_solutions(ik, target, seeds, checks, failures, TCP_FIXED_PAIRS)
+        for q in solutions:
             for direction in directions:
                 line, why = self.clear_line(ik, q, target, distance * direction, checks, top_rules)
                 if line is None:
@@ -315,12 +368,14 @@ class RequestPlanning(RequestMotions):
     def _connect(self, pick: End, place: End, transfer: Scene) -> PickPlacePlan:
         """Coarse moves between the ends, retimed and assembled into segments."""
         attempts: dict[str, int] = {}
-        start = self.request.start
-        to_pick = self.coarse_move("approach_grasp", self.approach, start, pick.above, attempts)
+        start, escape = self.request.start, self.escape_line
+        begin = start if escape is None else escape[-1]
+        to_pick = self.coarse_move("approach_grasp", self.approach, begin, pick.above, attempts)
         to_place = self.coarse_move("transfer", transfer, pick.above, place.above, attempts)
         self.deadline.check("retiming")
         openings, force = self.openings, self.settings.grip_force
         pieces = {
+            "escape": [] if escape is None else [self.timed_line("escape", escape, self.approach)],
             "down_to_grasp": self.timed_line("descend_to_grasp", pick.line[::-1], self.approach),
             "lift": self.timed_line("lift", pick.line, transfer),
             "down_to_place": self.timed_line("descend_to_place", place.line[::-1], transfer),
@@ -337,7 +392,7 @@ class RequestPlanning(RequestMotions):
             ),
             Segment(
                 "approach_grasp",
-                [to_pick, pieces["down_to_grasp"]],
+                [*pieces["escape"], to_pick, pieces["down_to_grasp"]],
                 openings["pregrasp"],
                 GRIPPER_CLOSE,
                 0.0,

@@ -62,8 +62,8 @@ def is_unset(message: Pose) -> bool:
     return p.x == 0.0 and p.y == 0.0 and p.z == 0.0
 
 
-def standing_of(poses: list[Pose]) -> tuple:
-    return tuple(pose_of(p, f"standing_dominoes[{i}]") for i, p in enumerate(poses))
+def poses_of(poses: list[Pose], field: str) -> tuple:
+    return tuple(pose_of(p, f"{field}[{i}]") for i, p in enumerate(poses))
 
 
 def duration_of(seconds: float) -> Duration:
@@ -230,7 +230,8 @@ class PlannerNode(Node):
                 None if is_unset(request.grasp_pose) else pose_of(request.grasp_pose, "grasp_pose")
             ),
             grasp_width=request.grasp_width,
-            standing=standing_of(request.standing_dominoes),
+            standing=poses_of(request.standing_dominoes, "standing_dominoes"),
+            pile=poses_of(request.pile_dominoes, "pile_dominoes"),
             time_budget=request.time_budget,
         )
 
@@ -242,7 +243,7 @@ class PlannerNode(Node):
             finger_opening=finger_opening(
                 list(state.name), list(state.position), self.scenario.gripper_joints
             ),
-            standing=standing_of(request.standing_dominoes),
+            standing=poses_of(request.standing_dominoes, "standing_dominoes"),
             push_distance=request.push_distance,
             push_speed=request.push_speed,
             time_budget=request.time_budget,

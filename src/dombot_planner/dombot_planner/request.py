@@ -33,9 +33,10 @@ class PickPlaceRequest:
     domino_pose: RigidTransform  # the domino to pick, body frame in world
     place_pose: RigidTransform  # where it must end up
     start: np.ndarray  # arm joint positions [rad]
-    grasp_pose: RigidTransform | None = None  # TCP pose to grasp with; None: choose
+    grasp_pose: RigidTransform | None = None  # TCP pose to try first; None: the ranked grasps
     grasp_width: float = 0.0  # finger opening closed on the domino [m]; 0: its width
     standing: tuple[RigidTransform, ...] = ()  # dominoes already placed
+    pile: tuple[RigidTransform, ...] = ()  # other dominoes seen near the one to pick
     time_budget: float = 0.0  # s; 0: the planner's default
 
 

@@ -6,7 +6,8 @@ contexts of those plants into which this request's standing dominoes, the target
 and the held domino are registered as geometry (SceneGraph's context-modifying
 RegisterGeometry), so nothing is rebuilt per request. Every collision geometry belongs to
 a class, so clearances are judged per pair of classes: the arm, the pads and the held
-domino move; the table, standing dominoes and the target domino stay.
+domino move; the table, standing dominoes, the target domino and the pile dominoes
+around it stay.
 """
 
 from __future__ import annotations
@@ -32,9 +33,9 @@ from dombot_description.cell import ShadowPlant, build_shadow_plant
 from dombot_description.scenario import Scenario
 
 ARM, PADS, HELD = "arm", "pads", "held"  # moving classes (ARM includes the gripper body)
-TABLE, STANDING, TARGET, SELF = "table", "standing", "target", "self"
+TABLE, STANDING, TARGET, PILE, SELF = "table", "standing", "target", "pile", "self"
 MOVING = (ARM, PADS, HELD)
-OBSTACLES = (TABLE, STANDING, TARGET)
+OBSTACLES = (TABLE, STANDING, TARGET, PILE)
 FINGER_BODIES = ("wsg_left_finger", "wsg_right_finger")
 QUERY_DISTANCE = 0.05  # m: pairs farther apart than this are reported as this far
 
@@ -71,7 +72,8 @@ class Scene:
     """One context of a shadow plant holding this request's dominoes.
 
     ``standing``: dominoes already placed; ``target``: the domino being picked (approach)
-    or just placed (retreat); ``held_in_tcp``: the held domino's pose in the TCP frame.
+    or just placed (retreat); ``held_in_tcp``: the held domino's pose in the TCP frame;
+    ``pile``: the other dominoes perceived around the one being picked.
     """
 
     def __init__(
@@ -81,6 +83,7 @@ class Scene:
         standing: Sequence[RigidTransform] = (),
         target: RigidTransform | None = None,
         held_in_tcp: RigidTransform | None = None,
+        pile: Sequence[RigidTransform] = (),
     ) -> None:
         self.shadow = shadow
         self.plant = shadow.plant
@@ -92,6 +95,7 @@ class Scene:
         self.classes = self._robot_and_table_classes()
         world = self.scene_graph.world_frame_id()
         added = [self._register(pose, world, STANDING) for pose in standing]
+        added += [self._register(pose, world, PILE) for pose in pile]
         if target is not None:
             added.append(self._register(target, world, TARGET))
         self._filter_against_welded(added, self.plant.world_body())

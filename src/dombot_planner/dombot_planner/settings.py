@@ -22,6 +22,9 @@ class PlannerSettings:
     # pads and held domino to standing dominoes.
     pad_table_clearance: float = 0.0005
     fine_obstacle_clearance: float = 0.002
+    # Pile dominoes (perceived, ±2 mm): pads, gripper and arm keep this from them on the
+    # final approach, at the grasp and on the lift; the picked domino may touch them.
+    pile_clearance: float = 0.003
     self_clearance: float = 0.001  # robot against itself, everywhere
     # Kinematic trajectory optimization.
     kto_control_points: int = 10

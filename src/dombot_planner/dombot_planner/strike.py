@@ -3,8 +3,8 @@
 The closed fingers are one blunt pusher (two 16 × 8 mm pads side by side, 60 mm long),
 pointing down. Plan of a request:
 
-1. *Strike pose.* For each pusher orientation (the gripper body across or along the run,
-   either finger first), the TCP pose that puts the fingertips at ``strike_height`` of the
+1. *Strike pose.* For each pusher orientation (``pusher_rotations``: straight down, then
+   leaning sideways), the TCP pose that puts the fingertips at ``strike_height`` of the
    domino's height and the pads ``strike_standoff`` behind its back face (behind = against
    its body z, the direction it topples). IK there, then three straight TCP lines at that
    orientation: the descent from ``strike_approach_height`` above (clear of everything by
@@ -12,9 +12,11 @@ pointing down. Plan of a request:
    (only the pads may touch, and only the struck domino) and the retreat up and back to
    where the descent began (the struck domino has gone forward).
 2. *Approach* by KTO from the start to the top of the descent, fingers closed, clear of
-   the table and every domino of the run by ``coarse_clearance``.
-3. *Timing* by TOPP-RA: the push at ``push_speed`` (the pads reach it within the
-   standoff), the descent and the retreat at ``approach_speed``.
+   the table and every domino of the run by ``coarse_clearance``; a start closer than that
+   (e.g. at the end of a placement's final line) is left first by a straight line up
+   (``RequestMotions.escape``).
+3. *Timing* by TOPP-RA: the push at ``push_speed`` (up to ~0.1 m/s the pads reach it
+   within the standoff), the descent and the retreat at ``approach_speed``.
 
 Segments: ``close_gripper`` (only if the start may have the fingers open), ``approach``,
 ``push``, ``retreat``.
@@ -119,7 +121,6 @@ def strike_pose(
 @dataclass(kw_only=True)
 class StrikePlan(Plan):
     strike_pose: RigidTransform  # TCP where the push begins
-    push: np.ndarray  # TCP travel of the push [m, world]
     closes_gripper: bool = False  # the plan closes the fingers first
 
 
@@ -183,12 +184,14 @@ class StrikePlanning(RequestMotions):
             "descent": planner.coarse_rules(),
             "push": planner.relaxed_rules({**pads_near_run, (PADS, TARGET): -math.inf}),
             "retreat": planner.relaxed_rules(pads_near_run),
-            "top": planner.coarse_rules(s.coarse_clearance + 1e-3),
+            "top": planner.line_end_rules(),
         }
         self.search = StrikeSearch()
+        self.escape_line: np.ndarray | None = None  # out of a start close to something
 
     def plan(self) -> StrikePlan:
         self.check_start(self.run)
+        self.escape_line = self.escape(self.run)
         connect_error = None
         for lines in self._lines():
             try:
@@ -244,13 +247,16 @@ class StrikePlanning(RequestMotions):
     def _connect(self, lines: Lines) -> StrikePlan:
         """The coarse approach to the top of the descent, retimed into segments."""
         attempts: dict[str, int] = {}
-        approach = self.coarse_move("approach", self.run, self.start, lines.descent[0], attempts)
+        escape = self.escape_line
+        begin = self.start if escape is None else escape[-1]
+        approach = self.coarse_move("approach", self.run, begin, lines.descent[0], attempts)
         self.deadline.check("retiming")
+        out = [] if escape is None else [self.timed_line("escape", escape, self.run)]
         descend = self.timed_line("descend", lines.descent, self.run)
         push = self.timed_line("push", lines.push, self.run, self.push_speed)
         retreat = self.timed_line("retreat", lines.retreat, self.after)
         segments = [
-            Segment("approach", [approach, descend], CLOSED),
+            Segment("approach", [*out, approach, descend], CLOSED),
             Segment("push", [push], CLOSED),
             Segment("retreat", [retreat], CLOSED),
         ]
@@ -270,7 +276,6 @@ class StrikePlanning(RequestMotions):
         return StrikePlan(
             segments,
             strike_pose=lines.strike_pose,
-            push=self.push_length * self.direction,
             closes_gripper=closes,
             kto_attempts=attempts,
         )

@@ -5,7 +5,9 @@ simulator's (dombot_description.cell.add_cell with real finger joints, every dom
 free body), joint samples densified by linear interpolation, Drake distance queries per
 sample. Which samples belong to a final approach or retreat is decided geometrically: the
 TCP holds the orientation of the pose where the gripper closes or opens, within the
-approach distance of it (coarse moves turn the hand; the straight lines do not). Reported:
+approach distance of it (coarse moves turn the hand; the straight lines do not); so is an
+escape from the start: the first samples, while the TCP holds the start's orientation
+within the escape distance of where it started. Reported:
 smallest clearance per phase and pair of body classes, the grasp and place pose errors,
 joint position/velocity/acceleration limit use, and jumps between segments. A strike's
 phases are its segments (approach, push, retreat); measured besides: where the fingertips
@@ -39,6 +41,7 @@ from dombot_planner.request import box_corners
 MAX_INTERPOLATION_STEP = 0.003  # rad per joint between checked configurations
 LINE_TOLERANCE = 1e-3  # m beyond the approach distance still counted as a final line
 ORIENTATION_TOLERANCE = 1e-3  # rad: the lines keep the target orientation exactly
+ESCAPE_REACH = 0.08  # m: samples holding the start orientation this close to it escape
 QUERY_DISTANCE = 0.05  # m
 DROP_HEIGHT = 0.002  # m: a domino released this close above the table falls onto it
 
@@ -97,13 +100,16 @@ def nearest_error(
 
 class CellChecker:
     """A plant built like the simulator's: the cell with real finger joints and the
-    request's dominoes as free bodies, the first one the domino the request is about."""
+    request's dominoes as free bodies, the first one the domino the request is about
+    ("target"), the last ``pile_count`` ones the pile around it ("pile"), the others
+    "standing"."""
 
     def __init__(
         self,
         scenario: Scenario,
         dominoes: Sequence[RigidTransform],
         acceleration_limit: float,
+        pile_count: int = 0,
     ) -> None:
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
@@ -123,10 +129,11 @@ class CellChecker:
         self.upper = self.plant.GetPositionUpperLimits()[: len(scenario.arm_joints)]
         self.velocity = self.plant.GetVelocityUpperLimits()[: len(scenario.arm_joints)]
         self.acceleration = acceleration_limit
-        self.classes = self._classes()
+        self.classes = self._classes(len(dominoes) - pile_count)
 
-    def _classes(self) -> dict:
+    def _classes(self, first_pile: int) -> dict:
         inspector = self.scene_graph.model_inspector()
+        pile = {body.index() for body in self.domino_bodies[first_pile:]}
         classes = {}
         for geometry in inspector.GetAllGeometryIds():
             body = self.plant.GetBodyFromFrameId(inspector.GetFrameId(geometry))
@@ -141,6 +148,8 @@ class CellChecker:
                 classes[geometry] = "table"
             elif body.index() == self.domino_bodies[0].index():
                 classes[geometry] = "target"
+            elif body.index() in pile:
+                classes[geometry] = "pile"
             else:
                 classes[geometry] = "standing"
         return classes
@@ -203,7 +212,8 @@ class CellChecker:
 
 
 class TrajectoryChecker(CellChecker):
-    """The check plant for one pick-and-place: the cell, the picked and standing dominoes."""
+    """The check plant for one pick-and-place: the cell, the picked, standing and pile
+    dominoes."""
 
     def __init__(
         self,
@@ -213,8 +223,9 @@ class TrajectoryChecker(CellChecker):
         standing: Sequence[RigidTransform],
         acceleration_limit: float,
         closed_width: float,
+        pile: Sequence[RigidTransform] = (),
     ) -> None:
-        super().__init__(scenario, [domino_pose, *standing], acceleration_limit)
+        super().__init__(scenario, [domino_pose, *standing, *pile], acceleration_limit, len(pile))
         self.domino_pose, self.place_pose = domino_pose, place_pose
         self.closed_width = closed_width
 
@@ -240,11 +251,17 @@ class TrajectoryChecker(CellChecker):
         result.grasp_error = max(grasp_errors, key=lambda e: e[0] + 0.01 * e[1])
         symmetric = [self.place_pose @ RigidTransform(s) for s in SYMMETRIES]
         result.place_error = nearest_error(releases[-1], symmetric)
+        escaping = Escape(self.tcp_pose(start))
         for segment, (resting, held_in_tcp, opening) in zip(segments, states, strict=True):
             for q in self._densified(segment.positions):
                 tcp = self.tcp_pose(q)
                 self._set_scene(resting if held_in_tcp is None else tcp @ held_in_tcp, opening)
-                phase = "fine" if any(_near_target(tcp, t, d) for t, d in lines) else "coarse"
+                if escaping.goes_on(tcp):
+                    phase = "escape"
+                elif any(_near_target(tcp, t, d) for t, d in lines):
+                    phase = "fine"
+                else:
+                    phase = "coarse"
                 self._record(result, phase, holding=held_in_tcp is not None)
                 result.samples += 1
         return result
@@ -280,6 +297,20 @@ class TrajectoryChecker(CellChecker):
         self.set_fingers(opening)
 
 
+class Escape:
+    """Recognises an escape: the samples from the start on while the TCP holds the start's
+    orientation within ESCAPE_REACH of it; once it turns or goes farther, it is over."""
+
+    def __init__(self, start: RigidTransform) -> None:
+        self.start = start
+        self.over = False
+
+    def goes_on(self, tcp: RigidTransform) -> bool:
+        if not self.over:
+            self.over = not _near_target(tcp, self.start, ESCAPE_REACH)
+        return not self.over
+
+
 def _near_target(tcp: RigidTransform, target: RigidTransform, distance: float) -> bool:
     """The TCP holds the target's orientation within ``distance`` of it: a final line."""
     position, angle = pose_error(tcp, target)
@@ -289,7 +320,7 @@ def _near_target(tcp: RigidTransform, target: RigidTransform, distance: float) -
 class StrikeChecker(CellChecker):
     """The check plant for one strike: the cell, the struck domino and the rest of the run.
 
-    Phases are the segments' labels; the dominoes stay where they stood (after the push
+    Phases are the segments' labels (and "escape"); the dominoes stay where they stood (after the push
     the struck one has gone forward, so its clearances in the retreat mean nothing).
     """
 
@@ -310,11 +341,12 @@ class StrikeChecker(CellChecker):
         result = StrikeCheck()
         self._check_limits_and_joins(segments, start, result)
         opening = start_opening
+        escaping = Escape(self.tcp_pose(start))
         for segment in segments:
             self.set_fingers(opening)
             for q in self._densified(segment.positions):
-                self.tcp_pose(q)
-                self._record(result, segment.label, holding=False)
+                phase = "escape" if escaping.goes_on(self.tcp_pose(q)) else segment.label
+                self._record(result, phase, holding=False)
                 result.samples += 1
             if segment.gripper_after in (OPEN, CLOSE):
                 opening = segment.gripper_position

@@ -15,10 +15,12 @@ and a position-controlled gripper with a force limit.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.primitives import Demultiplexer, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 
@@ -43,63 +45,69 @@ class GripperSettings:
     default_force: float = 20.0  # N when a command asks for 0
 
 
-class ArmCommandSource(LeafSystem):
-    """Desired arm state and acceleration from the current command.
+class ArmCommand:
+    """The arm's command as a Drake ``TrajectorySource`` (C++, evaluated every step).
 
-    The command is a joint-space trajectory starting at a given simulated time, or a
-    position to hold. It lives on the system (not in the context) because the world
-    replaces it between simulator steps, as a robot driver does.
+    The source outputs [q; q̇; q̈] of a trajectory in simulated time; a demultiplexer
+    splits it into the desired state (PD) and acceleration (feedforward). The world
+    replaces the trajectory between simulator steps, as a robot driver does; holding a
+    position is a constant trajectory.
     """
 
-    def __init__(self, home: np.ndarray) -> None:
-        super().__init__()
+    def __init__(self, builder: DiagramBuilder, home: np.ndarray) -> None:
         self._dofs = len(home)
-        self._hold = np.asarray(home, dtype=float)
-        self._trajectory: PiecewisePolynomial | None = None
-        self._start = 0.0
-        self.DeclareVectorOutputPort("desired_state", 2 * self._dofs, self._calc_state)
-        self.DeclareVectorOutputPort("desired_acceleration", self._dofs, self._calc_acceleration)
+        self._trajectory = _constant(home)
+        self._end = 0.0
+        self.source = builder.AddSystem(
+            TrajectorySource(self._trajectory, output_derivative_order=2)
+        )
+        self.split = builder.AddSystem(Demultiplexer([2 * self._dofs, self._dofs]))
+        builder.Connect(self.source.get_output_port(), self.split.get_input_port())
+
+    @property
+    def desired_state_port(self) -> OutputPort:
+        return self.split.get_output_port(0)
+
+    @property
+    def desired_acceleration_port(self) -> OutputPort:
+        return self.split.get_output_port(1)
 
     def hold(self, position: np.ndarray) -> None:
-        self._hold = np.asarray(position, dtype=float)
-        self._trajectory = None
+        self._set(_constant(position), end=0.0)
 
     def follow(self, trajectory: PiecewisePolynomial, start_time: float) -> None:
         """Track ``trajectory`` (time from 0) from simulated ``start_time``, then hold its end."""
-        self._trajectory = trajectory
-        self._start = start_time
-        self._hold = trajectory.value(trajectory.end_time()).ravel()
+        shifted = copy.copy(trajectory)
+        shifted.shiftRight(start_time)
+        self._set(shifted, start_time + trajectory.end_time())
+
+    def _set(self, trajectory: PiecewisePolynomial, end: float) -> None:
+        self._trajectory, self._end = trajectory, end
+        self.source.UpdateTrajectory(trajectory)  # the world then invalidates cached outputs
 
     @property
     def end_time(self) -> float:
-        """Simulated time at which the current command ends (its start when holding)."""
-        if self._trajectory is None:
-            return self._start
-        return self._start + self._trajectory.end_time()
+        """Simulated time at which the current command ends."""
+        return self._end
 
     def desired(self, time: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(q, v, a) commanded at simulated ``time``; outside the trajectory, hold at rest."""
+        """(q, v, a) commanded at simulated ``time``; outside the trajectory, at rest."""
         trajectory = self._trajectory
-        local = time - self._start
-        if trajectory is None or not trajectory.start_time() <= local <= trajectory.end_time():
-            if trajectory is not None and local < trajectory.start_time():
-                return trajectory.value(trajectory.start_time()).ravel(), *self._rest()
-            return self._hold.copy(), *self._rest()
+        clamped = float(np.clip(time, trajectory.start_time(), trajectory.end_time()))
+        q = trajectory.value(clamped).ravel()
+        if clamped != time:
+            return q, np.zeros(self._dofs), np.zeros(self._dofs)
         return (
-            trajectory.value(local).ravel(),
-            trajectory.EvalDerivative(local, 1).ravel(),
-            trajectory.EvalDerivative(local, 2).ravel(),
+            q,
+            trajectory.EvalDerivative(time, 1).ravel(),
+            trajectory.EvalDerivative(time, 2).ravel(),
         )
 
-    def _rest(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.zeros(self._dofs), np.zeros(self._dofs)
 
-    def _calc_state(self, context: Context, output: BasicVector) -> None:
-        q, v, _ = self.desired(context.get_time())
-        output.SetFromVector(np.concatenate([q, v]))
-
-    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self.desired(context.get_time())[2])
+def _constant(position: np.ndarray) -> PiecewisePolynomial:
+    """A trajectory that holds ``position`` (zero derivatives) at every time."""
+    column = np.asarray(position, dtype=float).reshape(-1, 1)
+    return PiecewisePolynomial.ZeroOrderHold([0.0, 1.0], np.hstack([column, column]))
 
 
 class GripperController(LeafSystem):

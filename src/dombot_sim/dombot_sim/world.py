@@ -21,7 +21,7 @@ dominoes sleep (``sleeping.py``).
 from __future__ import annotations
 
 import time as wallclock
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,7 +42,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from dombot_description.cell import add_cell, add_dominoes, build_shadow_plant
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_lookup, render
-from dombot_sim.control import ArmCommandSource, ArmGains, GripperController, GripperSettings
+from dombot_sim.control import ArmCommand, ArmGains, GripperController, GripperSettings
 from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
 from dombot_sim.sleeping import SleepManager, SleepSettings
 from dombot_sim.trajectory import JointLimits
@@ -168,16 +168,13 @@ class CellWorld:
         plant.Finalize()
 
         self._control_model = build_shadow_plant(scenario, grasp_opening=GRIPPER_OPEN)
-        arm_source = builder.AddSystem(ArmCommandSource(scenario.home_position))
+        arm_source = ArmCommand(builder, scenario.home_position)
         feedforward = builder.AddSystem(InverseDynamics(self._control_model.plant))
-        builder.Connect(arm_source.GetOutputPort("desired_state"), feedforward.get_input_port(0))
-        builder.Connect(
-            arm_source.GetOutputPort("desired_acceleration"), feedforward.get_input_port(1)
-        )
+        builder.Connect(arm_source.desired_state_port, feedforward.get_input_port(0))
+        builder.Connect(arm_source.desired_acceleration_port, feedforward.get_input_port(1))
         builder.Connect(feedforward.get_output_port(), plant.get_actuation_input_port(models.arm))
         builder.Connect(
-            arm_source.GetOutputPort("desired_state"),
-            plant.get_desired_state_input_port(models.arm),
+            arm_source.desired_state_port, plant.get_desired_state_input_port(models.arm)
         )
         gripper = builder.AddSystem(GripperController(config.gripper, GRIPPER_OPEN))
         builder.Connect(plant.get_state_output_port(models.gripper), gripper.get_input_port())
@@ -242,7 +239,7 @@ class CellWorld:
         plant.SetVelocities(context, self._models.arm, np.zeros(7))
         plant.SetPositions(context, self._models.gripper, [GRIPPER_OPEN / 2] * 2)
         plant.SetVelocities(context, self._models.gripper, np.zeros(2))
-        self._arm_source.hold(self.scenario.home_position)
+        self._command_arm(lambda: self._arm_source.hold(self.scenario.home_position))
         self._gripper.command(GRIPPER_OPEN, 0.0, self.time, GRIPPER_OPEN)
 
     def _park(self, indices: Sequence[int]) -> None:
@@ -433,14 +430,19 @@ class CellWorld:
             raise ValueError(
                 f"need a 7x1 joint trajectory, got {trajectory.rows()}x{trajectory.cols()}"
             )
-        self._arm_source.follow(trajectory, self.time)
+        self._command_arm(lambda: self._arm_source.follow(trajectory, self.time))
         return self._arm_source.end_time
 
     def hold_arm(self, position: np.ndarray | None = None) -> None:
         """Hold ``position`` (default: where the arm is now)."""
         if position is None:
             position = self._plant.GetPositions(self._plant_context, self._models.arm)
-        self._arm_source.hold(np.asarray(position, dtype=float))
+        self._command_arm(lambda: self._arm_source.hold(np.asarray(position, dtype=float)))
+
+    def _command_arm(self, change: Callable[[], None]) -> None:
+        """Change the arm's command; re-setting the time drops outputs cached for the old one."""
+        change()
+        self._root.SetTime(self._root.get_time())
 
     def desired_arm_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the arm controller is tracking now: (q, v, a)."""

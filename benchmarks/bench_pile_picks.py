@@ -1,0 +1,310 @@
+"""Pick dominoes from poured piles and place them into a run, in the Drake simulation.
+
+The arm job's loop (dombot_bringup.arm_job) without ROS, to measure what the isolated
+pairs of bench_planner cannot: picks out of a real pile. For each seeded pile (poured
+and settled by dombot_sim), the bring-up's default run (an arc of 10 at 0.6 m from the
+base) is built in order. Each attempt: perceive with both pile cameras
+(dombot_perception's pipeline), take the best flat detection with a positive score not
+where an attempt already failed, pass the other detections within 8 cm as the pile
+(``PickPlaceRequest.pile``) and the dominoes already placed as standing, plan from the
+simulated arm's joints, execute every segment and gripper event (as
+bench_planner_execution does), check the grasp by where the fingers stopped (the
+bring-up's 3 mm) and the placement by the simulator's ground truth after 0.5 s (the
+bring-up's 3 mm horizontal / 3° tilt). A missed grasp leaves the arm where it stopped
+with the gripper opened wide, as the bring-up does: the next plan starts there. A domino
+carried but not placed, and a run domino knocked out of its place, are taken out of the
+cell (the knocked slots are built again first); an attempt succeeds when its domino is
+placed and no run domino was knocked. A slot gets up to ``--max-attempts``.
+
+Prints one JSON object on stdout (a row per attempt; progress on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+from collections import Counter
+
+import numpy as np
+from bench_planner import log
+from bench_planner_execution import plan_force, track, wait_for_gripper
+from pydrake.math import RigidTransform
+
+from dombot_bringup import layouts
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import upright_pose
+from dombot_description.scenario import load_scenario
+from dombot_perception.frames import POSTURE_FLAT, CameraView
+from dombot_perception.pipeline import build_pipeline
+from dombot_planner.errors import PlanningError
+from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
+from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.request import PickPlaceRequest
+from dombot_planner.settings import PlannerSettings
+from dombot_sim.world import CellWorld, WorldConfig
+
+PILE_CAMERAS = ("camera_0", "camera_1")
+NEIGHBOUR_RADIUS = 0.08  # m: detections this close to the pick are its pile (bring-up's)
+FAILED_SPOT_RADIUS = 0.01  # m: a detection this close to a failed attempt is skipped
+FRESH_FRAMES = 0.55  # s simulated before perceiving (the bring-up waits one camera period)
+SETTLE_AFTER_PLACE = 0.5  # s simulated before the placement is judged
+GRASP_TOLERANCE = 0.003  # m: the fingers stop this close to the domino width, or missed
+PLACE_TOLERANCE = (0.003, math.radians(3.0))  # horizontal m, tilt rad (bring-up's)
+WIDE_OPEN = 0.1  # m: the bring-up opens this wide after a missed grasp
+RUN = {"center": (0.0, 0.0), "radius": 0.6, "start_angle": math.radians(-2.0)}
+
+
+def run_targets(count: int) -> list[RigidTransform]:
+    """The bring-up's default layout: an arc about the base, 0.6 m out, from −2°."""
+    placements = layouts.arc(RUN["center"], RUN["radius"], RUN["start_angle"], count)
+    return [upright_pose(p.x, p.y, p.heading) for p in placements]
+
+
+def placement_error(pose: np.ndarray, target: RigidTransform) -> tuple[float, float]:
+    """Horizontal distance of the centres [m] and tilt of the length axis from vertical."""
+    offset = pose[:2, 3] - target.translation()[:2]
+    return float(np.linalg.norm(offset)), math.acos(min(1.0, abs(pose[2, 0])))
+
+
+def within(error: float, tilt: float) -> bool:
+    """The bring-up's placement check passes."""
+    return error <= PLACE_TOLERANCE[0] and tilt <= PLACE_TOLERANCE[1]
+
+
+class PileRun:
+    """One pile in the simulated cell and the run being built from it."""
+
+    def __init__(self, world: CellWorld, planner: PickPlacePlanner, pipeline, args) -> None:
+        self.world, self.planner, self.pipeline, self.args = world, planner, pipeline, args
+        self.targets = run_targets(args.count)
+        self.placed: dict[int, int] = {}  # slot → index of the simulated domino standing there
+        self.failed_spots: list[np.ndarray] = []
+
+    def perceive(self) -> list:
+        self.world.advance(FRESH_FRAMES)
+        frames = self.world.render(list(PILE_CAMERAS), labels=False)
+        views = [CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC) for f in frames.values()]
+        return self.pipeline.run(views).detections
+
+    def choose(self, detections: list):
+        """The bring-up's choice: the best flat, scored detection not at a failed spot."""
+        for detection in detections:
+            spot = detection.X_WD[:2, 3]
+            if (
+                detection.posture == POSTURE_FLAT
+                and detection.score > 0.0
+                and all(np.linalg.norm(spot - f) >= FAILED_SPOT_RADIUS for f in self.failed_spots)
+            ):
+                return detection
+        return None
+
+    def nearest_truth(self, position: np.ndarray) -> tuple[int, float]:
+        """Index of the simulated domino nearest ``position`` and its distance [m]."""
+        truths = [t for t in self.world.domino_truth() if t.in_use]
+        distances = [np.linalg.norm(t.X_WD[:3, 3] - position) for t in truths]
+        best = int(np.argmin(distances))
+        return truths[best].index, float(distances[best])
+
+    def request(self, chosen, pile: tuple, slot: int) -> PickPlaceRequest:
+        """What the bring-up asks for: the detection, its pile, the run standing so far."""
+        return PickPlaceRequest(
+            domino_pose=RigidTransform(chosen.X_WD),
+            place_pose=self.targets[slot],
+            start=self.world.joint_state().position[:7],
+            standing=tuple(self.targets[s] for s in self.placed),
+            **({} if self.args.ignore_pile else {"pile": pile}),
+            time_budget=self.args.budget,
+        )
+
+    def attempt(self, slot: int) -> dict:
+        """Perceive, plan, execute and judge one pick-and-place into ``slot``."""
+        began, simulated = time.perf_counter(), self.world.time
+        row: dict = {"placed": False, "knocked": 0}
+        detections = self.perceive()
+        chosen = self.choose(detections)
+        if chosen is None:
+            return {**row, "outcome": "no candidate", "wall_s": time.perf_counter() - began}
+        spot = chosen.X_WD[:2, 3]
+        pile = tuple(
+            RigidTransform(d.X_WD)
+            for d in detections
+            if d is not chosen and np.linalg.norm(d.X_WD[:2, 3] - spot) < NEIGHBOUR_RADIUS
+        )
+        request = self.request(chosen, pile, slot)
+        row.update(
+            score=chosen.score,
+            neighbours=len(pile),
+            detection_error_mm=self.nearest_truth(chosen.X_WD[:3, 3])[1] * 1e3,
+        )
+        try:
+            plan = self.planner.plan(request)
+        except PlanningError as error:
+            self.failed_spots.append(chosen.X_WD[:2, 3].copy())
+            row.update(outcome="not planned", error=str(error), code=error.code.name)
+            return {**row, "wall_s": time.perf_counter() - began}
+        row.update(planned=True, planning_s=plan.planning_time, regrasped=plan.regrasped)
+        carried = self.execute(plan)
+        if carried is None:
+            self.failed_spots.append(chosen.X_WD[:2, 3].copy())
+            row["outcome"] = "grasp missed"
+        else:
+            row.update(self.judge(slot, carried))
+        row.update(
+            knocked=self.clear_knocked(),
+            simulated_s=self.world.time - simulated,
+            wall_s=time.perf_counter() - began,
+        )
+        return row
+
+    def execute(self, plan: PickPlacePlan) -> int | None:
+        """Run the plan; the index of the domino carried at the last close, or None when a
+        grasp missed (the arm is left there with the gripper wide open, as by the bring-up)."""
+        carried = None
+        for segment in plan.sampled(self.planner.settings.sample_period):
+            track(self.world, segment)
+            if segment.gripper_after not in (GRIPPER_OPEN, GRIPPER_CLOSE):
+                continue
+            self.world.command_gripper(segment.gripper_position, plan_force(plan, segment.label))
+            wait_for_gripper(self.world)
+            if segment.gripper_after == GRIPPER_CLOSE:
+                opening = self.world.gripper_state().opening
+                if abs(opening - DOMINO_SIZE[1]) > GRASP_TOLERANCE:
+                    self.world.command_gripper(WIDE_OPEN, 0.0)
+                    wait_for_gripper(self.world)
+                    return None
+                held = self.world.tcp_pose() @ plan.held_in_tcp.GetAsMatrix4()
+                carried = self.nearest_truth(held[:3, 3])[0]
+        self.world.advance(SETTLE_AFTER_PLACE)
+        return carried
+
+    def judge(self, slot: int, carried: int) -> dict:
+        """Placed within the bring-up's tolerance, or "misplaced" (and taken out)."""
+        error, tilt = placement_error(self.world.domino_truth()[carried].X_WD, self.targets[slot])
+        placed = within(error, tilt)
+        if placed:
+            self.placed[slot] = carried
+        else:
+            self.remove([carried])
+        return {
+            "placed": placed,
+            "outcome": "placed" if placed else "misplaced",
+            "place_error_mm": error * 1e3,
+            "tilt_deg": math.degrees(tilt),
+        }
+
+    def clear_knocked(self) -> list[int]:
+        """Slots whose domino is no longer within the tolerance: taken out, to be built again."""
+        truths = self.world.domino_truth()
+        knocked = [
+            slot
+            for slot, index in self.placed.items()
+            if not within(*placement_error(truths[index].X_WD, self.targets[slot]))
+        ]
+        if knocked:
+            self.remove([self.placed.pop(slot) for slot in knocked])
+        return knocked
+
+    def remove(self, indices: list[int]) -> None:
+        """Take dominoes out of the cell (an operator clears what the robot dropped)."""
+        poses = {
+            t.index: t.X_WD
+            for t in self.world.domino_truth()
+            if t.in_use and t.index not in indices
+        }
+        self.world.set_domino_poses(poses)
+
+
+def build_run(world: CellWorld, planner: PickPlacePlanner, pipeline, seed: int, args) -> list[dict]:
+    """Pour pile ``seed`` and build the run from it (knocked slots again first); a row per
+    attempt. A slot not placed within ``max_attempts`` ends the pile, as in the bring-up."""
+    report = world.reset(args.pile_size, seed)
+    log(
+        f"pile {seed}: {args.pile_size} poured, settled={report.settled} ({report.wall_time:.0f} s)"
+    )
+    run = PileRun(world, planner, pipeline, args)
+    rows: list[dict] = []
+    tries: Counter = Counter()
+    queue = list(range(args.count))
+    while queue:
+        slot = queue.pop(0)
+        tries[slot] += 1
+        row = {"pile": seed, "slot": slot, "attempt": tries[slot], **run.attempt(slot)}
+        row["success"] = row["placed"] and not row["knocked"]
+        rows.append(row)
+        log(json.dumps(row))
+        queue = row["knocked"] + ([] if row["placed"] else [slot]) + queue
+        if not row["placed"] and tries[slot] >= args.max_attempts:
+            log(f"pile {seed}: slot {slot} not placed after {args.max_attempts} attempts")
+            break
+    return rows
+
+
+def percentile(values: list[float], q: float) -> float | None:
+    return float(np.percentile(values, q)) if values else None
+
+
+def summarise(rows: list[dict]) -> dict:
+    first = [r for r in rows if r["attempt"] == 1]
+    planned = [r for r in rows if r.get("planned")]
+    times = [r["planning_s"] for r in planned]
+    placed = [r for r in rows if r["placed"]]
+    return {
+        "slots": len(first),
+        "placed": len(placed),
+        "success_first_attempt": sum(r["success"] for r in first),
+        "first_attempt_rate": sum(r["success"] for r in first) / max(1, len(first)),
+        "attempts": len(rows),
+        "outcomes": dict(Counter(r["outcome"] for r in rows)),
+        "attempts_that_knocked_the_run": sum(bool(r["knocked"]) for r in rows),
+        "planning_errors": dict(Counter(r["code"] for r in rows if "code" in r)),
+        "regrasped": sum(r.get("regrasped", False) for r in planned),
+        "planning_s": {
+            "p50": percentile(times, 50),
+            "p95": percentile(times, 95),
+            "max": max(times, default=None),
+        },
+        "placed_error_max": {
+            "mm": max((r["place_error_mm"] for r in placed), default=None),
+            "tilt_deg": max((r["tilt_deg"] for r in placed), default=None),
+        },
+        "wall_s_per_attempt": float(np.mean([r["wall_s"] for r in rows])) if rows else None,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--piles", type=int, default=4, help="piles (seeds seed..seed+piles-1)")
+    parser.add_argument("--seed", type=int, default=1, help="first pile seed")
+    parser.add_argument("--pile-size", type=int, default=30, help="dominoes poured per pile")
+    parser.add_argument("--count", type=int, default=10, help="dominoes in each run")
+    parser.add_argument("--max-attempts", type=int, default=4, help="per slot (bring-up's 4)")
+    parser.add_argument("--budget", type=float, default=5.0, help="planning budget [s]")
+    parser.add_argument("--ignore-pile", action="store_true", help="plan without the pile")
+    parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
+    args = parser.parse_args()
+    load_before = os.getloadavg()
+    scenario = load_scenario()
+    world = CellWorld(WorldConfig(cameras=True, domino_capacity=args.pile_size), scenario)
+    planner = PickPlacePlanner(scenario, PlannerSettings(**json.loads(args.settings or "{}")))
+    pipeline = build_pipeline(scenario)
+    rows = []
+    for seed in range(args.seed, args.seed + args.piles):
+        rows += build_run(world, planner, pipeline, seed, args)
+    result = {
+        "benchmark": "pile_picks",
+        "piles": args.piles,
+        "pile_size": args.pile_size,
+        "run_length": args.count,
+        "ignore_pile": args.ignore_pile,
+        **summarise(rows),
+        "rows": rows,
+        "load_average": {"before": load_before, "after": os.getloadavg()},
+    }
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
