@@ -21,7 +21,7 @@ from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organis
 from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_box
 from dombot_perception.canonical import canonical_pose, posture
 from dombot_perception.depth_check import DepthCheckConfig, correct_box
-from dombot_perception.domino_model import DOMINO_SIZE, orientation_error
+from dombot_perception.domino_model import DOMINO_SIZE, orientation_error, overlap_fraction
 from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
@@ -51,6 +51,11 @@ class PipelineConfig:
     )
     scoring: GraspScoringConfig = field(default_factory=GraspScoringConfig)
     duplicate_distance: float = 0.012  # m: boxes closer than this are one domino seen twice
+    # solid dominoes do not interpenetrate: of two boxes sharing more than this share of a
+    # box's volume deeper than overlap_margin (the pose error where two dominoes touch),
+    # one is a box fitted across parts of two dominoes
+    max_overlap: float = 0.05
+    overlap_margin: float = 0.001  # m
     max_scene_points: int = 15000  # obstacle points kept for the clearance check
     seed: int = 0
 
@@ -223,9 +228,11 @@ class PerceptionPipeline:
     def _merge_duplicates(
         self, detections: list[Detection], rejected: list[str]
     ) -> list[Detection]:
-        """Keep one box per domino: of boxes whose centres nearly coincide, the best supported."""
+        """Keep one box per domino and no two boxes in one place: of boxes whose centres
+        nearly coincide, or that interpenetrate, the best supported."""
         if len(detections) < 2:
             return detections
+        config = self.config
         centres = np.array([d.X_WD[:3, 3] for d in detections])
         order = np.argsort([-d.num_points for d in detections])
         tree = cKDTree(centres)
@@ -233,10 +240,21 @@ class PerceptionPipeline:
         for index in order:
             if dropped[index]:
                 continue
-            for other in tree.query_ball_point(centres[index], self.config.duplicate_distance):
-                if other != index and not dropped[other]:
+            where = np.round(centres[index], 3)
+            for other in tree.query_ball_point(centres[index], float(np.linalg.norm(DOMINO_SIZE))):
+                if other == index or dropped[other]:
+                    continue
+                if np.linalg.norm(centres[other] - centres[index]) < config.duplicate_distance:
                     dropped[other] = True
-                    rejected.append(f"duplicate of the box at {np.round(centres[index], 3)}")
+                    rejected.append(f"duplicate of the box at {where}")
+                    continue
+                overlap = overlap_fraction(
+                    detections[other].X_WD, detections[index].X_WD, config.overlap_margin
+                )
+                if overlap > config.max_overlap:
+                    dropped[other] = True
+                    other_at = np.round(centres[other], 3)
+                    rejected.append(f"box at {other_at}: {overlap:.0%} inside the box at {where}")
         return [d for d, drop in zip(detections, dropped, strict=True) if not drop]
 
 
