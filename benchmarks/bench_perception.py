@@ -217,6 +217,8 @@ def summarise(piles: list[dict]) -> dict:
             "p90_orientation_error_deg": _percentile(angles, 90),
             "median_latency_s": latency,
             "max_total_latency_s": float(max(e["latency"]["total"] for e in entries)),
+            # CPU time of the process: the wall time it would take without competing jobs
+            "max_cpu_latency_s": float(max(e["latency"]["cpu_total"] for e in entries)),
         }
     both = [p["both"] for p in piles]
     summary["grasps"] = {
