@@ -7,6 +7,14 @@ and the top, unoccluded ones), median position and orientation errors, latency p
 stage, and grasp success on the true scene for the top choices of our ranking and
 of the paper's flatness-only ranking, plus predicted-vs-actual grasp success.
 
+Placement checks (``/perception/check_placement``, camera_2): runs laid out as the
+bring-up lays them (``dombot_bringup.layouts``: a line, an arc and an S-curve in the
+build area) are put in the simulator while being built (the dominoes placed so far,
+shifted and turned by a few mm and degrees, some knocked away, the last one
+sometimes tipping forward or back), complete, and struck; the simulator lets them
+settle (or topple) and the check's status, position and tilt are compared with the
+final true poses.
+
 Prints one JSON object on stdout (progress on stderr). ``--figures DIR`` writes a
 mask overlay and a detection picture of the first 30-domino pile into DIR.
 """
@@ -21,9 +29,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from pydrake.math import RigidTransform
+from pydrake.common.eigen_geometry import AngleAxis
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.math import SpatialVelocity
 
-from dombot_description.grasp import pick_grasps
+from dombot_bringup import layouts
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import pick_grasps, upright_pose
 from dombot_perception.debug_image import draw_detections, mask_overlay
 from dombot_perception.evaluation import (
     EvaluationConfig,
@@ -36,6 +48,15 @@ from dombot_perception.evaluation import (
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.grasp_scoring import predicted_success
 from dombot_perception.pipeline import STAGES, PerceptionPipeline, build_pipeline
+from dombot_perception.placement_check import (
+    FALLEN,
+    MISSING,
+    NOT_SEEN,
+    STANDING,
+    PlacementConfig,
+    check_placements,
+)
+from dombot_sim.physics_checks import PUSH_SPIN, tilt_from_vertical
 from dombot_sim.world import CellWorld, WorldConfig
 
 CAMERA_SETS = {
@@ -44,14 +65,25 @@ CAMERA_SETS = {
     "camera_1": ("camera_1",),
 }
 TOP_K = 3  # grasp choices per pile compared between rankings
+RUN_LENGTH = 12  # dominoes per benchmarked run
+KINDS = ("building", "complete", "struck")
+STATUS_NAMES = {STANDING: "standing", FALLEN: "fallen", MISSING: "missing", NOT_SEEN: "not_seen"}
+BRINGUP_TOLERANCE = (0.003, np.radians(3.0))  # m, rad: the bring-up's acceptance of a placement
 
 
 def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def views_of(frames: dict) -> list[CameraView]:
-    return [CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC) for f in frames.values()]
+def views_of(frames: dict, offset: float) -> list[CameraView]:
+    """What perception is given: the frames with the camera matrix the simulator publishes,
+    its principal point moved by ``offset`` pixels (0 but to diagnose a calibration error)."""
+    views = []
+    for f in frames.values():
+        matrix = f.K.copy()
+        matrix[:2, 2] += offset
+        views.append(CameraView(f.name, f.rgb, f.depth, matrix, f.X_WC))
+    return views
 
 
 def truth_of(world: CellWorld) -> list[TruthDomino]:
@@ -77,10 +109,11 @@ def flattest_first(detections: list[Detection]) -> list[Detection]:
 
 
 def evaluate_pile(
-    world: CellWorld, pipeline: PerceptionPipeline, config: EvaluationConfig, figures: Path | None
+    world: CellWorld, pipeline: PerceptionPipeline, offset: float, figures: Path | None
 ) -> dict:
     frames = {n: f for n, f in world.render().items() if n in CAMERA_SETS["both"]}
-    views = views_of(frames)
+    views = views_of(frames, offset)
+    config = EvaluationConfig()
     truths = truth_of(world)
     covered = covered_from_above(truths)
     visible = np.array(
@@ -184,6 +217,8 @@ def summarise(piles: list[dict]) -> dict:
             "p90_orientation_error_deg": _percentile(angles, 90),
             "median_latency_s": latency,
             "max_total_latency_s": float(max(e["latency"]["total"] for e in entries)),
+            # CPU time of the process: the wall time it would take without competing jobs
+            "max_cpu_latency_s": float(max(e["latency"]["cpu_total"] for e in entries)),
         }
     both = [p["both"] for p in piles]
     summary["grasps"] = {
@@ -239,11 +274,221 @@ def settled_pile(count: int, seed: int, cache: Path | None) -> dict[int, np.ndar
     return poses
 
 
+def run_layouts(build_area: layouts.BuildArea) -> dict[str, list[np.ndarray]]:
+    """The bring-up's default line, arc and S-curve (12 dominoes), as upright poses."""
+    shapes = {
+        "line": layouts.line((0.45, 0.0), np.radians(90.0), RUN_LENGTH),
+        "arc": layouts.arc((0.0, 0.0), 0.6, np.radians(-2.0), RUN_LENGTH),
+        "s_curve": layouts.s_curve((0.45, 0.0), np.radians(90.0), 0.45, 0.05, RUN_LENGTH),
+    }
+    runs = {}
+    for name, placements in shapes.items():
+        layouts.validate(placements, build_area)
+        runs[name] = [upright_pose(p.x, p.y, p.heading).GetAsMatrix4() for p in placements]
+    return runs
+
+
+def shifted(target: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Where a careful arm might leave it: half exact, half off by up to 5 mm and 6 degrees."""
+    if rng.random() < 0.5:
+        return target
+    pose = target.copy()
+    angle = rng.uniform(0.0, 2.0 * np.pi)
+    pose[:2, 3] += rng.uniform(0.0, 0.005) * np.array([np.cos(angle), np.sin(angle)])
+    yaw = np.radians(rng.uniform(-6.0, 6.0))
+    turn = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
+    pose[:3, :3] = turn @ pose[:3, :3]
+    return pose
+
+
+def tipped(target: np.ndarray, angle: float) -> np.ndarray:
+    """The upright domino turned ``angle`` about its bottom edge, forwards (> 0, along its
+    body z) or backwards: the simulator lets it fall from there."""
+    forward = target[:3, 2]
+    axis = np.cross([0.0, 0.0, 1.0], forward) * np.sign(angle)
+    pivot = target[:3, 3] + np.sign(angle) * DOMINO_SIZE[2] / 2 * forward
+    pivot[2] = 0.0
+    turn = RotationMatrix(AngleAxis(abs(angle), axis)).matrix()
+    pose = target.copy()
+    pose[:3, :3] = turn @ target[:3, :3]
+    pose[:3, 3] = pivot + turn @ (target[:3, 3] - pivot)
+    return pose
+
+
+def run_scene(kind: str, targets: list[np.ndarray], rng: np.random.Generator) -> dict:
+    """Initial poses (by place) of a run being built, complete, or complete and struck."""
+    count = len(targets) if kind != "building" else int(rng.integers(3, len(targets) + 1))
+    poses = {i: shifted(targets[i], rng) for i in range(count) if rng.random() >= 0.1}
+    last = count - 1
+    if kind == "building" and last in poses and rng.random() < 0.5:
+        poses[last] = tipped(targets[last], np.radians(rng.choice([-15.0, 15.0])))
+    return {"expected": targets[:count], "poses": poses, "struck": kind == "struck"}
+
+
+def settle_run(world: CellWorld, scene: dict) -> dict[int, np.ndarray]:
+    """Put the run in the simulator, push the first domino over if struck, let it settle."""
+    world.set_domino_poses(scene["poses"])
+    if scene["struck"] and 0 in scene["poses"]:
+        forward = scene["poses"][0][:3, 2]
+        axis = np.cross([0.0, 0.0, 1.0], forward)
+        lever = DOMINO_SIZE[2] / 2 * forward + np.array([0.0, 0.0, DOMINO_SIZE[0] / 2])
+        world.kick_domino(0, SpatialVelocity(PUSH_SPIN * axis, PUSH_SPIN * np.cross(axis, lever)))
+    world.advance(2.0)
+    return {t.index: t.X_WD for t in world.domino_truth() if t.in_use}
+
+
+def true_status(target: np.ndarray, pose: np.ndarray | None, config: PlacementConfig) -> int:
+    """What stands at the place: the domino placed there, upright within the check's
+    limits, near it (FALLEN), or gone (MISSING)."""
+    if pose is None:
+        return MISSING
+    offset = float(np.hypot(*(pose[:2, 3] - target[:2, 3])))
+    if offset <= config.search_radius and tilt_from_vertical(pose) <= config.max_tilt:
+        return STANDING
+    return FALLEN if offset <= config.search_radius + DOMINO_SIZE[0] / 2 else MISSING
+
+
+def evaluate_run(
+    world: CellWorld, pipeline: PerceptionPipeline, scene: dict, offset: float
+) -> list[dict]:
+    """One row per expected place: true and reported status, errors, check latency."""
+    config = PlacementConfig()
+    truth = settle_run(world, scene)
+    views = views_of(world.render(["camera_2"]), offset)
+    started = time.perf_counter()
+    results = check_placements(scene["expected"], views, pipeline, config)
+    latency = time.perf_counter() - started
+    rows = []
+    for index, (target, result) in enumerate(zip(scene["expected"], results, strict=True)):
+        pose = truth.get(index)
+        row = {"true": true_status(target, pose, config), "reported": result.status}
+        if pose is not None:
+            row["true_offset"] = float(np.hypot(*(pose[:2, 3] - target[:2, 3])))
+            row["true_tilt"] = tilt_from_vertical(pose)
+            row["position_error"] = float(np.hypot(*(result.measured[:2, 3] - pose[:2, 3])))
+            row["reported_offset"], row["reported_tilt"] = result.position_error, result.tilt
+            row["measured_pose"] = not np.array_equal(result.measured, target)
+        rows.append(row)
+    return [{**row, "latency": latency} for row in rows]
+
+
+def summarise_placements(rows: list[dict]) -> dict:
+    """Status confusion, accuracy, the errors of what was found standing or fallen, and
+    how often the bring-up's acceptance (standing within 3 mm and 3 degrees) is right."""
+    confusion = {STATUS_NAMES[t]: {STATUS_NAMES[r]: 0 for r in STATUS_NAMES} for t in STATUS_NAMES}
+    for row in rows:
+        confusion[STATUS_NAMES[row["true"]]][STATUS_NAMES[row["reported"]]] += 1
+    standing = [r for r in rows if r["true"] == STANDING and r["reported"] == STANDING]
+    fallen = [r for r in rows if r["true"] == FALLEN and r["reported"] == FALLEN]
+    located = [r for r in fallen if r["measured_pose"]]
+    accepted = np.array([_accepted(r, "reported_offset", "reported_tilt") for r in standing])
+    within = np.array([_accepted(r, "true_offset", "true_tilt") for r in standing])
+    return {
+        "places": len(rows),
+        "status_accuracy": float(np.mean([r["true"] == r["reported"] for r in rows])),
+        "confusion_true_by_reported": confusion,
+        "standing_position_error_mm": _spread([r["position_error"] * 1e3 for r in standing]),
+        "standing_offset_error_mm": _spread(
+            [abs(r["reported_offset"] - r["true_offset"]) * 1e3 for r in standing]
+        ),
+        "standing_tilt_error_deg": _spread(
+            [np.degrees(abs(r["reported_tilt"] - r["true_tilt"])) for r in standing]
+        ),
+        "fallen_located": len(located),
+        "fallen_position_error_mm": _spread([r["position_error"] * 1e3 for r in located]),
+        "bringup_accepts": {
+            "right": int(np.sum(accepted == within)),
+            "accepted_but_outside": int(np.sum(accepted & ~within)),
+            "refused_but_within": int(np.sum(~accepted & within)),
+        },
+        "median_latency_s": float(np.median([r["latency"] for r in rows])),
+        "max_latency_s": float(max(r["latency"] for r in rows)),
+    }
+
+
+def _accepted(row: dict, offset: str, tilt: str) -> bool:
+    return row[offset] <= BRINGUP_TOLERANCE[0] and row[tilt] <= BRINGUP_TOLERANCE[1]
+
+
+def _spread(values: list[float]) -> dict | None:
+    if not values:
+        return None
+    return {
+        "median": float(np.median(values)),
+        "p90": float(np.percentile(values, 90)),
+        "max": float(max(values)),
+    }
+
+
+def placement_benchmark(seeds: list[int], offset: float) -> dict:
+    """Every layout × seed: a run being built; seeds' first half also complete and struck."""
+    world = CellWorld(WorldConfig(cameras=True, domino_capacity=RUN_LENGTH))
+    pipeline = build_pipeline(world.scenario)
+    area = layouts.BuildArea(
+        *world.scenario.build_x, *world.scenario.build_y, *world.scenario.build_reach
+    )
+    rows, scenes = [], []
+    for shape, (name, targets) in enumerate(run_layouts(area).items()):
+        for seed in seeds:
+            kinds = KINDS if seed <= len(seeds) // 2 else KINDS[:1]
+            for kind in kinds:
+                rng = np.random.default_rng([seed, shape, KINDS.index(kind)])
+                scene = run_scene(kind, targets, rng)
+                found = evaluate_run(world, pipeline, scene, offset)
+                rows += found
+                scenes.append({"layout": name, "seed": seed, "kind": kind, "places": len(found)})
+                log(f"  {name} seed {seed} {kind}: " + _statuses(found))
+    return {"scenes": scenes, "summary": summarise_placements(rows)}
+
+
+def _statuses(rows: list[dict]) -> str:
+    return " ".join(f"{STATUS_NAMES[r['true']][0]}>{STATUS_NAMES[r['reported']][0]}" for r in rows)
+
+
+def pile_benchmark(count: int, seeds: list[int], args: argparse.Namespace) -> dict:
+    """Every seeded pile of ``count``: detections against the truth, three camera sets."""
+    world = CellWorld(WorldConfig(cameras=True, domino_capacity=count))
+    pipeline = build_pipeline(world.scenario)
+    piles, failed = [], []
+    for seed in seeds:
+        poses = settled_pile(count, seed, args.pile_cache)
+        if poses is None:
+            failed.append(seed)
+            continue
+        world.set_domino_poses(poses)
+        figures = args.figures if count == 30 and not piles else None
+        offset = args.principal_point_offset
+        piles.append({"seed": seed, **evaluate_pile(world, pipeline, offset, figures)})
+        found = {k: piles[-1]["both"][k] for k in ("detections", "matched", "matched_top")}
+        log(f"  N={count} seed {seed}: {json.dumps(found)}")
+    return {
+        "summary": summarise(piles) if piles else None,
+        "simulator_failed_seeds": failed,
+        "piles": [
+            {k: v for k, v in p.items() if k in ("seed", "dominoes", "top_unoccluded")}
+            for p in piles
+        ],
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--counts", type=int, nargs="+", default=[10, 30, 60])
+    parser.add_argument("--counts", type=int, nargs="*", default=[10, 30, 60])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    parser.add_argument(
+        "--placement-seeds",
+        type=int,
+        nargs="*",
+        default=[1, 2, 3, 4],
+        help="run scenes per layout (none: skip the placement checks)",
+    )
     parser.add_argument("--figures", type=Path, default=None)
+    parser.add_argument(
+        "--principal-point-offset",
+        type=float,
+        default=0.0,
+        help="px added to the published principal point (to measure a calibration error)",
+    )
     parser.add_argument(
         "--pile-cache",
         type=Path,
@@ -251,33 +496,18 @@ def main() -> None:
         help="settled piles are stored here and reused (delete to pour again)",
     )
     args = parser.parse_args()
-    config = EvaluationConfig()
-    report = {"counts": {}, "seeds": args.seeds, "load_average_start": os.getloadavg()}
+    report = {
+        "counts": {},
+        "seeds": args.seeds,
+        "principal_point_offset_px": args.principal_point_offset,
+        "load_average_start": os.getloadavg(),
+    }
     for count in args.counts:
-        world = CellWorld(WorldConfig(cameras=True, domino_capacity=count))
-        pipeline = build_pipeline(world.scenario)
-        piles, failed = [], []
-        for seed in args.seeds:
-            poses = settled_pile(count, seed, args.pile_cache)
-            if poses is None:
-                failed.append(seed)
-                continue
-            world.set_domino_poses(poses)
-            figures = args.figures if count == 30 and not piles else None
-            piles.append({"seed": seed, **evaluate_pile(world, pipeline, config, figures)})
-            log(
-                f"  N={count} seed {seed}: "
-                + json.dumps(
-                    {k: piles[-1]["both"][k] for k in ("detections", "matched", "matched_top")}
-                )
-            )
-        report["counts"][str(count)] = {
-            "summary": summarise(piles) if piles else None,
-            "simulator_failed_seeds": failed,
-            "piles": [
-                {k: v for k, v in p.items() if k in ("seed", "dominoes", "top_unoccluded")}
-                for p in piles
-            ],
+        report["counts"][str(count)] = pile_benchmark(count, args.seeds, args)
+    if args.placement_seeds:
+        report["placement"] = {
+            "seeds": args.placement_seeds,
+            **placement_benchmark(args.placement_seeds, args.principal_point_offset),
         }
     report["load_average_end"] = os.getloadavg()
     print(json.dumps(report, indent=1, default=float))

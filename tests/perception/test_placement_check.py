@@ -19,6 +19,7 @@ from dombot_perception.placement_check import (
 
 HEADING = 0.4
 SPACING = 0.0288  # m between dominoes of the run
+HALF_LENGTH, HALF_THICKNESS = 0.024, 0.00375
 
 
 @pytest.fixture(scope="module")
@@ -63,3 +64,16 @@ def test_a_place_outside_every_image_is_not_seen(run_poses, pipeline, render_bui
     far[:2, 3] = [3.0, 3.0]
     results = check_placements([run_poses[0], far], views, pipeline, PlacementConfig())
     assert [r.status for r in results] == [STANDING, NOT_SEEN]
+
+
+def test_a_domino_that_tipped_forward_belongs_to_the_place_it_fell_from(
+    run_poses, pipeline, render_build_area
+) -> None:
+    forward = run_poses[1][:2, 0:3][:, 2]  # the run's direction (body z, horizontal)
+    # tipped over its front edge: lying flat, its centre almost on the next place
+    centre = run_poses[1][:2, 3] + (HALF_LENGTH + HALF_THICKNESS) * forward
+    fallen = flat_pose(*centre, HEADING).GetAsMatrix4()
+    views = render_build_area({0: run_poses[0], 1: fallen})
+    results = check_placements(run_poses[:3], views, pipeline, PlacementConfig())
+    assert [r.status for r in results] == [STANDING, FALLEN, MISSING]
+    assert np.linalg.norm(results[1].measured[:3, 3] - fallen[:3, 3]) < 0.003

@@ -7,8 +7,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dombot_description.scenario import load_scenario
-from dombot_perception.domino_model import orientation_error
-from dombot_perception.filtering import see_through_fraction
+from dombot_perception.backprojection import backproject
+from dombot_perception.box_fit import BoxFitConfig, fit_statistics
+from dombot_perception.depth_check import DepthCheckConfig, correct_box, depth_evidence
+from dombot_perception.domino_model import HALF_SIZE, orientation_error
 from dombot_perception.frames import POSTURE_FLAT, POSTURE_ON_EDGE, POSTURE_UPRIGHT, CameraView
 from dombot_perception.pipeline import build_pipeline
 from support.perception_scenes import FLAT_HEIGHT, PILE_CENTRE, domino_pose, flat
@@ -140,6 +142,26 @@ def test_malformed_view_is_skipped_with_a_warning(pipeline, render_scene):
 def test_a_box_where_the_cameras_see_the_table_fails_the_free_space_check(render_scene) -> None:
     truth = flat(X0, Y0, 0.3)
     views = render_scene({0: truth})
-    assert see_through_fraction(truth, views, margin=0.005) < 0.05
+    config = DepthCheckConfig()
+    assert depth_evidence(truth, views, config).see_through_fraction < 0.02
     phantom = flat(X0 + 0.06, Y0, 0.3)  # nothing there: both cameras see the table behind
-    assert see_through_fraction(phantom, views, margin=0.005) > 0.8  # low sides: < margin
+    assert depth_evidence(phantom, views, config).see_through_fraction > 0.95
+
+
+def test_a_box_sticking_out_past_the_visible_surface_is_pulled_back(render_scene) -> None:
+    truth = flat(X0, Y0, 0.3)
+    views = render_scene({0: truth})
+    seen = np.concatenate([backproject(v.depth, v.K, v.X_WC).reshape(-1, 3) for v in views])
+    body = (seen - truth[:3, 3]) @ truth[:3, :3]
+    # only the middle of the top face: these points leave the box free to slide lengthwise
+    middle = (np.abs(body[:, 0]) < 0.015) & (np.abs(body[:, 1]) < HALF_SIZE[1])
+    points = seen[middle & (np.abs(body[:, 2] - HALF_SIZE[2]) < 0.0005)]
+    shifted = truth.copy()
+    shifted[:3, 3] += 0.004 * truth[:3, 0]  # 4 mm over the end: the cameras see the table
+    fit = fit_statistics(shifted, points, np.ones(points.shape[0], dtype=bool))
+    config = DepthCheckConfig()
+    corrected, evidence = correct_box(fit, points, views, config, BoxFitConfig())
+    assert depth_evidence(shifted, views, config).see_through_fraction > 0.05
+    assert evidence.see_through_fraction < 0.02
+    assert np.linalg.norm(corrected.X_WD[:3, 3] - truth[:3, 3]) < 0.001
+    assert orientation_error(corrected.X_WD[:3, :3], truth[:3, :3]) < np.radians(1.0)

@@ -15,6 +15,7 @@ from dombot_perception.domino_model import (
     SYMMETRIES,
     box_signed_distance,
     orientation_error,
+    overlap_fraction,
 )
 from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
 from dombot_perception.frames import (
@@ -31,6 +32,7 @@ from dombot_perception.grasp_scoring import (
     score_detections,
     weighted_geometric_mean,
 )
+from dombot_perception.pipeline import PerceptionPipeline
 from support.perception_scenes import PILE_CENTRE, domino_pose, flat
 
 RNG_SEED = 11
@@ -160,6 +162,34 @@ def test_orientation_error_ignores_the_box_symmetries() -> None:
         assert orientation_error(rotation @ symmetry, rotation) < 1e-6
     turned = rotation @ Rotation.from_euler("z", 5, degrees=True).as_matrix()
     assert np.isclose(np.degrees(orientation_error(turned, rotation)), 5.0)
+
+
+def test_overlap_fraction_of_touching_and_crossing_boxes() -> None:
+    base = flat(*PILE_CENTRE, yaw=0.2)
+    assert np.isclose(overlap_fraction(base, base), 1.0)
+    beside = base.copy()  # side by side, 0.5 mm into each other (pose error)
+    beside[:3, 3] += base[:3, 1] * (DOMINO_SIZE[1] - 0.0005)
+    assert overlap_fraction(beside, base, margin=0.001) == 0.0
+    beside[:3, 3] -= base[:3, 1] * 0.004  # 4.5 mm into each other
+    assert 0.1 < overlap_fraction(beside, base, margin=0.001) < 0.2
+    crossing = flat(*PILE_CENTRE, yaw=0.2 + np.pi / 2)  # turned a quarter on the same place
+    crossing[:3, 3] += base[:3, 0] * 0.012
+    assert 0.3 < overlap_fraction(crossing, base, margin=0.001) <= 0.5
+
+
+def test_of_two_interpenetrating_boxes_the_better_supported_stays() -> None:
+    base = flat(*PILE_CENTRE, yaw=0.2)
+    crossing = flat(*PILE_CENTRE, yaw=0.2 + np.pi / 2)  # across parts of two dominoes
+    crossing[:3, 3] += base[:3, 0] * 0.015
+    stacked = base.copy()  # on top of the first, half a length along, touching it
+    stacked[:3, 3] += base[:3, 0] * 0.024 + np.array([0.0, 0.0, DOMINO_SIZE[2] - 0.0005])
+    apart = flat(PILE_CENTRE[0] + 0.1, PILE_CENTRE[1], yaw=0.0)
+    detections = [_detection(base), _detection(crossing), _detection(stacked), _detection(apart)]
+    detections[1].num_points = 300
+    rejected: list[str] = []
+    kept = PerceptionPipeline(None)._merge_duplicates(detections, rejected)  # type: ignore[arg-type]
+    assert [d.X_WD[0, 3] for d in kept] == [base[0, 3], stacked[0, 3], apart[0, 3]]
+    assert len(rejected) == 1 and "inside the box at" in rejected[0]
 
 
 def test_fusion_merges_the_same_domino_seen_by_two_cameras_only() -> None:

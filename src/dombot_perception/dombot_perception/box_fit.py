@@ -65,10 +65,15 @@ def fit_domino_box(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig
         if trimmed.sum() < 10 or np.array_equal(trimmed, inliers):
             break
         inliers = trimmed
+    return fit_statistics(pose, points, inliers)
+
+
+def fit_statistics(pose: np.ndarray, points: np.ndarray, inliers: np.ndarray) -> BoxFit:
+    """The fit of the box at ``pose`` to ``points``, judged on the ``inliers`` (a mask)."""
     body = (points[inliers] - pose[:3, 3]) @ pose[:3, :3]
     return BoxFit(
         X_WD=pose,
-        fit_error=float(np.sqrt(np.mean(residuals[inliers] ** 2))),
+        fit_error=float(np.sqrt(np.mean(box_signed_distance(body) ** 2))),
         extents=body.max(axis=0) - body.min(axis=0),
         inlier_fraction=float(inliers.mean()),
     )
@@ -150,17 +155,30 @@ def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, np.cross(normal, u)
 
 
-def refine_pose(initial: np.ndarray, points: np.ndarray, config: BoxFitConfig) -> np.ndarray:
+def refine_pose(
+    initial: np.ndarray,
+    points: np.ndarray,
+    config: BoxFitConfig,
+    outside: np.ndarray | None = None,
+    outside_axis: np.ndarray | None = None,
+) -> np.ndarray:
     """Point-to-plane ICP against the box model, 6 DoF, started at ``initial``.
 
     Each point is paired with the box face it is closest to; one damped, Huber-weighted
     Gauss-Newton step on the point-to-face distances updates the pose. Written out
     (a few lines of numpy) because a general solver costs tens of milliseconds per box.
+
+    ``outside`` are points the box must not contain (where a camera saw past it,
+    ``depth_check.DepthEvidence.outside``): while one is inside, the nearest face other
+    than the one its ray entered through (``outside_axis``) is pulled onto it, which
+    moves the box off the ray without lifting the face the camera saw.
     """
     rotation, centre = initial[:3, :3].copy(), initial[:3, 3].copy()
     for _ in range(config.iterations):
         body = (points - centre) @ rotation
         axis = np.argmax(np.abs(body) - HALF_SIZE, axis=1)
+        if outside is not None and outside_axis is not None and outside.shape[0]:
+            body, axis = _with_outside(body, axis, (outside - centre) @ rotation, outside_axis)
         rows = np.arange(body.shape[0])
         normal = np.zeros_like(body)
         normal[rows, axis] = np.sign(body[rows, axis])
@@ -178,6 +196,17 @@ def refine_pose(initial: np.ndarray, points: np.ndarray, config: BoxFitConfig) -
     pose[:3, :3] = rotation
     pose[:3, 3] = centre
     return pose
+
+
+def _with_outside(
+    body: np.ndarray, axis: np.ndarray, outside_body: np.ndarray, entry_axis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The surface points and their faces, plus each outside point that is inside the box
+    paired with its nearest face other than the one its ray entered through."""
+    inside = np.all(np.abs(outside_body) < HALF_SIZE, axis=1)
+    depth = HALF_SIZE - np.abs(outside_body[inside])
+    depth[np.arange(depth.shape[0]), entry_axis[inside]] = np.inf
+    return np.vstack([body, outside_body[inside]]), np.concatenate([axis, depth.argmin(axis=1)])
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

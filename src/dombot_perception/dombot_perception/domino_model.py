@@ -21,6 +21,16 @@ SYMMETRIES = np.array(
 )
 
 
+# Cell centres of a 16 x 8 x 3 grid over the box (3 x 3 x 2.5 mm cells): volume samples.
+_GRID = np.stack(
+    np.meshgrid(
+        *[np.linspace(-h, h, 2 * n + 1)[1::2] for h, n in zip(HALF_SIZE, (16, 8, 3), strict=True)],
+        indexing="ij",
+    ),
+    axis=-1,
+).reshape(-1, 3)
+
+
 def face_areas() -> np.ndarray:
     """Area of the faces whose normal is body x, y, z [m^2]."""
     length, width, thickness = DOMINO_SIZE
@@ -33,6 +43,17 @@ def box_signed_distance(points_body: np.ndarray, half_size: np.ndarray = HALF_SI
     outside = np.linalg.norm(np.maximum(excess, 0.0), axis=-1)
     inside = np.minimum(excess.max(axis=-1), 0.0)
     return outside + inside
+
+
+def overlap_fraction(first: np.ndarray, second: np.ndarray, margin: float = 0.0) -> float:
+    """Share of the ``first`` box's volume (pose 4x4) lying more than ``margin`` deep inside
+    the ``second`` box; the larger of the two directions."""
+
+    def inside(a: np.ndarray, b: np.ndarray) -> float:
+        body = (_GRID @ a[:3, :3].T + a[:3, 3] - b[:3, 3]) @ b[:3, :3]
+        return float(np.mean(np.all(np.abs(body) < HALF_SIZE - margin, axis=1)))
+
+    return max(inside(first, second), inside(second, first))
 
 
 def dominant_face(normals: np.ndarray, cos_limit: float = 0.94, samples: int = 120) -> np.ndarray:

@@ -5,10 +5,10 @@ pixels from another domino at a mask's border). Boxes: a fit is kept only when i
 points lie on the box surface (RMS error), do not spill beyond the domino's size
 (two dominoes in one mask) and cover enough of the largest visible face to pin the
 pose down (a domino mostly hidden under others is left for a later cycle), and no
-camera may see through it (free-space check: a box where a camera sees the table
-behind is a fit to a fragment, not a domino). The
-paper filtered by box volume instead; a one-sided surface has almost no volume, so
-the observed extents are the better test.
+camera may see through it (``depth_check``: a box where a camera sees the table
+behind is a fit to a fragment, not a domino). The paper filtered by box volume
+instead; a one-sided surface has almost no volume, so the observed extents are the
+better test.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ import open3d as o3d
 
 from dombot_perception.box_fit import BoxFit
 from dombot_perception.domino_model import DOMINO_SIZE
-from dombot_perception.frames import CameraView
 
 
 @dataclass(frozen=True)
@@ -32,8 +31,7 @@ class FilterConfig:
     min_coverage: float = 0.85  # of the domino's length that must be seen
     min_width_coverage: float = 0.75  # of its width (less of it can hide next to the table)
     min_thickness_coverage: float = 0.2  # of its thickness (> 0: a side face must be seen)
-    free_space_margin: float = 0.005  # m: a camera seeing this far behind a box face
-    max_see_through: float = 0.2  # fraction of a box's visible surface a camera may see behind
+    max_see_through: float = 0.05  # of a box's pixels the cameras may see past (depth_check)
     min_points: int = 40
     min_inlier_fraction: float = 0.75  # of the cloud on the fitted box's surface
     table_tolerance: float = 0.002  # m: a box reaching deeper into the table is wrong
@@ -72,53 +70,3 @@ def rejection_reason(fit: BoxFit, num_points: int, config: FilterConfig) -> str 
     if lowest < -config.table_tolerance:
         return f"box reaches {-lowest * 1000:.1f} mm into the table"
     return None
-
-
-def see_through_fraction(pose: np.ndarray, views: list[CameraView], margin: float) -> float:
-    """Fraction of the box's camera-facing surface behind which some camera sees further.
-
-    A real domino blocks the view: where a camera's depth lies more than ``margin``
-    beyond the fitted box's surface, the box is not really there (free-space check).
-    """
-    violations, checked = 0, 0
-    for view in views:
-        camera = view.X_WC[:3, 3]
-        world_points = FACE_SAMPLES @ pose[:3, :3].T + pose[:3, 3]
-        world_normals = FACE_NORMALS @ pose[:3, :3].T
-        rays = camera - world_points
-        facing = np.einsum("nk,nk->n", world_normals, rays) / np.linalg.norm(rays, axis=1)
-        visible = facing > MIN_VIEW_COSINE  # grazing faces land on the wrong pixels
-        local = (world_points[visible] - camera) @ view.X_WC[:3, :3]
-        in_front = local[:, 2] > 0
-        local = local[in_front]
-        cols = np.round(local[:, 0] / local[:, 2] * view.K[0, 0] + view.K[0, 2]).astype(int)
-        rows = np.round(local[:, 1] / local[:, 2] * view.K[1, 1] + view.K[1, 2]).astype(int)
-        height, width = view.depth.shape
-        inside = (cols >= 0) & (cols < width) & (rows >= 0) & (rows < height)
-        observed = view.depth[rows[inside], cols[inside]]
-        known = np.isfinite(observed)
-        violations += int(np.count_nonzero(observed[known] > local[inside, 2][known] + margin))
-        checked += int(np.count_nonzero(known))
-    return violations / checked if checked else 0.0
-
-
-def _face_samples(spacing: float = 0.004) -> tuple[np.ndarray, np.ndarray]:
-    """Points on the domino's six faces (body frame) and each point's outward normal."""
-    half = DOMINO_SIZE / 2.0
-    points, normals = [], []
-    for axis in range(3):
-        others = [a for a in range(3) if a != axis]
-        grids = [np.arange(-half[a] + spacing / 2, half[a], spacing) for a in others]
-        u, v = (g.ravel() for g in np.meshgrid(*grids, indexing="ij"))
-        for sign in (-1.0, 1.0):
-            face = np.zeros((u.size, 3))
-            face[:, others[0]], face[:, others[1]], face[:, axis] = u, v, sign * half[axis]
-            normal = np.zeros((u.size, 3))
-            normal[:, axis] = sign
-            points.append(face)
-            normals.append(normal)
-    return np.concatenate(points), np.concatenate(normals)
-
-
-FACE_SAMPLES, FACE_NORMALS = _face_samples()
-MIN_VIEW_COSINE = 0.3  # faces seen more obliquely than ~73 degrees are not checked

@@ -20,13 +20,9 @@ from dombot_description.scenario import Scenario
 from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_box
 from dombot_perception.canonical import canonical_pose, posture
-from dombot_perception.domino_model import DOMINO_SIZE, orientation_error
-from dombot_perception.filtering import (
-    FilterConfig,
-    rejection_reason,
-    remove_outliers,
-    see_through_fraction,
-)
+from dombot_perception.depth_check import DepthCheckConfig, correct_box
+from dombot_perception.domino_model import DOMINO_SIZE, orientation_error, overlap_fraction
+from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
 from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
@@ -44,6 +40,7 @@ class PipelineConfig:
     depth_range: tuple[float, float] = (0.1, 2.0)
     fusion: FusionConfig = field(default_factory=FusionConfig)
     box_fit: BoxFitConfig = field(default_factory=BoxFitConfig)
+    depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
     filtering: FilterConfig = field(default_factory=FilterConfig)
     # two fragments fitted as one must fit tightly and show a side face: a loose fit, or
     # two coplanar patches of buried dominoes, is not one domino
@@ -54,6 +51,11 @@ class PipelineConfig:
     )
     scoring: GraspScoringConfig = field(default_factory=GraspScoringConfig)
     duplicate_distance: float = 0.012  # m: boxes closer than this are one domino seen twice
+    # solid dominoes do not interpenetrate: of two boxes sharing more than this share of a
+    # box's volume deeper than overlap_margin (the pose error where two dominoes touch),
+    # one is a box fitted across parts of two dominoes
+    max_overlap: float = 0.05
+    overlap_margin: float = 0.001  # m
     max_scene_points: int = 15000  # obstacle points kept for the clearance check
     seed: int = 0
 
@@ -202,9 +204,12 @@ class PerceptionPipeline:
         filtering = filtering or self.config.filtering
         reason = rejection_reason(fit, points.shape[0], filtering)
         if reason is None:
-            seen_through = see_through_fraction(fit.X_WD, views, filtering.free_space_margin)
-            if seen_through > filtering.max_see_through:
-                reason = f"cameras see behind {seen_through:.0%} of its surface"
+            fit, evidence = correct_box(
+                fit, points, views, self.config.depth_check, self.config.box_fit
+            )
+            reason = rejection_reason(fit, points.shape[0], filtering)
+            if reason is None and evidence.see_through_fraction > filtering.max_see_through:
+                reason = f"cameras see past {evidence.see_through_fraction:.0%} of it"
         if reason:
             rejected.append(f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}")
             return None, fit
@@ -223,9 +228,11 @@ class PerceptionPipeline:
     def _merge_duplicates(
         self, detections: list[Detection], rejected: list[str]
     ) -> list[Detection]:
-        """Keep one box per domino: of boxes whose centres nearly coincide, the best supported."""
+        """Keep one box per domino and no two boxes in one place: of boxes whose centres
+        nearly coincide, or that interpenetrate, the best supported."""
         if len(detections) < 2:
             return detections
+        config = self.config
         centres = np.array([d.X_WD[:3, 3] for d in detections])
         order = np.argsort([-d.num_points for d in detections])
         tree = cKDTree(centres)
@@ -233,10 +240,21 @@ class PerceptionPipeline:
         for index in order:
             if dropped[index]:
                 continue
-            for other in tree.query_ball_point(centres[index], self.config.duplicate_distance):
-                if other != index and not dropped[other]:
+            where = np.round(centres[index], 3)
+            for other in tree.query_ball_point(centres[index], float(np.linalg.norm(DOMINO_SIZE))):
+                if other == index or dropped[other]:
+                    continue
+                if np.linalg.norm(centres[other] - centres[index]) < config.duplicate_distance:
                     dropped[other] = True
-                    rejected.append(f"duplicate of the box at {np.round(centres[index], 3)}")
+                    rejected.append(f"duplicate of the box at {where}")
+                    continue
+                overlap = overlap_fraction(
+                    detections[other].X_WD, detections[index].X_WD, config.overlap_margin
+                )
+                if overlap > config.max_overlap:
+                    dropped[other] = True
+                    other_at = np.round(centres[other], 3)
+                    rejected.append(f"box at {other_at}: {overlap:.0%} inside the box at {where}")
         return [d for d, drop in zip(detections, dropped, strict=True) if not drop]
 
 

@@ -5,37 +5,42 @@ known box to the points around its expected place *starting from the expected po
 (the same point-to-plane ICP as ``box_fit``, with points shared between neighbouring
 places handed to the nearest expected box). Only the visible part of a domino is
 needed, which matters in a run where neighbours hide each other's lower halves. A
-place where that local fit fails is looked up in the full pipeline's detections
+place where that local fit fails is looked up in the full pipeline's detections,
+each detection going to at most one place, the one its foot stands on or fell from
 (a fallen domino lies somewhere near); with no detection there either, the place is
 MISSING when the cameras see almost nothing above the table there, FALLEN otherwise.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from dombot_perception.backprojection import WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, refine_pose
+from dombot_perception.depth_check import DepthCheckConfig, depth_evidence
 from dombot_perception.domino_model import DOMINO_SIZE, HALF_SIZE, box_signed_distance
-from dombot_perception.filtering import see_through_fraction
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline
 
 STANDING, FALLEN, MISSING, NOT_SEEN = 0, 1, 2, 3  # values of dombot_msgs/CheckPlacement
+FLAT_HEIGHT_SPREAD = 0.005  # m: ends of the length axis this close in height both touch down
 
 
 @dataclass(frozen=True)
 class PlacementConfig:
     search_radius: float = 0.03  # m around the expected centre (horizontal)
+    fit_margin: float = 0.01  # m around the expected box: the points fitted from its pose
+    min_fit_height: float = 0.01  # m: the first fit ignores lower points (see _local_fit)
     min_points: int = 30  # on the fitted box (within inlier_distance) to call it there
     inlier_distance: float = 0.002  # m
     max_tilt: float = np.radians(15.0)  # body x from vertical: beyond this it has fallen
     region_margin: float = 0.06  # m around the run for the work region
     min_height_seen: float = 0.5  # of the domino's length, along its (vertical) length axis
-    free_space_margin: float = 0.005  # m, as in FilterConfig
-    max_see_through: float = 0.2
+    depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
+    max_see_through: float = 0.2  # of the box's pixels the camera may see past
 
 
 @dataclass
@@ -61,13 +66,13 @@ def check_placements(
     points = np.concatenate(seen) if seen else np.zeros((0, 3))
     owner = _nearest_expected(points, expected)
     detections: list[Detection] | None = None
-    claimed: dict[int, int] = {}  # detection -> the expected place nearest to it
+    claimed: dict[int, int] = {}  # expected place -> the detection of its domino
     results = []
     for index, pose in enumerate(expected):
         if not any(_in_view(pose, view) for view in views):
             results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
             continue
-        near = _near(points, pose, config.search_radius) & (owner == index)
+        near = _around_box(points, pose, config.fit_margin) & (owner == index)
         fitted = _local_fit(pose, points[near], views, config)
         if fitted is not None:
             results.append(_placement(STANDING, fitted, pose))
@@ -75,18 +80,36 @@ def check_placements(
         if detections is None:
             local = replace(pipeline.config, region=region)
             detections = PerceptionPipeline(pipeline.segmenter, local).run(views).detections
-            claimed = _claim(detections, expected)
-        mine = [d for k, d in enumerate(detections) if claimed.get(k) == index]
+            claimed = _claim(detections, expected, config.search_radius)
+        mine = detections[claimed[index]] if index in claimed else None
         results.append(_from_detections(pose, mine, detections, points, config))
     return results
 
 
-def _claim(detections: list[Detection], expected: list[np.ndarray]) -> dict[int, int]:
-    """Each detection belongs to the expected place nearest to it (horizontally)."""
-    return {
-        k: int(np.argmin([_horizontal(d.X_WD, pose) for pose in expected]))
-        for k, d in enumerate(detections)
-    }
+def _claim(
+    detections: list[Detection], expected: list[np.ndarray], radius: float
+) -> dict[int, int]:
+    """Expected place -> the detection that stood there: one each (Hungarian assignment).
+
+    A domino tips over its bottom edge, so its foot (``_foot_distance``) stays at its
+    place while its centre moves towards the next one: by centres, a run that toppled
+    would be claimed one place too far. Pairs further apart than ``radius`` are no
+    match.
+    """
+    if not detections:
+        return {}
+    cost = np.array([[_foot_distance(d.X_WD, pose) for d in detections] for pose in expected])
+    places, found = linear_sum_assignment(np.where(cost <= radius, cost, 1e3))
+    return {int(p): int(k) for p, k in zip(places, found, strict=True) if cost[p, k] <= radius}
+
+
+def _foot_distance(pose: np.ndarray, expected: np.ndarray) -> float:
+    """Horizontal distance from the expected place to the detected domino's foot: the
+    lower end of its length axis, or the nearer end when it lies flat (a domino that
+    tipped over lies with one end where it stood, its centre 28 mm further)."""
+    ends = pose[:3, 3] + np.outer([-1.0, 1.0], pose[:3, 0]) * HALF_SIZE[0]
+    low = ends[ends[:, 2] <= ends[:, 2].min() + FLAT_HEIGHT_SPREAD]
+    return float(np.min(np.hypot(low[:, 0] - expected[0, 3], low[:, 1] - expected[1, 3])))
 
 
 def _run_region(expected: list[np.ndarray], base: WorkRegion, config: PlacementConfig):
@@ -120,6 +143,11 @@ def _nearest_expected(points: np.ndarray, expected: list[np.ndarray]) -> np.ndar
     return distances.argmin(axis=0)
 
 
+def _around_box(points: np.ndarray, pose: np.ndarray, margin: float) -> np.ndarray:
+    """Points within ``margin`` of the box at ``pose`` (in each body direction)."""
+    return np.all(np.abs((points - pose[:3, 3]) @ pose[:3, :3]) < HALF_SIZE + margin, axis=1)
+
+
 def _near(points: np.ndarray, pose: np.ndarray, radius: float) -> np.ndarray:
     return np.hypot(points[:, 0] - pose[0, 3], points[:, 1] - pose[1, 3]) < radius
 
@@ -128,11 +156,16 @@ def _local_fit(
     expected: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
 ) -> np.ndarray | None:
     """The box fitted from the expected pose, if it stands there: enough points on it,
-    spread over most of its height, and no camera seeing through it."""
-    if points.shape[0] < config.min_points:
+    spread over most of its height, and no camera seeing through it.
+
+    The first fit uses only points higher than a lying domino: one that fell and lies
+    at this domino's foot would otherwise pull its bottom aside and tilt the box.
+    """
+    high = points[points[:, 2] > config.min_fit_height]
+    if high.shape[0] < config.min_points:
         return None
     fit_config = BoxFitConfig()
-    pose = refine_pose(expected, points, fit_config)
+    pose = refine_pose(expected, high, fit_config)
     on_box = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
     inliers = on_box < config.inlier_distance
     if inliers.sum() < config.min_points:
@@ -143,7 +176,8 @@ def _local_fit(
         _tilt(pose) > config.max_tilt
         or _horizontal(pose, expected) > config.search_radius
         or np.ptp(lengthwise) < config.min_height_seen * DOMINO_SIZE[0]
-        or see_through_fraction(pose, views, config.free_space_margin) > config.max_see_through
+        or depth_evidence(pose, views, config.depth_check).see_through_fraction
+        > config.max_see_through
     ):
         return None
     return pose
@@ -151,21 +185,19 @@ def _local_fit(
 
 def _from_detections(
     expected: np.ndarray,
-    mine: list[Detection],
+    mine: Detection | None,
     detections: list[Detection],
     points: np.ndarray,
     config: PlacementConfig,
 ) -> Placement:
-    """From the pipeline: this place's nearest detection, else what its points say.
+    """From the pipeline: the detection of this place's domino, else what its points say.
 
     Points on any detected box are explained; unexplained points on the place's
     footprint mean something lies there that no box fits (FALLEN, pose unknown).
     """
-    nearby = [d for d in mine if _horizontal(d.X_WD, expected) < config.search_radius]
-    if nearby:
-        found = min(nearby, key=lambda d: _horizontal(d.X_WD, expected))
-        status = STANDING if _tilt(found.X_WD) <= config.max_tilt else FALLEN
-        return _placement(status, found.X_WD, expected)
+    if mine is not None:
+        status = STANDING if _tilt(mine.X_WD) <= config.max_tilt else FALLEN
+        return _placement(status, mine.X_WD, expected)
     footprint = points[_near(points, expected, HALF_SIZE[1])]
     for detection in detections:
         local = (footprint - detection.X_WD[:3, 3]) @ detection.X_WD[:3, :3]
