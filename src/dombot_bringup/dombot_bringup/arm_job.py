@@ -189,8 +189,9 @@ class ArmJob:
 
         First the candidates perception scored as free for the fingers, with their pile
         neighbours as obstacles; when every one is refused, those with the most room
-        beside the fingers (perception's clearance) again without the pile (the pads may push neighbours aside, as a builder's fingers do;
-        a miss is caught by the grasp check and backed out of). A refusal costs a
+        beside the fingers (perception's clearance) again without the pile (the pads may
+        push neighbours aside, as a builder's fingers do; a miss is caught by the grasp
+        check and backed out of). A refusal costs a
         planning call, not an attempt: the arm has not moved. A grasp no IK reaches even
         without the pile is remembered for the run, until a pick nearby changes the pile.
         """
