@@ -112,6 +112,7 @@ class PileRun:
         self.failed_spots: list[np.ndarray] = []  # of the slot being built (as the bring-up)
         self.slot = -1
         self.detections: list = []
+        self.chosen = None  # the detection planned last
 
     def perceive(self) -> list:
         self.world.advance(FRESH_FRAMES)
@@ -184,6 +185,7 @@ class PileRun:
                 detection_error_mm=self.nearest_truth(chosen.X_WD[:3, 3])[1] * 1e3,
                 spot=chosen.X_WD[:2, 3].tolist(),
             )
+            self.chosen = chosen
             return plan
         return None
 
@@ -197,7 +199,7 @@ class PileRun:
         if plan is None:
             row["outcome"] = "not planned" if row["refused"] else "no candidate"
             return {**row, "wall_s": time.perf_counter() - began}
-        row.update(self.pads_against_truth(plan, row["spot"]))
+        row.update(self.pads_against_truth(plan, self.chosen))
         carried = self.execute(plan, row)
         if carried is None:
             self.failed_spots.append(np.array(row["spot"]))
@@ -210,37 +212,41 @@ class PileRun:
         )
         return row
 
-    def pads_against_truth(self, plan: PickPlacePlan, spot: list[float]) -> dict:
+    def pads_against_truth(self, plan: PickPlacePlan, chosen) -> dict:
         """Where the open pads come at the planned grasp against the simulator's true
-        dominoes around the picked one: the smallest distance, and the dominoes closer than
-        1 mm (with whether perception saw them: a detection within 1 cm)."""
+        dominoes around the picked one (the true domino nearest the detection): the
+        smallest distance, and the dominoes closer than 1 mm, with whether perception saw
+        them (another detection whose nearest true domino it is)."""
         approach = next(s for s in plan.sampled(1.0) if s.label.endswith("approach_grasp"))
         q = approach.positions[-1]
-        truths = [t for t in self.world.domino_truth() if t.in_use]
-        target, _ = self.nearest_truth(np.array([*spot, plan.grasp_pose.translation()[2]]))
+        target, _ = self.nearest_truth(chosen.X_WD[:3, 3])
+        seen = {self.nearest_truth(d.X_WD[:3, 3])[0] for d in self.detections if d is not chosen}
+        spot = chosen.X_WD[:2, 3]
         near = [
             t
-            for t in truths
-            if t.index != target
-            and np.linalg.norm(t.X_WD[:2, 3] - np.asarray(spot)) < 2 * NEIGHBOUR_RADIUS
+            for t in self.world.domino_truth()
+            if t.in_use
+            and t.index != target
+            and np.linalg.norm(t.X_WD[:2, 3] - spot) < 2 * NEIGHBOUR_RADIUS
         ]
         shadow = self.planner.plants.get(pregrasp_opening(DOMINO_SIZE[1]))
         tcp = self.planner.scenario.tcp_frame
-        closest, touching = QUERY_DISTANCE, []
+        closest, touching = {PADS: QUERY_DISTANCE, ARM: QUERY_DISTANCE}, []
         for truth in near:
             clearance = Scene(shadow, tcp, pile=[RigidTransform(truth.X_WD)]).clearance(q)
-            distance = min(
-                clearance.get((PADS, PILE), QUERY_DISTANCE),
-                clearance.get((ARM, PILE), QUERY_DISTANCE),
-            )
-            closest = min(closest, distance)
+            for part in closest:
+                closest[part] = min(closest[part], clearance.get((part, PILE), QUERY_DISTANCE))
+            distance = min(clearance.get((part, PILE), QUERY_DISTANCE) for part in closest)
             if distance < 1e-3:
-                seen = any(
-                    np.linalg.norm(d.X_WD[:3, 3] - truth.X_WD[:3, 3]) < 0.01
-                    for d in self.detections
+                touching.append(
+                    {"index": truth.index, "mm": distance * 1e3, "detected": truth.index in seen}
                 )
-                touching.append({"index": truth.index, "mm": distance * 1e3, "detected": seen})
-        return {"pads_to_true_pile_mm": closest * 1e3, "pads_touch": touching}
+        return {
+            "target": target,
+            "pads_to_true_pile_mm": closest[PADS] * 1e3,
+            "arm_to_true_pile_mm": closest[ARM] * 1e3,
+            "pads_touch": touching,
+        }
 
     def execute(self, plan: PickPlacePlan, row: dict) -> int | None:
         """Run the plan; the index of the domino carried at the last close, or None when
