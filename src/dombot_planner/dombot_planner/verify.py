@@ -320,8 +320,9 @@ def _near_target(tcp: RigidTransform, target: RigidTransform, distance: float) -
 class StrikeChecker(CellChecker):
     """The check plant for one strike: the cell, the struck domino and the rest of the run.
 
-    Phases are the segments' labels (and "escape"); the dominoes stay where they stood (after the push
-    the struck one has gone forward, so its clearances in the retreat mean nothing).
+    Phases are the segments' labels (and "escape"); the dominoes stay where they stood
+    (after the push the struck one has gone forward, so its clearances in the retreat mean
+    nothing).
     """
 
     def __init__(
