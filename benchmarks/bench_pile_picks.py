@@ -48,7 +48,7 @@ from dombot_perception.frames import POSTURE_FLAT, POSTURE_TILTED, CameraView
 from dombot_perception.pipeline import build_pipeline
 from dombot_planner.errors import PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
-from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.planner import PickPlacePlan, PickPlacePlanner, steeper_grasps
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.scene import ARM, PADS, PILE, QUERY_DISTANCE, Scene
 from dombot_planner.settings import PlannerSettings
@@ -165,6 +165,7 @@ class PileRun:
         """A plan for the first of ``--candidates`` detections that the planner accepts; the
         refused ones are recorded in ``row`` (and not tried again in this pile)."""
         candidates = self.candidates(detections)
+        row.update(detections=len(detections), pickable=len(candidates))
         for chosen in candidates[: self.args.candidates or len(candidates)]:
             request = self.request(chosen, detections, slot)
             try:
@@ -179,6 +180,13 @@ class PileRun:
                 planned=True,
                 planning_s=plan.planning_time,
                 regrasped=plan.regrasped,
+                grasp_lean_deg=math.degrees(math.acos(-plan.grasp_pose.rotation().matrix()[2, 2])),
+                steeper_grasp=any(
+                    plan.grasp_pose.IsNearlyEqualTo(g, 1e-6)
+                    for g in steeper_grasps(
+                        request.domino_pose, self.planner.settings.steeper_grasp_turn
+                    )
+                ),
                 score=chosen.score,
                 posture=int(chosen.posture),
                 neighbours=len(request.pile),
@@ -396,6 +404,7 @@ def summarise(rows: list[dict]) -> dict:
         "outcomes": dict(Counter(r["outcome"] for r in rows)),
         "attempts_that_knocked_the_run": sum(bool(r["knocked"]) for r in rows),
         "first_attempt_outcomes": dict(Counter(r["outcome"] for r in first)),
+        "pickable_detections_at_first_attempts": [r.get("pickable") for r in first],
         "refused_candidates": dict(Counter(f["code"] for r in rows for f in r["refused"])),
         "grasp_misses": {
             "pads_on_a_true_neighbour": sum(bool(r["pads_touch"]) for r in missed),
@@ -406,6 +415,7 @@ def summarise(rows: list[dict]) -> dict:
         },
         "planned_with_pads_on_a_true_neighbour": sum(bool(r["pads_touch"]) for r in planned),
         "regrasped": sum(r.get("regrasped", False) for r in planned),
+        "steeper_grasps": sum(r.get("steeper_grasp", False) for r in planned),
         "planning_s": {
             "p50": percentile(times, 50),
             "p95": percentile(times, 95),
