@@ -14,8 +14,8 @@ from dombot_description.grasp import FINGER_SWAP, flat_pose, pick_grasps, uprigh
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN
-from dombot_planner.planner import PickPlacePlanner
-from dombot_planner.request import PickPlaceRequest, dominoes_overlap
+from dombot_planner.planner import PickPlacePlanner, steeper_grasps
+from dombot_planner.request import PickPlaceRequest, box_corners, dominoes_overlap
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.verify import TrajectoryChecker
 
@@ -312,3 +312,62 @@ def test_settings_refuse_bad_values() -> None:
         PlannerSettings(workspace_reach=(0.8, 0.2))
     with pytest.raises(ValueError, match="approach_speed"):
         PlannerSettings(approach_speed=math.nan)
+
+
+def leaning_pose(x: float, y: float, yaw: float, tilt: float) -> RigidTransform:
+    """A domino turned by ``yaw``, leaning by ``tilt`` about its width, lowest corner on
+    the table (as one lying across a neighbour in a pile)."""
+    rotation = RotationMatrix.MakeZRotation(yaw) @ RotationMatrix.MakeYRotation(tilt)
+    lowest = box_corners(RigidTransform(rotation, [x, y, 0.0]))[:, 2].min()
+    return RigidTransform(rotation, [x, y, -lowest])
+
+
+def test_steeper_grasps_turn_the_canonical_ones_towards_vertical_about_the_tcp() -> None:
+    domino = flat_pose(0.6, -0.3, 0.7)
+    turn = SETTINGS.steeper_grasp_turn
+    canonical = [g.pose for g in pick_grasps(domino) if g.pose.rotation().matrix()[2, 2] < 0]
+    steeper = steeper_grasps(domino, turn)
+    assert len(steeper) == 2 * len(canonical)
+    for pose in steeper:
+        twin = min(canonical, key=lambda c: np.linalg.norm(c.translation() - pose.translation()))
+        assert pose.translation() == pytest.approx(twin.translation(), abs=1e-12)  # TCP stays
+        closing = pose.rotation().matrix()[:, 1]
+        assert abs(closing @ twin.rotation().matrix()[:, 1]) == pytest.approx(1.0)
+        lean = math.degrees(math.acos(-pose.rotation().matrix()[2, 2]))
+        assert lean == pytest.approx(63.0 - math.degrees(turn) / 2, abs=1e-6) or lean == (
+            pytest.approx(63.0 - math.degrees(turn), abs=1e-6)
+        )
+    assert steeper_grasps(domino, 0.0) == []
+
+
+def test_leaning_domino_out_of_canonical_reach_is_picked_with_a_steeper_grasp(planner) -> None:
+    """Leaning 19° about its width 0.7 m out: the canonical grasps lean 82° (the gripper
+    body reaches the table) or point at the base (out of reach); a steeper one is used,
+    and the plan passes the independent check with it. The run is built in order: the
+    neighbour behind the place pose stands."""
+    bearing = -0.5
+    domino = leaning_pose(
+        0.7 * math.cos(bearing), 0.7 * math.sin(bearing), bearing + math.radians(150), 0.33
+    )
+    req = request(domino_pose=domino, standing=run_with_neighbours(0.55, 0.15, 0.3, sides=(-1,)))
+    canonical_only = PickPlacePlanner(
+        SCENARIO, dataclasses.replace(SETTINGS, steeper_grasp_turn=0.0), plants=planner.plants
+    )
+    assert failure(canonical_only, req).code == ErrorCode.GRASP_UNREACHABLE
+    plan = planner.plan(req)
+    steeper = steeper_grasps(domino, SETTINGS.steeper_grasp_turn)
+    assert any(plan.grasp_pose.IsNearlyEqualTo(g, 1e-6) for g in steeper)
+    result = checker_for(req).check(
+        plan.sampled(SETTINGS.sample_period),
+        req.start,
+        (SETTINGS.pick_approach_distance, SETTINGS.place_approach_distance),
+        grasps_for=lambda pose: steeper_grasps(pose, SETTINGS.steeper_grasp_turn),
+    )
+    assert result.grasp_error[0] <= 1e-3 and math.degrees(result.grasp_error[1]) <= 0.5
+    assert result.place_error[0] <= SETTINGS.release_height + 1e-4
+    assert math.degrees(result.place_error[1]) <= 0.5
+    assert result.min_clearance("fine", "pads", "table") >= 0.0
+    assert result.min_clearance("fine", "pads", "standing") >= SETTINGS.fine_obstacle_clearance
+    for moving in ("arm", "pads", "held"):
+        for obstacle in ("table", "standing"):
+            assert result.min_clearance("coarse", moving, obstacle) >= SETTINGS.coarse_clearance

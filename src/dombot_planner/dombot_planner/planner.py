@@ -34,6 +34,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import (
     FINGER_SWAP,
+    GRASP_TILT,
     comes_from_above,
     domino_in_tcp,
     pick_grasps,
@@ -83,6 +84,47 @@ class PickPlacePlan(Plan):
     regrasped: bool = False  # the domino was turned in place first (two picks)
 
 
+def steeper_grasps(domino_pose: RigidTransform, limit: float) -> list[RigidTransform]:
+    """The canonical grasps turned about their closing axis (the domino's width) through
+    the TCP towards a vertical approach, by ``limit``/2 and ``limit``, where that also
+    tilts them less from the domino's thickness axis than GRASP_TILT; best first, as
+    dombot_description.grasp.pick_grasps ranks (most downward, then leaning outwards).
+
+    Beyond ~0.6 m from the base the arm reaches a canonical grasp (63° from vertical on a
+    flat domino) only leaning outwards, and on a domino leaning by τ about its width that
+    one leans 63° + τ, bringing the gripper body down to the table; a steeper approach
+    reaches it and keeps the gripper higher. The pads still close across the width on the
+    same spot (the TCP stays) and, tilted less from the thickness axis, overlap more of
+    the side faces (docs/PLANNER.md, grasp strategy); the domino is held turned by the
+    same angle and the place poses follow from the hold (the gripper leans that much more
+    there). The planner's checks decide the rest (pad tips to the table and the pile).
+    """
+    if limit <= 0.0:
+        return []
+    outward = domino_pose.translation() * [1.0, 1.0, 0.0]
+    outward /= max(np.linalg.norm(outward), 1e-9)
+    thickness = domino_pose.rotation().matrix()[:, 2]
+    turned = []
+    for grasp in pick_grasps(domino_pose):
+        matrix = grasp.pose.rotation().matrix()
+        # Turned by t about G y the approach is z cos t + x sin t: it points further down
+        # for t of the sign opposite to x_z.
+        sign = -1.0 if matrix[2, 0] >= 0.0 else 1.0
+        for turn in (0.5 * limit, limit):
+            pose = grasp.pose @ RigidTransform(RotationMatrix.MakeYRotation(sign * turn))
+            approach = pose.rotation().matrix()[:, 2]
+            if comes_from_above(pose) and abs(approach @ thickness) > math.cos(GRASP_TILT) + 1e-9:
+                turned.append(pose)
+
+    def score(pose: RigidTransform) -> float:
+        approach = pose.rotation().matrix()[:, 2]
+        horizontal = approach * [1.0, 1.0, 0.0]
+        norm = np.linalg.norm(horizontal)
+        return -approach[2] + (0.3 * float(horizontal @ outward) / norm if norm > 1e-9 else 0.0)
+
+    return sorted(turned, key=lambda pose: -round(score(pose), 9))
+
+
 @dataclass
 class End:
     """One end of the transfer: IK at the pose and the vertical line above it."""
@@ -116,17 +158,24 @@ class EndSearch:
     grasp_candidates: int = 0
     place_candidates: int = 0
     picks_found: int = 0
+    steeper_picks_found: int = 0  # of picks_found, with steeper grasps
     grasp_failures: Counter = field(default_factory=Counter)
     place_failures: Counter = field(default_factory=Counter)
 
     def error(self) -> PlanningError:
-        if self.picks_found == 0:
-            return PlanningError(
-                ErrorCode.GRASP_UNREACHABLE,
-                "grasp",
+        """GRASP_UNREACHABLE also when only steeper grasps reached the domino and none of
+        their holds could be placed: the regrasp (canonical grasps) may still work."""
+        if self.picks_found == self.steeper_picks_found:
+            message = (
                 f"no collision-free IK and approach line for any of {self.grasp_candidates} "
-                f"grasps ({reasons(self.grasp_failures)})",
+                f"grasps ({reasons(self.grasp_failures)})"
             )
+            if self.steeper_picks_found:
+                message += (
+                    f"; {self.steeper_picks_found} steeper grasps reach it, but no place pose "
+                    f"suits their hold ({reasons(self.place_failures)})"
+                )
+            return PlanningError(ErrorCode.GRASP_UNREACHABLE, "grasp", message)
         return PlanningError(
             ErrorCode.PLACE_UNREACHABLE,
             "place",
@@ -232,7 +281,11 @@ class RequestPlanning(RequestMotions):
         default: the request's grasp first, then the ranked canonical grasps."""
         super().__init__(planner, request.start, deadline)
         self.request = request
-        self.grasps = grasps if grasps is not None else self._ranked_grasps()
+        steeper = 0
+        if grasps is None:
+            grasps, steeper = self._ranked_grasps()
+        self.grasps = grasps
+        self.first_steeper = len(grasps) - steeper  # grasps from here on are steeper_grasps
         closed = request.grasp_width or DOMINO_SIZE[1]
         self.openings = {
             "pregrasp": pregrasp_opening(closed),
@@ -254,19 +307,28 @@ class RequestPlanning(RequestMotions):
             **dominoes,
         )
 
-    def _ranked_grasps(self) -> list[RigidTransform]:
+    def _ranked_grasps(self) -> tuple[list[RigidTransform], int]:
         """The request's grasp and its finger-swapped twin (the same gripper placement),
         then dombot_description.grasp's ranked grasps; only those coming from above.
 
         A request's grasp (e.g. perception's, which cleared its point cloud, undetected
         dominoes included) is preferred, not required: the pile the planner knows is only
-        what perception detected.
+        what perception detected. Last the steeper grasps, turned towards a vertical
+        approach; also returned: how many of those end the list.
         """
-        ranked = [g.pose for g in pick_grasps(self.request.domino_pose)]
-        given = self.request.grasp_pose
+        domino, given = self.request.domino_pose, self.request.grasp_pose
         first = [] if given is None else [given, given @ FINGER_SWAP]
-        rest = [g for g in ranked if not any(g.IsNearlyEqualTo(f, 1e-6) for f in first)]
-        return [g for g in first + rest if comes_from_above(g)]
+
+        def others(poses: list[RigidTransform]) -> list[RigidTransform]:
+            return [
+                g
+                for g in poses
+                if comes_from_above(g) and not any(g.IsNearlyEqualTo(f, 1e-6) for f in first)
+            ]
+
+        canonical = others([g.pose for g in pick_grasps(domino)])
+        steeper = others(steeper_grasps(domino, self.settings.steeper_grasp_turn))
+        return [g for g in first if comes_from_above(g)] + canonical + steeper, len(steeper)
 
     def plan(self) -> PickPlacePlan:
         self.check_start(self.approach)
@@ -289,7 +351,7 @@ class RequestPlanning(RequestMotions):
         self.search.grasp_candidates = len(grasps)
         release = RigidTransform(s.release_height * UP) @ request.place_pose
         free = self._free_direction()
-        for grasp in grasps:
+        for index, grasp in enumerate(grasps):
             self.deadline.check("grasp")
             held = domino_in_tcp(grasp, request.domino_pose)
             transfer = self._scene("closed", held_in_tcp=held)
@@ -305,6 +367,7 @@ class RequestPlanning(RequestMotions):
             if pick is None:
                 continue
             self.search.picks_found += 1
+            self.search.steeper_picks_found += index >= self.first_steeper
             places = [p for p in place_grasps(release, held, free) if comes_from_above(p)]
             self.search.place_candidates = len(places)
             for place_pose in places:

@@ -51,6 +51,9 @@ class PlannerSettings:
     workspace_height: tuple[float, float] = (-0.005, 0.35)  # m, domino centres
     seed: int = 0  # random IK seeds and KTO restarts
     allow_regrasp: bool = True  # turn a domino no tilted grasp reaches, then pick it again
+    # When no canonical grasp works, grasps turned about the domino's width towards a
+    # vertical approach by half this and this (planner.steeper_grasps); 0: none.
+    steeper_grasp_turn: float = math.radians(20.0)  # rad
 
     def __post_init__(self) -> None:
         for field in fields(self):
@@ -63,12 +66,17 @@ class PlannerSettings:
                 for v in values
             ):
                 raise ValueError(f"{field.name} must be finite numbers, got {value!r}")
-            if not isinstance(value, tuple) and field.name != "release_height" and value <= 0:
+            may_be_zero = ("release_height", "steeper_grasp_turn")
+            if not isinstance(value, tuple) and field.name not in may_be_zero and value <= 0:
                 raise ValueError(f"{field.name} must be positive, got {value!r}")
             if isinstance(value, tuple) and not values[0] < values[1]:
                 raise ValueError(f"{field.name} must be (low, high) with low < high, got {value}")
         if self.release_height < 0:
             raise ValueError(f"release_height must be >= 0, got {self.release_height}")
+        if not 0.0 <= self.steeper_grasp_turn <= math.pi / 2:
+            raise ValueError(
+                f"steeper_grasp_turn must be 0 to π/2 rad, got {self.steeper_grasp_turn}"
+            )
         if self.strike_height > 1.0:
             raise ValueError(f"strike_height is a fraction of the height, got {self.strike_height}")
         if self.kto_control_points < 4:
