@@ -267,14 +267,17 @@ class ArmJob:
                 )
 
     def _detect(self) -> list[DominoDetection]:
-        """Perception's detections in fresh frames; a failure (e.g. the cameras' first
-        frames not yet through after the reset) is asked again a few camera periods on."""
+        """Perception's detections in fresh frames. A failure or an empty pile (e.g. the
+        cameras' first frames after the reset not yet through) is asked again a few camera
+        periods on; an empty answer after that is taken as the pile's end."""
         for _ in range(DETECT_TRIES):
             self._wait_for_fresh_frames()
             answer = self.client.detect()
-            if answer.success:
+            if answer.success and answer.detections.detections:
                 return list(answer.detections.detections)
             log(f"perception: {answer.message}; asking again")
+        if answer.success:
+            return []
         raise CallFailedError(f"perception: {answer.message}")
 
     def _forget_unreachable_near(self, spot: np.ndarray) -> None:
