@@ -2,9 +2,10 @@
 
 Runs ``ros2 run dombot_bringup bringup`` (real node processes over DDS, the simulator
 paced to real time as for a user; on this 2-core machine it runs below that anyway) for
-a 10-domino arc and a 20-domino S-curve over a set of seeds and prints one JSON object: placement success per domino (first attempt and after retries),
-runs completed, full topples, simulated and wall seconds per domino. Reports and
-pictures of every run go to ``--out`` (default out/bench_bringup).
+a 10-domino arc and a 20-domino S-curve over a set of seeds and prints one JSON object:
+placement success per domino (first attempt and after retries), runs completed, full
+topples, simulated and wall seconds per domino. Reports and pictures of every run go to
+``--out`` (default out/bench_bringup).
 """
 
 from __future__ import annotations
