@@ -15,7 +15,7 @@ from pydrake.multibody.tree import Frame
 from pydrake.trajectories import PiecewisePolynomial, Trajectory
 
 RETIME_ROUNDS = 3
-LIMIT_TOLERANCE = 0.002  # relative excess of a limit accepted in the dense check
+LIMIT_TOLERANCE = 0.002  # a limit exceeded in the dense check is tightened this much more
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,7 @@ def retime(
             return None
         timed = TimedPath(label, fine, path, scaling)
         use = limit_use(timed, limits)
-        if np.all(use <= 1.0 + LIMIT_TOLERANCE):
+        if np.all(use <= 1.0):  # the executor allows 0.1 % over at its points, no more
             return timed
         scale = scale / np.maximum(use, 1.0) * (1.0 - LIMIT_TOLERANCE)
     return timed
