@@ -152,7 +152,7 @@ def plot_run(report: RunReport, path: Path) -> Path:
         f"({summary['placed_first_attempt']} first try), toppled: "
         f"{report.toppled_by_truth} — {verdict}"
     )
-    axes.legend(loc="best", fontsize=8)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)  # off the run
     axes.grid(alpha=0.3)
     figure.tight_layout()
     figure.savefig(path, dpi=120)
