@@ -23,31 +23,28 @@ def world():
     return CellWorld(WorldConfig(cameras=True, domino_capacity=3))
 
 
-@pytest.fixture(scope="session")
-def render_scene(world):
-    """Render dominoes at exact poses: {index: 4x4} -> a CameraView per pile camera."""
+def renderer(world, pile: bool):
+    """Render dominoes at exact poses: {index: 4x4} -> a CameraView per pile camera
+    (``pile``) or per build-area camera."""
 
     def render(poses: dict[int, np.ndarray]) -> list[CameraView]:
         world.set_domino_poses(poses)
         return [
             CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
             for f in world.render().values()
-            if f.name in PILE_CAMERAS
+            if (f.name in PILE_CAMERAS) == pile
         ]
 
     return render
+
+
+@pytest.fixture(scope="session")
+def render_scene(world):
+    """Dominoes at exact poses, seen by the pile cameras."""
+    return renderer(world, pile=True)
 
 
 @pytest.fixture(scope="session")
 def render_build_area(world):
-    """Render dominoes at exact poses, seen by the build-area camera (camera_2)."""
-
-    def render(poses: dict[int, np.ndarray]) -> list[CameraView]:
-        world.set_domino_poses(poses)
-        return [
-            CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
-            for f in world.render().values()
-            if f.name not in PILE_CAMERAS
-        ]
-
-    return render
+    """Dominoes at exact poses, seen by the build-area camera (camera_2)."""
+    return renderer(world, pile=False)
