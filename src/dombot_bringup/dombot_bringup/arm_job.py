@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,6 +41,7 @@ NodeCommand = Callable[[str, str, dict], list[str]]
 BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
 NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
 DETECT_TRIES = 4
+SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE,)  # about the domino, not the slot
 NEEDED_SERVICES = (
     "/sim/reset",
@@ -79,7 +80,7 @@ class Candidate:
     clearance: float = math.inf  # m beside the finger contact sides, as perception measured
 
     def spot(self) -> np.ndarray:
-        return np.array([self.pose.position.x, self.pose.position.y])
+        return spot_of(self.pose)
 
 
 @dataclass
@@ -191,11 +192,11 @@ class ArmJob:
         neighbours as obstacles; when every one is refused, those with the most room
         beside the fingers (perception's clearance) again without the pile (the pads may
         push neighbours aside, as a builder's fingers do; a miss is caught by the grasp
-        check and backed out of). A refusal costs a
-        planning call, not an attempt: the arm has not moved. A grasp no IK reaches even
-        without the pile is remembered for the run, until a pick nearby changes the pile.
+        check and backed out of). A refusal costs a planning call, not an attempt: the
+        arm has not moved. A grasp no IK reaches even without the pile is remembered for
+        the run, until a pick nearby changes the pile.
         """
-        candidates = list(self._candidates(failed))
+        candidates = self._candidates(failed)
         count = self.settings.max_candidates
         offers = [(c, True) for c in candidates if c.scored][:count]
         roomiest = sorted(candidates, key=lambda c: (not c.scored, -c.clearance))
@@ -203,7 +204,7 @@ class ArmJob:
         refused = 0
         for candidate, with_pile in offers:
             spot = candidate.spot()
-            if any(np.linalg.norm(spot - f) < 0.01 for f in failed):
+            if near_any(spot, failed):
                 continue  # refused for this slot already
             plan = self._plan(index, candidate, with_pile)
             if not plan.success:
@@ -247,24 +248,29 @@ class ArmJob:
             timeout=self.settings.plan_budget + 30.0,
         )
 
-    def _candidates(self, failed: list[np.ndarray]) -> Iterator[Candidate]:
+    def _candidates(self, failed: list[np.ndarray]) -> list[Candidate]:
         """Fallen run dominoes first (they block the run), then the pile's detections in
-        perception's order (best grasp first)."""
+        perception's order (best grasp first); none where an attempt failed or no grasp
+        reaches."""
         avoid = failed + self.state.unreachable
-        for index, pose in sorted(self.state.fallen.items()):
-            spot = np.array([pose.position.x, pose.position.y])
-            if not any(np.linalg.norm(spot - f) < 0.01 for f in avoid):
-                yield Candidate(pose, f"run {index}")
+        fallen = [
+            Candidate(pose, f"run {index}")
+            for index, pose in sorted(self.state.fallen.items())
+            if not near_any(spot_of(pose), avoid)
+        ]
         detections = self._detect()
-        for detection in detections:
-            if pickable(detection, avoid):
-                yield Candidate(
-                    detection.pose,
-                    "pile",
-                    neighbours_of(detection, detections),
-                    scored=detection.score > 0.0,
-                    clearance=detection.clearance,
-                )
+        return fallen + [
+            Candidate(
+                detection.pose,
+                "pile",
+                neighbours_of(detection, detections),
+                scored=detection.score > 0.0,
+                clearance=detection.clearance,
+            )
+            for detection in detections
+            if detection.posture in PICKABLE_POSTURES
+            and not near_any(spot_of(detection.pose), avoid)
+        ]
 
     def _detect(self) -> list[DominoDetection]:
         """Perception's detections in fresh frames. A failure or an empty pile (e.g. the
@@ -439,16 +445,20 @@ class ArmJob:
             self.report.toppled_by_truth = down == len(self.layout)
 
 
-PICKABLE_POSTURES = (DominoDetection.POSTURE_FLAT, DominoDetection.POSTURE_TILTED)
+PICKABLE_POSTURES = (  # lying flat or leaning; the planner has the last word
+    DominoDetection.POSTURE_FLAT,
+    DominoDetection.POSTURE_TILTED,
+)
 
 
-def pickable(detection: DominoDetection, avoid: list[np.ndarray]) -> bool:
-    """Lying flat or leaning, and not where an attempt failed or no grasp reaches. The
-    planner has the last word."""
-    spot = np.array([detection.pose.position.x, detection.pose.position.y])
-    return detection.posture in PICKABLE_POSTURES and not any(
-        np.linalg.norm(spot - f) < 0.01 for f in avoid
-    )
+def spot_of(pose: Pose) -> np.ndarray:
+    """Where a domino lies on the table: (x, y) [m]."""
+    return np.array([pose.position.x, pose.position.y])
+
+
+def near_any(spot: np.ndarray, spots: Sequence[np.ndarray]) -> bool:
+    """``spot`` is one of ``spots`` (within SAME_SPOT): the same domino seen again."""
+    return any(np.linalg.norm(spot - other) < SAME_SPOT for other in spots)
 
 
 def is_approach(segment: TrajectorySegment) -> bool:
@@ -485,13 +495,12 @@ def reversed_trajectory(trajectory: JointTrajectory, lead: float) -> JointTrajec
 
 def neighbours_of(detection: DominoDetection, detections: Sequence[DominoDetection]) -> list[Pose]:
     """The other detections close enough to matter for the fingers."""
-    centre = np.array([detection.pose.position.x, detection.pose.position.y])
+    centre = spot_of(detection.pose)
     return [
         other.pose
         for other in detections
         if other is not detection
-        and np.linalg.norm([other.pose.position.x, other.pose.position.y] - centre)
-        < NEIGHBOUR_RADIUS
+        and np.linalg.norm(spot_of(other.pose) - centre) < NEIGHBOUR_RADIUS
     ]
 
 
