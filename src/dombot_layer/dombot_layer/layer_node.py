@@ -80,7 +80,7 @@ class LayerNode(Node):
         self.schedule: WheelSchedule | None = None
         self.schedule_start = 0.0
         self.last_position: np.ndarray | None = None
-        self.travelled: float | None = None  # m by the drive axle since the path started
+        self.travelled = 0.0  # m by the drive axle since the path started (odometry)
         self.timer = self.create_timer(
             1.0 / self.get_parameter("command_rate").value, self._publish
         )
@@ -184,7 +184,7 @@ class LayerNode(Node):
             )
             return
         self.schedule_start = self._now()
-        self.travelled = 0.0 if self.last_position is not None else None
+        self.travelled = 0.0
         self.get_logger().info(
             f"path accepted: {len(segments)} pieces, {self.schedule.duration:.1f} s, "
             f"{len(self.schedule.deposit_times)} dominoes"
@@ -206,15 +206,13 @@ class LayerNode(Node):
         position = np.array([message.pose.pose.position.x, message.pose.pose.position.y])
         if not np.all(np.isfinite(position)):
             return
-        if self.travelled is not None and self.last_position is not None:
+        if self.last_position is not None:
             self.travelled += float(np.linalg.norm(position - self.last_position))
-        elif self.schedule is not None:
-            self.travelled = 0.0  # odometry came up after the path: count from here
         self.last_position = position
 
     def _schedule_time(self) -> float:
         """Where the vehicle is in the schedule: odometry distance over the axle speed."""
-        if self.travelled is None:
+        if self.last_position is None:  # no odometry (yet): the clock
             return self._now() - self.schedule_start
         return self.travelled / float(self.get_parameter("forward_speed").value)
 
