@@ -205,6 +205,9 @@ class LayerNode(Node):
     def _on_odometry(self, message: Odometry) -> None:
         position = np.array([message.pose.pose.position.x, message.pose.pose.position.y])
         if not np.all(np.isfinite(position)):
+            self.get_logger().warning(
+                f"ignoring odometry at {position.tolist()}: not finite", throttle_duration_sec=5.0
+            )
             return
         if self.last_position is not None:
             self.travelled += float(np.linalg.norm(position - self.last_position))
