@@ -180,6 +180,26 @@ def test_pads_keep_clear_of_the_pile_that_the_domino_touches(planner) -> None:
     assert result.grasp_error[0] <= 1e-3
 
 
+def test_pads_nudge_the_pile_when_no_grasp_keeps_clear_of_it(planner) -> None:
+    """Pile dominoes along both sides, a little closer than the open pads need: no grasp
+    keeps pile_clearance, so the pads reach into them (never more than pile_nudge) while
+    gripper body and arm keep pile_arm_clearance; with pile_nudge 0 the domino is refused."""
+    domino = flat_pose(0.60, -0.28, 0.4)
+    gap = 0.014  # m: the open pads span 8-16 mm beside the domino's sides
+    sides = tuple(
+        domino @ RigidTransform([0.0, side * (DOMINO_SIZE[1] + gap), 0.0]) for side in (-1, 1)
+    )
+    req = request(domino_pose=domino, pile=sides)
+    plan = planner.plan(req)
+    assert plan.nudged
+    result = check(plan, req)
+    assert -SETTINGS.pile_nudge <= result.min_clearance("fine", "pads", "pile") < 0.0
+    assert result.min_clearance("fine", "arm", "pile") >= SETTINGS.pile_arm_clearance
+    assert result.grasp_error[0] <= 1e-3
+    strict = PickPlacePlanner(load_scenario(), dataclasses.replace(SETTINGS, pile_nudge=0.0))
+    assert failure(strict, req).code == ErrorCode.GRASP_UNREACHABLE
+
+
 def test_domino_boxed_in_by_the_pile_is_unreachable(planner) -> None:
     """Pile dominoes along both sides leave no room for a pad, tilted or from the top."""
     domino = flat_pose(0.60, -0.28, 0.4)

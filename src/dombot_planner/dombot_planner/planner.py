@@ -9,8 +9,10 @@ Plan of a request (docs/PLANNER.md has the picture):
    place pose's symmetric equivalents (ranked so the gripper leans over the run's free
    side), checked holding the domino (descent) and with released fingers (retreat). The
    request's grasp, when given, is tried first. Pile dominoes (perceived around the one
-   to pick) keep ``pile_clearance`` from pads, gripper and arm on the approach line, at
-   the grasp and on the lift; the picked domino may touch them.
+   to pick) keep ``pile_clearance`` from the pads and ``pile_arm_clearance`` from gripper
+   body and arm on the approach line, at the grasp and on the lift; when no grasp keeps
+   the pads that clear, they may reach ``pile_nudge`` into a pile domino (pushing it
+   aside). The picked domino may touch them.
 2. *Coarse moves* by KinematicTrajectoryOptimization: start → above the grasp (open
    fingers), above the grasp → above the placement (holding the domino), seeded by the
    straight joint line, then by a raised via configuration, then by perturbed ones;
@@ -82,6 +84,7 @@ class PickPlacePlan(Plan):
     release_pose: RigidTransform  # TCP when it opens
     held_in_tcp: RigidTransform  # the domino in the TCP frame while held
     regrasped: bool = False  # the domino was turned in place first (two picks)
+    nudged: bool = False  # the pads reach into a pile domino's box (up to pile_nudge)
 
 
 def steeper_grasps(domino_pose: RigidTransform, limit: float) -> list[RigidTransform]:
@@ -187,18 +190,19 @@ class EndSearch:
 class PickPlacePlanner(ArmPlanner):
     """Plans /plan_place requests; keeps shadow plants between requests (not thread-safe)."""
 
-    def fine_rules(self, at_pick: bool) -> ClearanceRules:
-        """Within the lines only pads and the held domino come near the table and dominoes,
-        and pads, gripper and arm come pile_clearance near the pile; at the pick the held
-        domino may drag along the pile dominoes it lies among."""
+    def fine_rules(self, at_pick: bool, nudge: bool = False) -> ClearanceRules:
+        """Within the lines only pads and the held domino come near the table and dominoes;
+        the pads come pile_clearance near the pile (``nudge``: pile_nudge into it), gripper
+        body and arm pile_arm_clearance; at the pick the held domino may drag along the
+        pile dominoes it lies among."""
         s = self.settings
         return self.relaxed_rules(
             {
                 (PADS, TABLE): s.pad_table_clearance,
                 (PADS, STANDING): s.fine_obstacle_clearance,
                 (PADS, TARGET): s.fine_obstacle_clearance,
-                (PADS, PILE): s.pile_clearance,
-                (ARM, PILE): s.pile_clearance,
+                (PADS, PILE): -s.pile_nudge if nudge else s.pile_clearance,
+                (ARM, PILE): s.pile_arm_clearance,
                 (HELD, TABLE): -s.release_height - 1e-3,  # lies on the table at pick
                 (HELD, STANDING): s.fine_obstacle_clearance,
                 (HELD, PILE): -math.inf if at_pick else s.fine_obstacle_clearance,
@@ -214,13 +218,40 @@ class PickPlacePlanner(ArmPlanner):
         self.check(request)
         deadline = Deadline(request.time_budget or self.settings.default_time_budget)
         try:
-            plan = RequestPlanning(self, request, deadline).plan()
+            plan = self._plan_around_pile(request, deadline)
         except PlanningError as error:
             if not (error.code == ErrorCode.GRASP_UNREACHABLE and self.settings.allow_regrasp):
                 raise
             plan = self._plan_with_regrasp(request, deadline, error)
         plan.planning_time = deadline.elapsed()
         return plan
+
+    def _plan_around_pile(self, request: PickPlaceRequest, deadline: Deadline) -> PickPlacePlan:
+        """Pads clear of the pile when a grasp allows it, else nudging it.
+
+        In a heap few dominoes leave a pad's width free beside them; a pad that reaches a
+        few millimetres into a neighbour's box pushes it aside (measured in
+        docs/PLANNER.md), while a bump of the gripper body or arm stops the arm short of
+        the grasp, so those keep their clearance either way.
+        """
+        try:
+            return RequestPlanning(self, request, deadline).plan()
+        except PlanningError as error:
+            nudge = self.settings.pile_nudge > 0.0 and request.pile
+            if error.code != ErrorCode.GRASP_UNREACHABLE or not nudge:
+                raise
+            try:
+                plan = RequestPlanning(self, request, deadline, nudge=True).plan()
+            except PlanningError as nudge_error:
+                if nudge_error.code == ErrorCode.TIMEOUT:
+                    raise
+                raise PlanningError(
+                    error.code,
+                    error.stage,
+                    f"{error.message}; with the pads nudging the pile too ({nudge_error})",
+                ) from None
+            plan.nudged = True
+            return plan
 
     def _plan_with_regrasp(
         self, request: PickPlaceRequest, deadline: Deadline, error: PlanningError
@@ -276,11 +307,14 @@ class RequestPlanning(RequestMotions):
         request: PickPlaceRequest,
         deadline: Deadline,
         grasps: list[RigidTransform] | None = None,
+        nudge: bool = False,
     ) -> None:
         """``grasps``: exactly these TCP poses to grasp with (the regrasp's top grasp);
-        default: the request's grasp first, then the ranked canonical grasps."""
+        default: the request's grasp first, then the ranked canonical grasps. ``nudge``:
+        the pads may reach pile_nudge into pile dominoes."""
         super().__init__(planner, request.start, deadline)
         self.request = request
+        self.nudge = nudge
         steeper = 0
         if grasps is None:
             grasps, steeper = self._ranked_grasps()
@@ -360,7 +394,7 @@ class RequestPlanning(RequestMotions):
                 s.pick_approach_distance,
                 lift_directions(grasp),
                 [self.approach, transfer],
-                self.planner.fine_rules(at_pick=True),
+                self.planner.fine_rules(at_pick=True, nudge=self.nudge),
                 self.seeds([request.start]),
                 self.search.grasp_failures,
             )

@@ -142,7 +142,11 @@ class PlannerNode(Node):
     # ------------------------------------------------------------------ services
     def _on_plan_place(self, request: PlanPlace.Request, response: PlanPlace.Response):
         def note(plan: PickPlacePlan) -> str:
-            return "domino turned in place first" if plan.regrasped else ""
+            notes = {
+                "domino turned in place first": plan.regrasped,
+                "the pads nudge the pile": plan.nudged,
+            }
+            return "; ".join(words for words, applies in notes.items() if applies)
 
         return self._serve(
             "plan_place", response, lambda: (self.planner, self._place_request(request)), note

@@ -22,9 +22,14 @@ class PlannerSettings:
     # pads and held domino to standing dominoes.
     pad_table_clearance: float = 0.0005
     fine_obstacle_clearance: float = 0.002
-    # Pile dominoes (perceived, ±2 mm): pads, gripper and arm keep this from them on the
-    # final approach, at the grasp and on the lift; the picked domino may touch them.
+    # Pile dominoes (perceived, ±2 mm) on the final approach, at the grasp and on the lift:
+    # the pads keep pile_clearance from them when a grasp allows it, else may reach up to
+    # pile_nudge into one (pushing it aside, as a builder's fingers do; 0: never); gripper
+    # body and arm always keep pile_arm_clearance (a bump there stops the arm short of the
+    # grasp). The picked domino may touch them.
     pile_clearance: float = 0.003
+    pile_nudge: float = 0.004
+    pile_arm_clearance: float = 0.006
     self_clearance: float = 0.001  # robot against itself, everywhere
     # Kinematic trajectory optimization.
     kto_control_points: int = 10
@@ -66,11 +71,13 @@ class PlannerSettings:
                 for v in values
             ):
                 raise ValueError(f"{field.name} must be finite numbers, got {value!r}")
-            may_be_zero = ("release_height", "steeper_grasp_turn")
+            may_be_zero = ("release_height", "steeper_grasp_turn", "pile_nudge")
             if not isinstance(value, tuple) and field.name not in may_be_zero and value <= 0:
                 raise ValueError(f"{field.name} must be positive, got {value!r}")
             if isinstance(value, tuple) and not values[0] < values[1]:
                 raise ValueError(f"{field.name} must be (low, high) with low < high, got {value}")
+        if self.pile_nudge < 0:
+            raise ValueError(f"pile_nudge must be >= 0, got {self.pile_nudge}")
         if self.release_height < 0:
             raise ValueError(f"release_height must be >= 0, got {self.release_height}")
         if not 0.0 <= self.steeper_grasp_turn <= math.pi / 2:
