@@ -188,19 +188,20 @@ class ArmJob:
     def _attempt(self, index: int, failed: list[np.ndarray]) -> tuple[bool, str, np.ndarray | None]:
         """Offer the planner candidates until one plans; execute and check it.
 
-        First the candidates perception scored as free for the fingers, with their pile
-        neighbours as obstacles; when every one is refused, those with the most room
-        beside the fingers (perception's clearance) again without the pile (the pads may
-        push neighbours aside, as a builder's fingers do; a miss is caught by the grasp
-        check and backed out of). A refusal costs a planning call, not an attempt: the
-        arm has not moved. A grasp no IK reaches even without the pile is remembered for
-        the run, until a pick nearby changes the pile.
+        First with their pile neighbours as obstacles (the planner keeps the pads clear of
+        them, or lets them nudge one a few millimetres): those perception scored as free
+        for the fingers, then the rest with the most room beside the fingers (perception's
+        clearance) first. When every one is refused, the roomiest again without the pile
+        (the pads may push neighbours further; a miss is caught by the grasp check and
+        backed out of). A refusal costs a planning call, not an attempt: the arm has not
+        moved. A grasp no IK reaches even without the pile is remembered for the run,
+        until a pick nearby changes the pile.
         """
         candidates = self._candidates(failed)
         count = self.settings.max_candidates
-        offers = [(c, True) for c in candidates if c.scored][:count]
         roomiest = sorted(candidates, key=lambda c: (not c.scored, -c.clearance))
-        offers += [(c, False) for c in roomiest[:count]]
+        ranked = [c for c in candidates if c.scored] + [c for c in roomiest if not c.scored]
+        offers = [(c, True) for c in ranked[:count]] + [(c, False) for c in roomiest[:count]]
         refused = 0
         for candidate, with_pile in offers:
             spot = candidate.spot()
@@ -215,8 +216,9 @@ class ArmJob:
                 elif not with_pile:
                     self.state.unreachable.append(spot)
                 continue
-            if not with_pile:
-                log(f"planned {candidate.source} at {spot.round(3).tolist()} ignoring its pile")
+            if not with_pile or plan.message != "planned":
+                how = plan.message + ("" if with_pile else " ignoring its pile")
+                log(f"{how}: {candidate.source} at {spot.round(3).tolist()}")
             if candidate.source.startswith("run "):
                 self.state.fallen.pop(int(candidate.source.split()[1]), None)
             self._forget_unreachable_near(spot)  # the pick disturbs its neighbours
