@@ -15,6 +15,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -42,10 +43,32 @@ CASES = {
     ],
 }
 SEEDS = (1, 2, 3)
+RUN_TIMEOUT = 3600.0  # s of wall time per run
 
 
 def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
+
+
+def run_logged(command: list[str], log_path: Path, name: str) -> tuple[int, str]:
+    """Run the bring-up, its output into ``log_path`` and its own progress lines (not the
+    nodes') onto stderr as they come; killed after RUN_TIMEOUT. Exit code and last lines."""
+    lines: list[str] = []
+    with (
+        log_path.open("w") as log_file,
+        subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        ) as process,
+    ):
+        watchdog = threading.Timer(RUN_TIMEOUT, process.kill)
+        watchdog.start()
+        for line in process.stdout:
+            log_file.write(line)
+            lines = [*lines[-19:], line]
+            if line.startswith("[bringup]"):
+                log(f"{name}: {line.rstrip()}")
+        watchdog.cancel()
+    return process.returncode, "".join(lines)
 
 
 def run_case(name: str, arguments: list[str], seed: int, out: Path) -> dict:
@@ -60,19 +83,18 @@ def run_case(name: str, arguments: list[str], seed: int, out: Path) -> dict:
         str(seed),
     ]  # at the user's real-time factor (1): unpaced, the idle simulator floods perception
     started = time.monotonic()
-    result = subprocess.run(command, capture_output=True, text=True, timeout=3600)
+    exit_code, tail = run_logged(command, out / f"{name}_seed{seed}.log", f"{name} seed {seed}")
     wall = time.monotonic() - started
-    (out / f"{name}_seed{seed}.log").write_text(result.stdout + result.stderr)
     report_path = folder / "run_report.json"
     if not report_path.exists():
-        log(f"{name} seed {seed}: no report (exit {result.returncode})")
+        log(f"{name} seed {seed}: no report (exit {exit_code})")
         return {
             "case": name,
             "seed": seed,
-            "exit": result.returncode,
+            "exit": exit_code,
             "completed": False,
             "wall_s": wall,
-            "error": result.stderr[-500:],
+            "error": tail,
         }
     report = json.loads(report_path.read_text())
     summary = report["summary"]
@@ -80,7 +102,7 @@ def run_case(name: str, arguments: list[str], seed: int, out: Path) -> dict:
     return {
         "case": name,
         "seed": seed,
-        "exit": result.returncode,
+        "exit": exit_code,
         "completed": summary["placed"] == summary["dominoes"],
         "toppled": bool(summary["toppled_by_truth"]),
         "dominoes": summary["dominoes"],
@@ -131,7 +153,7 @@ def main() -> None:
     }
     for name in args.cases:
         runs = [run_case(name, CASES[name], seed, args.out) for seed in args.seeds]
-        report["cases"][name] = {"arguments": CASES[name], "runs": runs, **aggregate(runs)}
+        report["cases"][name] = {"arguments": CASES[name], **aggregate(runs), "per_seed": runs}
     report["load_average_at_end"] = os.getloadavg()
     print(json.dumps(report, indent=2))
 

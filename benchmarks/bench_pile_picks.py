@@ -4,14 +4,15 @@ The arm job's loop (dombot_bringup.arm_job) without ROS, to measure what the iso
 pairs of bench_planner cannot: picks out of a real pile. For each seeded pile (poured
 and settled by dombot_sim), the bring-up's default run (an arc of 10 at 0.6 m from the
 base) is built in order. Each attempt: perceive with both pile cameras
-(dombot_perception's pipeline); take the best detection lying flat or leaning, with a
-positive score, not where an attempt at this slot already failed; pass the other
-detections within 8 cm as the pile (``PickPlaceRequest.pile``), the dominoes already
-placed as standing and no grasp (the planner chooses; ``--perception-grasp`` passes
-perception's as the preferred one); plan from the simulated arm's joints. A detection
-the planner refuses is recorded (request included, to plan it again) and, up to
-``--candidates`` per attempt, the next one is planned (the bring-up plans one per
-attempt: ``--candidates 1``). Then every segment is executed (as
+(dombot_perception's pipeline); take the best detection lying flat or leaning, not where
+an attempt at this slot already failed (those perception scored as leaving the fingers
+room first, then the others with the most room); pass the other detections within 8 cm
+as the pile (``PickPlaceRequest.pile``), the dominoes already placed as standing and no
+grasp (the planner chooses; ``--perception-grasp`` passes perception's as the preferred
+one); plan from the simulated arm's joints. A detection the planner refuses is recorded
+(request included, to plan it again) and, up to ``--candidates`` per attempt, the next
+one is planned (the bring-up offers 6 with their pile: ``--candidates 6``; its last
+resort, planning without the pile, is ``--ignore-pile``). Then every segment is executed (as
 bench_planner_execution does) and judged as the simulator's action server judges it
 (every joint within 0.01 rad of the end within 0.5 s, else the goal is aborted), and
 every gripper event is run; a grasp is checked by where the fingers stopped (the
@@ -122,17 +123,20 @@ class PileRun:
         return self.detections
 
     def candidates(self, detections: list) -> list:
-        """The bring-up's choice, best first: flat, scored, not where an attempt failed."""
-        return [
+        """The bring-up's offers with the pile, best first: lying flat or leaning, not where
+        an attempt failed; those perception scored (in its order), then the others with the
+        most room beside the fingers first."""
+        pickable = [
             detection
             for detection in detections
             if detection.posture in PICKABLE
-            and detection.score > 0.0
             and all(
                 np.linalg.norm(detection.X_WD[:2, 3] - f) >= FAILED_SPOT_RADIUS
                 for f in self.failed_spots
             )
         ]
+        unscored = sorted((d for d in pickable if d.score <= 0.0), key=lambda d: -d.clearance)
+        return [d for d in pickable if d.score > 0.0] + unscored
 
     def nearest_truth(self, position: np.ndarray) -> tuple[int, float]:
         """Index of the simulated domino nearest ``position`` and its distance [m]."""
@@ -180,6 +184,7 @@ class PileRun:
                 planned=True,
                 planning_s=plan.planning_time,
                 regrasped=plan.regrasped,
+                nudged=plan.nudged,
                 grasp_lean_deg=math.degrees(math.acos(-plan.grasp_pose.rotation().matrix()[2, 2])),
                 steeper_grasp=any(
                     plan.grasp_pose.IsNearlyEqualTo(g, 1e-6)
@@ -415,6 +420,10 @@ def summarise(rows: list[dict]) -> dict:
         },
         "planned_with_pads_on_a_true_neighbour": sum(bool(r["pads_touch"]) for r in planned),
         "regrasped": sum(r.get("regrasped", False) for r in planned),
+        "nudged": sum(r.get("nudged", False) for r in planned),
+        "first_attempt_outcomes_nudged": dict(
+            Counter(r["outcome"] for r in first if r.get("nudged"))
+        ),
         "steeper_grasps": sum(r.get("steeper_grasp", False) for r in planned),
         "planning_s": {
             "p50": percentile(times, 50),
