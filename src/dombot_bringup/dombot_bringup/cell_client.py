@@ -36,6 +36,37 @@ class CallFailedError(RuntimeError):
     """A service or action did not answer, or refused the goal."""
 
 
+class SerialActionClient(ActionClient):
+    """rclpy's ActionClient with sending a request and taking a response serialized.
+
+    rclpy 7.1 (Jazzy) records a request's sequence number only after sending it; an
+    executor thread that takes the response in between drops it ("Ignoring unexpected
+    goal response") and the future never completes (ros2/rclpy#1123; upstream fixed it
+    with this lock in #1308). Seen here: a trajectory goal the simulator accepted and
+    ran while the bring-up waited for its acceptance until it gave up.
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._serial = threading.RLock()
+
+    def send_goal_async(self, *args, **kwargs):
+        with self._serial:
+            return super().send_goal_async(*args, **kwargs)
+
+    def _cancel_goal_async(self, goal_handle):
+        with self._serial:
+            return super()._cancel_goal_async(goal_handle)
+
+    def _get_result_async(self, goal_handle):
+        with self._serial:
+            return super()._get_result_async(goal_handle)
+
+    async def execute(self, taken_data):
+        with self._serial:
+            return await super().execute(taken_data)
+
+
 class CellClient:
     """Blocking access to sim, perception and planner; ``close()`` when done.
 
@@ -47,8 +78,8 @@ class CellClient:
         self.node = Node(name, parameter_overrides=[Parameter("use_sim_time", value=False)])
         self._watchdog = watchdog
         self._clients = {n: self.node.create_client(t, n) for n, t in SERVICES.items()}
-        self._trajectory = ActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
-        self._gripper = ActionClient(self.node, GripperCommand, "/gripper_command")
+        self._trajectory = SerialActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
+        self._gripper = SerialActionClient(self.node, GripperCommand, "/gripper_command")
         self._lock = threading.Lock()
         self._joint_state: JointState | None = None
         self._truth: DominoStateArray | None = None
