@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -111,3 +112,27 @@ def test_spacing_that_would_not_topple_is_refused(spacing: float) -> None:
 def test_too_many_dominoes_for_the_shape() -> None:
     with pytest.raises(LayoutError, match=r"need .* of curve"):
         layouts.arc((0.5, 0.2), 0.05, 0.0, count=20)
+
+
+@pytest.mark.parametrize(
+    ("spacing", "count", "section", "gaps"),
+    [
+        (None, 10, 4, [4]),  # 28.8 mm: one empty slot leaves 57.6 mm > 55.5 mm
+        (None, 14, 4, [4, 9]),
+        (0.02, 10, 3, [3, 4]),  # 20 mm: two slots (60 mm); the next gap would end the run
+        (None, 5, 4, []),  # the gap would be the last slot: nothing behind it to protect
+        (None, 10, 0, []),
+    ],
+)
+def test_safety_gaps_part_the_run_into_sections_no_fall_can_cross(
+    spacing: float | None, count: int, section: int, gaps: list[int]
+) -> None:
+    """Every gap leaves the dominoes either side further apart than a toppling domino
+    reaches (height + thickness), after every ``section`` dominoes."""
+    placements = layouts.line((0.45, 0.0), math.pi / 2, count, spacing)
+    assert layouts.safety_gaps(placements, section) == gaps
+    reach = layouts.DOMINO_LENGTH + layouts.DOMINO_THICKNESS
+    standing = [p for p in placements if p.index not in gaps]
+    for before, after in itertools.pairwise(standing):
+        if after.index - before.index > 1:
+            assert math.hypot(after.x - before.x, after.y - before.y) > reach

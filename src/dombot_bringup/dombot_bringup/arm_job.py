@@ -30,7 +30,7 @@ from scipy.spatial.transform import Rotation
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_bringup.cell_client import CallFailedError, CellClient
-from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement
+from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
 from dombot_bringup.process_group import ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_description import DOMINO_SIZE
@@ -58,6 +58,7 @@ class ArmJobSettings:
     seed: int = 0
     max_attempts: int = 4  # per domino: perceive, plan, move
     max_candidates: int = 6  # per attempt: dominoes offered to the planner until one plans
+    section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
     plan_budget: float = 5.0  # s of planning per request
     settle_after_place: float = 0.5  # s simulated before checking a placement
     topple_wait: float = 3.0  # s simulated after the strike
@@ -138,7 +139,11 @@ class ArmJob:
         reset = self.client.reset(settings.pile, settings.seed)
         log(reset.message)
         started_sim = self.client.sim_time
-        queue = list(range(len(self.layout)))
+        gaps = safety_gaps(self.layout, settings.section)
+        queue = [i for i in range(len(self.layout)) if i not in gaps] + gaps
+        if gaps:
+            numbers = ", ".join(str(i + 1) for i in gaps)
+            log(f"safety gaps at dominoes {numbers}: built once the rest stands")
         while queue:
             index = queue.pop(0)
             if not self._place_with_retries(index):

@@ -66,6 +66,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     run.add_argument("--length", type=float, default=0.45, help="s-curve length [m]")
     run.add_argument("--amplitude", type=float, default=0.05, help="s-curve amplitude [m]")
     run.add_argument("--csv", type=Path, help="x,y points in metres (world frame)")
+    run.add_argument(
+        "--section",
+        type=int,
+        default=4,
+        help="dominoes between safety gaps, filled once the rest stands (4; 0: none)",
+    )
     cell = parser.add_argument_group("arm job: the cell")
     cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
     cell.add_argument("--seed", type=int, default=0, help="pile seed (default 0)")
@@ -111,6 +117,8 @@ def run_arm(args: argparse.Namespace) -> int:
     layouts.validate(placements, build_area())
     if not 1 <= args.pile <= 200:
         raise layouts.LayoutError(f"--pile must be 1..200, got {args.pile}")
+    if args.section < 0:
+        raise layouts.LayoutError(f"--section must be 0 (no safety gaps) or more: {args.section}")
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -119,6 +127,7 @@ def run_arm(args: argparse.Namespace) -> int:
     settings = ArmJobSettings(
         pile=args.pile,
         seed=args.seed,
+        section=args.section,
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
     )

@@ -277,6 +277,28 @@ def validate(placements: list[DominoPlacement], area: BuildArea) -> None:
     _check_overlaps(placements)
 
 
+def safety_gaps(placements: list[DominoPlacement], section: int) -> list[int]:
+    """Layout indices to leave empty until the rest of the run stands: after every
+    ``section`` dominoes, a builder's safety gap as many slots wide as it takes for the
+    dominoes either side to stand more than a domino's height plus thickness apart, so
+    a domino that falls by accident takes down at most its own section. ``section`` 0:
+    none."""
+    count = len(placements)
+    centres = np.array([[p.x, p.y] for p in placements])
+    reach = DOMINO_LENGTH + DOMINO_THICKNESS  # a toppling domino's top lands this far out
+    gaps: list[int] = []
+    first = section if section > 0 else count
+    while first < count - 1:
+        after = first + 1  # the first domino beyond the gap
+        while after < count and np.linalg.norm(centres[after] - centres[first - 1]) <= reach:
+            after += 1
+        if after >= count:
+            break  # the gap would reach the run's end: nothing to protect
+        gaps += range(first, after)
+        first = after + section
+    return gaps
+
+
 def _footprint_corners(placement: DominoPlacement) -> np.ndarray:
     along = (
         np.array([math.cos(placement.heading), math.sin(placement.heading)]) * DOMINO_THICKNESS / 2
