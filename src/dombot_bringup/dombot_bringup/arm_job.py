@@ -261,7 +261,7 @@ class ArmJob:
         reaches."""
         avoid = failed + self.state.unreachable
         fallen = [
-            Candidate(pose, f"run {index}")
+            Candidate(pose, f"run {index}", self._fallen_near(pose))
             for index, pose in sorted(self.state.fallen.items())
             if not near_any(spot_of(pose), avoid)
         ]
@@ -277,6 +277,16 @@ class ArmJob:
             for detection in detections
             if detection.posture in PICKABLE_POSTURES
             and not near_any(spot_of(detection.pose), avoid)
+        ]
+
+    def _fallen_near(self, pose: Pose) -> list[Pose]:
+        """The other fallen run dominoes close enough to matter for the fingers (a run that
+        fell lies in a row, each on the next)."""
+        centre = spot_of(pose)
+        return [
+            other
+            for other in self.state.fallen.values()
+            if 0.0 < np.linalg.norm(spot_of(other) - centre) < NEIGHBOUR_RADIUS
         ]
 
     def _detect(self) -> list[DominoDetection]:
@@ -378,16 +388,25 @@ class ArmJob:
                 self.state.standing[i] = self.targets[i]
             else:
                 self.state.standing.pop(i, None)
-                if status == CheckPlacement.Response.FALLEN or (
-                    status == CheckPlacement.Response.STANDING and not upright
-                ):
-                    self.state.fallen[i] = answer.measured[position]
+                self._remember_fallen(i, status, answer.measured[position], tilt)
                 if i != index:
                     self.report.dominoes[i].placed = False  # until it is built again
                     log(
                         f"domino {i + 1} is no longer standing ({check_words(status, error, tilt)})"
                     )
         return placed
+
+    def _remember_fallen(self, index: int, status: int, measured: Pose, tilt: float) -> None:
+        """A run domino out of place is picked up again from where perception fitted it;
+        one that fell where no box fits (perception answers the standing target, tilt 0)
+        is left where it lies, and a domino from the pile takes its place."""
+        if status == CheckPlacement.Response.STANDING or (
+            status == CheckPlacement.Response.FALLEN and tilt > self.settings.place_tilt_tolerance
+        ):
+            self.state.fallen[index] = measured
+        elif status == CheckPlacement.Response.FALLEN:
+            self.state.fallen.pop(index, None)
+            log(f"domino {index + 1} fell where perception cannot fit it; left where it lies")
 
     # ------------------------------------------------------------------ knock-down
     def _strike(self) -> None:

@@ -1,0 +1,43 @@
+"""The arm job's bookkeeping of run dominoes that fell, without ROS traffic: which are
+picked up again and what the fingers must avoid around them."""
+
+from __future__ import annotations
+
+import math
+
+from geometry_msgs.msg import Point, Pose, Quaternion
+
+from dombot_bringup import layouts
+from dombot_bringup.arm_job import ArmJob, ArmJobSettings
+from dombot_msgs.srv import CheckPlacement
+
+FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
+
+
+def lying(x: float, y: float) -> Pose:
+    return Pose(position=Point(x=x, y=y, z=0.00375), orientation=Quaternion(w=1.0))
+
+
+def job() -> ArmJob:
+    layout = layouts.line((0.45, 0.0), math.pi / 2, 4)
+    return ArmJob(client=None, layout=layout, name="line", settings=ArmJobSettings())
+
+
+def test_a_fallen_domino_is_picked_up_again_with_the_fallen_beside_it_as_its_pile() -> None:
+    run = job()
+    run._remember_fallen(0, FALLEN, lying(0.45, 0.020), math.radians(80.0))
+    run._remember_fallen(1, FALLEN, lying(0.45, 0.045), math.radians(85.0))
+    run._remember_fallen(2, STANDING, lying(0.45, 0.300), math.radians(2.0))  # 4 mm off
+    assert sorted(run.state.fallen) == [0, 1, 2]
+    near_first = run._fallen_near(run.state.fallen[0])
+    assert [p.position.y for p in near_first] == [0.045]  # not itself, not the far one
+
+
+def test_a_fallen_domino_perception_cannot_fit_is_left_where_it_lies() -> None:
+    """Perception answers the standing target (tilt 0) when no box fits what lies there:
+    picking at that pose would close the fingers on nothing."""
+    run = job()
+    run._remember_fallen(0, FALLEN, lying(0.45, 0.020), math.radians(80.0))
+    target = run.targets[0]
+    run._remember_fallen(0, FALLEN, target, 0.0)
+    assert 0 not in run.state.fallen
