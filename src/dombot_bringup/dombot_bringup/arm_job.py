@@ -65,6 +65,10 @@ class ArmJobSettings:
     place_tolerance: float = 0.003  # m, perception's check
     place_tilt_tolerance: float = math.radians(3.0)
     grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
+    # ... but not this much inside it: a flat hold stops 0.2-0.7 mm inside (the pads' give
+    # at grip_force); ~1 mm inside, the pads met an edge and the domino hangs tilted
+    # (both such grasps seen fell when released; rejected, the domino drops back).
+    grasp_squeeze_limit: float = 0.00075  # m
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
     meshcat: bool = False
@@ -328,17 +332,25 @@ class ArmJob:
                     return False, f"{segment.label}: {result.error_string}"
             if segment.gripper_after == TrajectorySegment.GRIPPER_CLOSE:
                 closed = self.client.gripper(segment.gripper_position, segment.gripper_max_effort)
-                width = DOMINO_SIZE[1]
-                missed = abs(closed.position - width) > self.settings.grasp_width_tolerance
-                if holds_domino and missed:
+                problem = self._grasp_problem(closed.position)
+                if holds_domino and problem:
                     self._back_out(segment)
                     return False, (
-                        f"{segment.label}: grasp missed (fingers stopped at "
-                        f"{closed.position * 1e3:.1f} mm, domino {width * 1e3:.0f} mm)"
+                        f"{segment.label}: grasp {problem} (fingers stopped at "
+                        f"{closed.position * 1e3:.1f} mm, domino {DOMINO_SIZE[1] * 1e3:.0f} mm)"
                     )
             elif segment.gripper_after == TrajectorySegment.GRIPPER_OPEN:
                 self.client.gripper(segment.gripper_position, 0.0)
         return True, ""
+
+    def _grasp_problem(self, opening: float) -> str:
+        """What the finger opening after a close says is wrong with the grasp, or ""."""
+        inside = DOMINO_SIZE[1] - opening
+        if abs(inside) > self.settings.grasp_width_tolerance:
+            return "missed"
+        if inside > self.settings.grasp_squeeze_limit:
+            return "on an edge"
+        return ""
 
     def _back_out(self, segment: TrajectorySegment) -> None:
         """After a failed grasp: open, and retrace the approach to where it started.
