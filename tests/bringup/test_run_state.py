@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion
 
 from dombot_bringup import layouts
@@ -51,3 +52,12 @@ def test_the_finger_opening_tells_a_flat_hold_from_a_miss_and_an_edge() -> None:
     assert run._grasp_problem(0.0229) == "on an edge"
     assert run._grasp_problem(0.0010) == "missed"
     assert run._grasp_problem(0.0280) == "missed"
+
+
+def test_refused_grasps_are_forgotten_once_a_pick_nearby_changes_the_pile() -> None:
+    run = job()
+    run.state.crowded = [np.array([0.55, -0.30]), np.array([0.45, -0.40])]
+    run.state.unreachable = [np.array([0.56, -0.31])]
+    run._forget_refusals_near(np.array([0.57, -0.30]))  # picked within 8 cm of two
+    assert [u.tolist() for u in run.state.crowded] == [[0.45, -0.40]]
+    assert run.state.unreachable == []

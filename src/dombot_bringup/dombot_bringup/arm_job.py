@@ -93,6 +93,7 @@ class BuildState:
     standing: dict[int, Pose] = field(default_factory=dict)  # layout index → target pose
     fallen: dict[int, Pose] = field(default_factory=dict)  # layout index → measured pose
     unreachable: list[np.ndarray] = field(default_factory=list)  # (x, y) no grasp reaches
+    crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
 
 
 def placement_pose(placement: DominoPlacement) -> Pose:
@@ -203,13 +204,14 @@ class ArmJob:
         clearance) first. When every one is refused, the roomiest again without the pile
         (the pads may push neighbours further; a miss is caught by the grasp check and
         backed out of). A refusal costs a planning call, not an attempt: the arm has not
-        moved. A grasp no IK reaches even without the pile is remembered for the run,
-        until a pick nearby changes the pile.
+        moved. Refused grasps are remembered for the run (with the pile: not offered with
+        it again; without: not offered at all), until a pick nearby changes the pile.
         """
         candidates = self._candidates(failed)
         count = self.settings.max_candidates
         roomiest = sorted(candidates, key=lambda c: (not c.scored, -c.clearance))
         ranked = [c for c in candidates if c.scored] + [c for c in roomiest if not c.scored]
+        ranked = [c for c in ranked if not near_any(c.spot(), self.state.crowded)]
         offers = [(c, True) for c in ranked[:count]] + [(c, False) for c in roomiest[:count]]
         refused = 0
         for candidate, with_pile in offers:
@@ -222,15 +224,15 @@ class ArmJob:
                 self._log_refusal(index, candidate, with_pile, plan.message)
                 if plan.error_code not in GRASP_REFUSALS:
                     failed.append(spot)
-                elif not with_pile:
-                    self.state.unreachable.append(spot)
+                else:
+                    (self.state.crowded if with_pile else self.state.unreachable).append(spot)
                 continue
             if not with_pile or plan.message != "planned":
                 how = plan.message + ("" if with_pile else " ignoring its pile")
                 log(f"{how}: {candidate.source} at {spot.round(3).tolist()}")
             if candidate.source.startswith("run "):
                 self.state.fallen.pop(int(candidate.source.split()[1]), None)
-            self._forget_unreachable_near(spot)  # the pick disturbs its neighbours
+            self._forget_refusals_near(spot)  # the pick disturbs its neighbours
             executed, why = self._execute(plan.segments)
             if not executed:
                 return False, why, spot
@@ -307,10 +309,10 @@ class ArmJob:
             return []
         raise CallFailedError(f"perception: {answer.message}")
 
-    def _forget_unreachable_near(self, spot: np.ndarray) -> None:
-        self.state.unreachable = [
-            u for u in self.state.unreachable if np.linalg.norm(u - spot) >= NEIGHBOUR_RADIUS
-        ]
+    def _forget_refusals_near(self, spot: np.ndarray) -> None:
+        state = self.state
+        state.unreachable = [u for u in state.unreachable if not near(u, spot, NEIGHBOUR_RADIUS)]
+        state.crowded = [u for u in state.crowded if not near(u, spot, NEIGHBOUR_RADIUS)]
 
     def _execute(
         self, segments: Sequence[TrajectorySegment], holds_domino: bool = True
@@ -494,9 +496,13 @@ def spot_of(pose: Pose) -> np.ndarray:
     return np.array([pose.position.x, pose.position.y])
 
 
+def near(spot: np.ndarray, other: np.ndarray, radius: float) -> bool:
+    return bool(np.linalg.norm(spot - other) < radius)
+
+
 def near_any(spot: np.ndarray, spots: Sequence[np.ndarray]) -> bool:
     """``spot`` is one of ``spots`` (within SAME_SPOT): the same domino seen again."""
-    return any(np.linalg.norm(spot - other) < SAME_SPOT for other in spots)
+    return any(near(spot, other, SAME_SPOT) for other in spots)
 
 
 def is_approach(segment: TrajectorySegment) -> bool:
