@@ -63,6 +63,7 @@ FAILED_SPOT_RADIUS = 0.01  # m: a detection this close to a failed attempt is sk
 FRESH_FRAMES = 0.55  # s simulated before perceiving (the bring-up waits one camera period)
 SETTLE_AFTER_PLACE = 0.5  # s simulated before the placement is judged
 GRASP_TOLERANCE = 0.003  # m: the fingers stop this close to the domino width, or missed
+SQUEEZE_LIMIT = 0.00075  # m: ... and no further inside it, or the pads met an edge (bring-up's)
 PLACE_TOLERANCE = (0.003, math.radians(3.0))  # horizontal m, tilt rad (bring-up's)
 BACK_OUT_OPENING = 0.04  # m wider than the pre-grasp: the bring-up's opening to back out
 BACK_OUT_LEAD = 0.5  # s to ease from where the arm stopped onto the reversed approach
@@ -284,10 +285,11 @@ class PileRun:
             wait_for_gripper(self.world)
             if segment.gripper_after == GRIPPER_CLOSE:
                 opening = self.world.gripper_state().opening
-                if abs(opening - DOMINO_SIZE[1]) > GRASP_TOLERANCE:
+                inside = DOMINO_SIZE[1] - opening
+                if abs(inside) > GRASP_TOLERANCE or inside > SQUEEZE_LIMIT:
                     above = self.world.tcp_pose()[2, 3] - plan.grasp_pose.translation()[2]
                     row.update(
-                        outcome="grasp missed",
+                        outcome="grasp missed" if abs(inside) > GRASP_TOLERANCE else "on an edge",
                         closed_mm=opening * 1e3,
                         tcp_above_grasp_mm=above * 1e3,
                     )
