@@ -65,10 +65,10 @@ class ArmJobSettings:
     place_tolerance: float = 0.003  # m, perception's check
     place_tilt_tolerance: float = math.radians(3.0)
     grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
-    # ... but not this much inside it: a flat hold stops 0.2-0.7 mm inside (the pads' give
-    # at grip_force); ~1 mm inside, the pads met an edge and the domino hangs tilted
-    # (both such grasps seen fell when released; rejected, the domino drops back).
-    grasp_squeeze_limit: float = 0.00075  # m
+    # ... but not this much inside it: a flat hold stops 0.2-0.8 mm inside (the pads' give
+    # at grip_force); 0.9 mm and more inside, the pads met an edge and the domino hangs
+    # tilted (both such grasps seen fell when released; rejected, the domino drops back).
+    grasp_squeeze_limit: float = 0.00085  # m
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
     meshcat: bool = False
