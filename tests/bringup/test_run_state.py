@@ -57,7 +57,7 @@ def test_the_finger_opening_tells_a_flat_hold_from_a_miss_and_an_edge() -> None:
 def test_refused_grasps_are_forgotten_once_a_pick_nearby_changes_the_pile() -> None:
     run = job()
     run.state.crowded = [np.array([0.55, -0.30]), np.array([0.45, -0.40])]
-    run.state.unreachable = [np.array([0.56, -0.31])]
-    run._forget_refusals_near(np.array([0.57, -0.30]))  # picked within 8 cm of two
+    run.state.unpickable = [np.array([0.56, -0.31]), np.array([0.57, -0.36])]
+    run._forget_refusals_near(np.array([0.57, -0.30]))  # within 5 cm of two, 6 cm of one
     assert [u.tolist() for u in run.state.crowded] == [[0.45, -0.40]]
-    assert run.state.unreachable == []
+    assert [u.tolist() for u in run.state.unpickable] == [[0.57, -0.36]]

@@ -40,6 +40,7 @@ from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 NodeCommand = Callable[[str, str, dict], list[str]]
 BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
 NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
+DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
 DETECT_TRIES = 4
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE,)  # about the domino, not the slot
@@ -92,7 +93,8 @@ class Candidate:
 class BuildState:
     standing: dict[int, Pose] = field(default_factory=dict)  # layout index → target pose
     fallen: dict[int, Pose] = field(default_factory=dict)  # layout index → measured pose
-    unreachable: list[np.ndarray] = field(default_factory=list)  # (x, y) no grasp reaches
+    # (x, y) of dominoes no grasp reaches or whose pick failed: not offered again
+    unpickable: list[np.ndarray] = field(default_factory=list)
     crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
 
 
@@ -204,8 +206,9 @@ class ArmJob:
         clearance) first. When every one is refused, the roomiest again without the pile
         (the pads may push neighbours further; a miss is caught by the grasp check and
         backed out of). A refusal costs a planning call, not an attempt: the arm has not
-        moved. Refused grasps are remembered for the run (with the pile: not offered with
-        it again; without: not offered at all), until a pick nearby changes the pile.
+        moved. Refusals and failed picks are remembered for the run (refused with the
+        pile: not offered with it again; refused without it, or the pick blocked or
+        missed: not offered at all), until a pick within DISTURBED_RADIUS moves it.
         """
         candidates = self._candidates(failed)
         count = self.settings.max_candidates
@@ -225,7 +228,7 @@ class ArmJob:
                 if plan.error_code not in GRASP_REFUSALS:
                     failed.append(spot)
                 else:
-                    (self.state.crowded if with_pile else self.state.unreachable).append(spot)
+                    (self.state.crowded if with_pile else self.state.unpickable).append(spot)
                 continue
             if not with_pile or plan.message != "planned":
                 how = plan.message + ("" if with_pile else " ignoring its pile")
@@ -234,7 +237,8 @@ class ArmJob:
                 self.state.fallen.pop(int(candidate.source.split()[1]), None)
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
             executed, why = self._execute(plan.segments)
-            if not executed:
+            if not executed:  # blocked or missed: unless it moved, the same would happen again
+                self.state.unpickable.append(spot)
                 return False, why, spot
             return self._check(index), self.report.dominoes[index].check, None
         if refused:
@@ -265,7 +269,7 @@ class ArmJob:
         """Fallen run dominoes first (they block the run), then the pile's detections in
         perception's order (best grasp first); none where an attempt failed or no grasp
         reaches."""
-        avoid = failed + self.state.unreachable
+        avoid = failed + self.state.unpickable
         fallen = [
             Candidate(pose, f"run {index}", self._fallen_near(pose))
             for index, pose in sorted(self.state.fallen.items())
@@ -311,8 +315,8 @@ class ArmJob:
 
     def _forget_refusals_near(self, spot: np.ndarray) -> None:
         state = self.state
-        state.unreachable = [u for u in state.unreachable if not near(u, spot, NEIGHBOUR_RADIUS)]
-        state.crowded = [u for u in state.crowded if not near(u, spot, NEIGHBOUR_RADIUS)]
+        state.unpickable = [u for u in state.unpickable if not near(u, spot, DISTURBED_RADIUS)]
+        state.crowded = [u for u in state.crowded if not near(u, spot, DISTURBED_RADIUS)]
 
     def _execute(
         self, segments: Sequence[TrajectorySegment], holds_domino: bool = True
