@@ -9,7 +9,7 @@ import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion
 
 from dombot_bringup import layouts
-from dombot_bringup.arm_job import ArmJob, ArmJobSettings
+from dombot_bringup.arm_job import ArmJob, ArmJobSettings, Candidate
 from dombot_msgs.srv import CheckPlacement
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
@@ -61,3 +61,13 @@ def test_refused_grasps_are_forgotten_once_a_pick_nearby_changes_the_pile() -> N
     run._forget_refusals_near(np.array([0.57, -0.30]))  # within 5 cm of two, 6 cm of one
     assert [u.tolist() for u in run.state.crowded] == [[0.45, -0.40]]
     assert [u.tolist() for u in run.state.unpickable] == [[0.57, -0.36]]
+
+
+def test_fallen_run_dominoes_are_obstacles_for_every_pick_but_their_own() -> None:
+    run = job()
+    for index, y in enumerate((0.020, 0.045, 0.300)):
+        run._remember_fallen(index, FALLEN, lying(0.45, y), math.radians(80.0))
+    first = Candidate(run.state.fallen[0], "run 0", run._fallen_near(run.state.fallen[0]))
+    assert [p.position.y for p in run._debris(first)] == [0.300]  # itself and its pile not
+    from_pile = Candidate(lying(0.55, -0.30), "pile")
+    assert len(run._debris(from_pile)) == 3

@@ -259,11 +259,21 @@ class ArmJob:
                 pile_dominoes=candidate.neighbours if with_pile else [],
                 grasp_width=0.0,
                 place_pose=self.targets[index],
-                standing_dominoes=list(self.state.standing.values()),
+                standing_dominoes=list(self.state.standing.values()) + self._debris(candidate),
                 time_budget=self.settings.plan_budget,
             ),
             timeout=self.settings.plan_budget + 30.0,
         )
+
+    def _debris(self, candidate: Candidate) -> list[Pose]:
+        """Fallen run dominoes lying in the build area (not the one to pick, nor its pile):
+        the carry and the placement must keep clear of them as of the standing ones (a
+        placement that met one fell)."""
+        return [
+            pose
+            for pose in self.state.fallen.values()
+            if pose is not candidate.pose and pose not in candidate.neighbours
+        ]
 
     def _candidates(self, failed: list[np.ndarray]) -> list[Candidate]:
         """Fallen run dominoes first (they block the run), then the pile's detections in
