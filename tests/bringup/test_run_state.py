@@ -9,7 +9,7 @@ import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion
 
 from dombot_bringup import layouts
-from dombot_bringup.arm_job import ArmJob, ArmJobSettings, Candidate
+from dombot_bringup.arm_job import ArmJob, ArmJobSettings, Candidate, neighbours_of
 from dombot_msgs.srv import CheckPlacement
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
@@ -30,7 +30,7 @@ def test_a_fallen_domino_is_picked_up_again_with_the_fallen_beside_it_as_its_pil
     run._remember_fallen(1, FALLEN, lying(0.45, 0.045), math.radians(85.0))
     run._remember_fallen(2, STANDING, lying(0.45, 0.300), math.radians(2.0))  # 4 mm off
     assert sorted(run.state.fallen) == [0, 1, 2]
-    near_first = run._fallen_near(run.state.fallen[0])
+    near_first = neighbours_of(run.state.fallen[0], run.state.fallen.values())
     assert [p.position.y for p in near_first] == [0.045]  # not itself, not the far one
 
 
@@ -67,7 +67,8 @@ def test_fallen_run_dominoes_are_obstacles_for_every_pick_but_their_own() -> Non
     run = job()
     for index, y in enumerate((0.020, 0.045, 0.300)):
         run._remember_fallen(index, FALLEN, lying(0.45, y), math.radians(80.0))
-    first = Candidate(run.state.fallen[0], "run 0", run._fallen_near(run.state.fallen[0]))
+    fallen = run.state.fallen
+    first = Candidate(fallen[0], "run 0", neighbours_of(fallen[0], fallen.values()))
     assert [p.position.y for p in run._debris(first)] == [0.300]  # itself and its pile not
     from_pile = Candidate(lying(0.55, -0.30), "pile")
     assert len(run._debris(from_pile)) == 3

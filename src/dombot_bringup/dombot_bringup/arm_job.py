@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -281,7 +281,7 @@ class ArmJob:
         reaches."""
         avoid = failed + self.state.unpickable
         fallen = [
-            Candidate(pose, f"run {index}", self._fallen_near(pose))
+            Candidate(pose, f"run {index}", neighbours_of(pose, self.state.fallen.values()))
             for index, pose in sorted(self.state.fallen.items())
             if not near_any(spot_of(pose), avoid)
         ]
@@ -290,23 +290,13 @@ class ArmJob:
             Candidate(
                 detection.pose,
                 "pile",
-                neighbours_of(detection, detections),
+                neighbours_of(detection.pose, [d.pose for d in detections]),
                 scored=detection.score > 0.0,
                 clearance=detection.clearance,
             )
             for detection in detections
             if detection.posture in PICKABLE_POSTURES
             and not near_any(spot_of(detection.pose), avoid)
-        ]
-
-    def _fallen_near(self, pose: Pose) -> list[Pose]:
-        """The other fallen run dominoes close enough to matter for the fingers (a run that
-        fell lies in a row, each on the next)."""
-        centre = spot_of(pose)
-        return [
-            other
-            for other in self.state.fallen.values()
-            if 0.0 < np.linalg.norm(spot_of(other) - centre) < NEIGHBOUR_RADIUS
         ]
 
     def _detect(self) -> list[DominoDetection]:
@@ -551,14 +541,15 @@ def reversed_trajectory(trajectory: JointTrajectory, lead: float) -> JointTrajec
     return JointTrajectory(joint_names=list(trajectory.joint_names), points=points)
 
 
-def neighbours_of(detection: DominoDetection, detections: Sequence[DominoDetection]) -> list[Pose]:
-    """The other detections close enough to matter for the fingers."""
-    centre = spot_of(detection.pose)
+def neighbours_of(pose: Pose, others: Iterable[Pose]) -> list[Pose]:
+    """Those of ``others`` (``pose`` itself aside) close enough to it to matter for the
+    fingers: a pick's pile, or the fallen beside a fallen run domino (a run that fell lies
+    in a row, each on the next)."""
+    centre = spot_of(pose)
     return [
-        other.pose
-        for other in detections
-        if other is not detection
-        and np.linalg.norm(spot_of(other.pose) - centre) < NEIGHBOUR_RADIUS
+        other
+        for other in others
+        if other is not pose and near(spot_of(other), centre, NEIGHBOUR_RADIUS)
     ]
 
 

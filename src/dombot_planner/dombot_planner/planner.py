@@ -128,6 +128,14 @@ def steeper_grasps(domino_pose: RigidTransform, limit: float) -> list[RigidTrans
     return sorted(turned, key=lambda pose: -round(score(pose), 9))
 
 
+def fallback_failed(error: PlanningError, fallback: PlanningError, how: str) -> PlanningError:
+    """The error to raise when planning ``how`` after ``error`` failed too: the fallback's
+    timeout as it is, else the first error (its code and stage) with both reasons."""
+    if fallback.code == ErrorCode.TIMEOUT:
+        return fallback
+    return PlanningError(error.code, error.stage, f"{error.message}; {how} failed too ({fallback})")
+
+
 @dataclass
 class End:
     """One end of the transfer: IK at the pose and the vertical line above it."""
@@ -243,13 +251,8 @@ class PickPlacePlanner(ArmPlanner):
             try:
                 plan = RequestPlanning(self, request, deadline, nudge=True).plan()
             except PlanningError as nudge_error:
-                if nudge_error.code == ErrorCode.TIMEOUT:
-                    raise
-                raise PlanningError(
-                    error.code,
-                    error.stage,
-                    f"{error.message}; with the pads nudging the pile too ({nudge_error})",
-                ) from None
+                nudging = "planning with the pads nudging the pile"
+                raise fallback_failed(error, nudge_error, nudging) from None
             plan.nudged = True
             return plan
 
@@ -276,13 +279,7 @@ class PickPlacePlanner(ArmPlanner):
             )
             second = RequestPlanning(self, pick_again, deadline).plan()
         except PlanningError as regrasp_error:
-            if regrasp_error.code == ErrorCode.TIMEOUT:
-                raise
-            raise PlanningError(
-                error.code,
-                error.stage,
-                f"{error.message}; turning it first failed too ({regrasp_error})",
-            ) from None
+            raise fallback_failed(error, regrasp_error, "turning it first") from None
         for segment in first.segments:
             segment.label = f"regrasp_{segment.label}"
         return PickPlacePlan(
