@@ -9,7 +9,15 @@ import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion
 
 from dombot_bringup import layouts
-from dombot_bringup.arm_job import ArmJob, ArmJobSettings, Candidate, neighbours_of
+from dombot_bringup.arm_job import (
+    DEFERRED,
+    FAILED,
+    PLACED,
+    ArmJob,
+    ArmJobSettings,
+    Candidate,
+    neighbours_of,
+)
 from dombot_msgs.srv import CheckPlacement
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
@@ -72,3 +80,35 @@ def test_fallen_run_dominoes_are_obstacles_for_every_pick_but_their_own() -> Non
     assert [p.position.y for p in run._debris(first)] == [0.300]  # itself and its pile not
     from_pile = Candidate(lying(0.55, -0.30), "pile")
     assert len(run._debris(from_pile)) == 3
+
+
+class ResetOnlyClient:
+    """What run() asks of the cell around the slots' turns: a reset, the clock, the truth."""
+
+    sim_time = 0.0
+
+    def reset(self, pile: int, seed: int):
+        return type("Reset", (), {"message": "poured"})()
+
+    def ground_truth(self, newer_than: float):
+        return type("Truth", (), {"dominoes": []})()
+
+
+def test_a_slot_nothing_plans_for_is_put_off_until_the_others_had_their_turn() -> None:
+    """E.g. fallen dominoes lie where it stands: building the others may use them up. Put
+    off again with no placement in between, it gets its attempts (and may fail the run)."""
+    run = job()
+    run.client, run._strike = ResetOnlyClient(), lambda: None
+    turns: list[tuple[int, bool]] = []
+
+    def turn(index: int, may_defer: bool) -> str:
+        turns.append((index, may_defer))
+        if index == 0:
+            return DEFERRED if may_defer else FAILED
+        run.state.standing[index] = run.targets[index]
+        return PLACED
+
+    run._place_with_retries = turn
+    report = run.run()
+    assert turns == [(0, True), (1, True), (2, True), (3, True), (0, False)]
+    assert not report.built and report.message.startswith("domino 1 could not be placed")

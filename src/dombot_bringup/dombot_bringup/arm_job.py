@@ -44,6 +44,7 @@ DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this c
 DETECT_TRIES = 4
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE,)  # about the domino, not the slot
+PLACED, FAILED, DEFERRED = "placed", "failed", "deferred"  # how a slot's turn ended
 NEEDED_SERVICES = (
     "/sim/reset",
     "/perception/detect",
@@ -70,6 +71,10 @@ class ArmJobSettings:
     # at grip_force); 0.9 mm and more inside, the pads met an edge and the domino hangs
     # tilted (both such grasps seen fell when released; rejected, the domino drops back).
     grasp_squeeze_limit: float = 0.00085  # m
+    # An approach that ends this close to its grasp pose (rad per joint; the simulator's
+    # default is 0.01) closes the gripper and lets the grasp check judge: a pad resting on
+    # the domino or the table stopped joint 6 0.012-0.016 rad short, ~1.5 mm at the pads.
+    approach_goal_tolerance: float = 0.02  # rad
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
     meshcat: bool = False
@@ -151,12 +156,20 @@ class ArmJob:
         if gaps:
             numbers = ", ".join(str(i + 1) for i in gaps)
             log(f"safety gaps at dominoes {numbers}: built once the rest stands")
+        deferred: set[int] = set()  # slots put off since the last placement
         while queue:
             index = queue.pop(0)
-            if not self._place_with_retries(index):
+            may_defer = any(i not in deferred for i in queue)
+            result = self._place_with_retries(index, may_defer)
+            if result == DEFERRED:
+                deferred.add(index)
+                queue.insert(next((k for k, i in enumerate(queue) if i in gaps), len(queue)), index)
+                continue
+            if result == FAILED:
                 self.report.message = f"domino {index + 1} could not be placed; stopping the build"
                 log(self.report.message)
                 break
+            deferred.clear()
             # Slots built earlier that no longer stand (knocked over, or their fallen domino
             # was picked up for another slot) are built again first.
             empty = [i for i in range(len(self.layout)) if i not in self.state.standing]
@@ -170,18 +183,26 @@ class ArmJob:
         self.report.wall_s = time.monotonic() - started_wall
         return self.report
 
-    def _place_with_retries(self, index: int) -> bool:
+    def _place_with_retries(self, index: int, may_defer: bool) -> str:
+        """PLACED, FAILED after max_attempts, or DEFERRED: no offer planned (e.g. fallen
+        dominoes lie where it stands) and other slots may be built first, which may use
+        up those fallen dominoes. A deferral costs planning calls, not an attempt."""
         outcome = self.report.dominoes[index]
         failed: list[np.ndarray] = []
         sim_start, wall_start = self.client.sim_time, time.monotonic()
         while outcome.attempts < self.settings.max_attempts:
-            outcome.attempts += 1
             try:
-                success, why, spot = self._attempt(index, failed)
+                success, why, spot, moved = self._attempt(index, failed)
             except CallFailedError as error:
-                success, why, spot = False, str(error), None
-            outcome.simulated_s = self.client.sim_time - sim_start
-            outcome.wall_s = time.monotonic() - wall_start
+                success, why, spot, moved = False, str(error), None, True
+            outcome.simulated_s += self.client.sim_time - sim_start
+            outcome.wall_s += time.monotonic() - wall_start
+            sim_start, wall_start = self.client.sim_time, time.monotonic()
+            if not moved and may_defer:
+                outcome.deferrals.append(why)
+                log(f"domino {index + 1}/{len(self.layout)} put off ({why}): others first")
+                return DEFERRED
+            outcome.attempts += 1
             if success:
                 outcome.placed = True
                 log(
@@ -189,15 +210,17 @@ class ArmJob:
                     f"{outcome.measured_error_mm:.1f} mm, {outcome.measured_tilt_deg:.1f}° off; "
                     f"{outcome.simulated_s:.1f} s simulated, {outcome.wall_s:.1f} s wall"
                 )
-                return True
+                return PLACED
             outcome.failures.append(why)
             if spot is not None:
                 failed.append(spot)
             log(f"domino {index + 1}/{len(self.layout)} attempt {outcome.attempts} failed: {why}")
-        return False
+        return FAILED
 
     # ------------------------------------------------------------------ one attempt
-    def _attempt(self, index: int, failed: list[np.ndarray]) -> tuple[bool, str, np.ndarray | None]:
+    def _attempt(
+        self, index: int, failed: list[np.ndarray]
+    ) -> tuple[bool, str, np.ndarray | None, bool]:
         """Offer the planner candidates until one plans; execute and check it.
 
         First with their pile neighbours as obstacles (the planner keeps the pads clear of
@@ -206,7 +229,8 @@ class ArmJob:
         clearance) first. When every one is refused, the roomiest again without the pile
         (the pads may push neighbours further; a miss is caught by the grasp check and
         backed out of). A refusal costs a planning call, not an attempt: the arm has not
-        moved. Refusals and failed picks are remembered for the run (refused with the
+        moved (the last of the returned success, why, spot, moved says whether it did).
+        Refusals and failed picks are remembered for the run (refused with the
         pile: not offered with it again; refused without it, or the pick blocked or
         missed: not offered at all), until a pick within DISTURBED_RADIUS moves it.
         """
@@ -239,11 +263,11 @@ class ArmJob:
             executed, why = self._execute(plan.segments)
             if not executed:  # blocked or missed: unless it moved, the same would happen again
                 self.state.unpickable.append(spot)
-                return False, why, spot
-            return self._check(index), self.report.dominoes[index].check, None
+                return False, why, spot, True
+            return self._check(index), self.report.dominoes[index].check, None, True
         if refused:
-            return False, f"planning: {refused} offers refused", None
-        return False, "no graspable domino seen", None
+            return False, f"planning: {refused} offers refused", None, False
+        return False, "no graspable domino seen", None, False
 
     def _log_refusal(self, index: int, candidate: Candidate, with_pile: bool, why: str) -> None:
         """One short line per refusal: the planner's reason up to its details."""
@@ -331,7 +355,10 @@ class ArmJob:
             points = segment.trajectory.points
             if points:
                 # Wall-clock timeouts are generous: the simulator may run well below real time.
-                result = self.client.execute(segment.trajectory, seconds(points[-1]) * 60 + 120)
+                tolerance = self.settings.approach_goal_tolerance if is_approach(segment) else 0.0
+                result = self.client.execute(
+                    segment.trajectory, seconds(points[-1]) * 60 + 120, tolerance
+                )
                 if result.error_code != 0:
                     if is_approach(segment):
                         self._back_out(segment)

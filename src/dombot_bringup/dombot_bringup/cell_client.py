@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from dombot_msgs.action import ExecuteTrajectory, GripperCommand
-from dombot_msgs.msg import DominoStateArray
+from dombot_msgs.msg import DominoStateArray, JointTolerance
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
 
 SERVICES = {
@@ -173,8 +173,19 @@ class CellClient:
         return self.call("/plan_strike", request, timeout)
 
     # ------------------------------------------------------------------ actions
-    def execute(self, trajectory: JointTrajectory, timeout: float) -> ExecuteTrajectory.Result:
-        goal = ExecuteTrajectory.Goal(trajectory=trajectory, goal_time_tolerance=Duration(sec=1))
+    def execute(
+        self, trajectory: JointTrajectory, timeout: float, goal_tolerance: float = 0.0
+    ) -> ExecuteTrajectory.Result:
+        """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
+        point (0: the simulator's default) within a second."""
+        goal = ExecuteTrajectory.Goal(
+            trajectory=trajectory,
+            goal_tolerance=[
+                JointTolerance(name=name, position=goal_tolerance)
+                for name in trajectory.joint_names
+            ],
+            goal_time_tolerance=Duration(sec=1),
+        )
         return self._run_action(self._trajectory, goal, timeout, "/execute_trajectory")
 
     def gripper(self, position: float, max_effort: float, timeout: float = 180.0):

@@ -39,6 +39,7 @@ class DominoOutcome:
     placed: bool = False
     attempts: int = 0
     failures: list[str] = field(default_factory=list)
+    deferrals: list[str] = field(default_factory=list)  # turns put off: nothing planned
     check: str = ""  # perception's verdict after placing
     measured_error_mm: float | None = None
     measured_tilt_deg: float | None = None
