@@ -58,7 +58,7 @@ from dombot_sim.world import CellWorld, WorldConfig
 
 PILE_CAMERAS = ("camera_0", "camera_1")
 PICKABLE = (POSTURE_FLAT, POSTURE_TILTED)  # the bring-up picks leaning dominoes too
-NEIGHBOUR_RADIUS = 0.08  # m: detections this close to the pick are its pile (bring-up's)
+NEIGHBOUR_RADIUS = 0.25  # m: detections this close to the pick are its pile (bring-up's)
 FAILED_SPOT_RADIUS = 0.01  # m: a detection this close to a failed attempt is skipped
 FRESH_FRAMES = 0.55  # s simulated before perceiving (the bring-up waits one camera period)
 SETTLE_AFTER_PLACE = 0.5  # s simulated before the placement is judged
@@ -231,7 +231,8 @@ class PileRun:
         dominoes around the picked one (the true domino nearest the detection): the
         smallest distance, and the dominoes closer than 1 mm, with whether perception saw
         them (another detection whose nearest true domino it is)."""
-        approach = next(s for s in plan.sampled(1.0) if s.label.endswith("approach_grasp"))
+        approaches = [s for s in plan.sampled(1.0) if s.label.endswith("approach_grasp")]
+        approach = approaches[-1]  # after a regrasp, the approach to the turned domino
         q = approach.positions[-1]
         target, _ = self.nearest_truth(chosen.X_WD[:3, 3])
         seen = {self.nearest_truth(d.X_WD[:3, 3])[0] for d in self.detections if d is not chosen}

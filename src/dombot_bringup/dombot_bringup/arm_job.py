@@ -39,11 +39,17 @@ from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
 NodeCommand = Callable[[str, str, dict], list[str]]
 BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
-NEIGHBOUR_RADIUS = 0.08  # m: pile dominoes within this of the pick go to the planner
+# m: detections within this of the pick go to the planner as its pile. Not just the close
+# ones: the gripper body spans 15 cm and leans 60° at a grasp, and the coarse moves pass
+# low over the pile (with 8 cm, a third of the grasps on one S-curve pile ran the gripper
+# into a domino 8-16 cm away).
+NEIGHBOUR_RADIUS = 0.25
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
 DETECT_TRIES = 4
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
-GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE,)  # about the domino, not the slot
+# Refusals about the domino, not the slot: remembered for the run. A search that used up
+# its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
+GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE, PlanPlace.Response.TIMEOUT)
 PLACED, FAILED, DEFERRED = "placed", "failed", "deferred"  # how a slot's turn ended
 NEEDED_SERVICES = (
     "/sim/reset",
@@ -72,8 +78,8 @@ class ArmJobSettings:
     # tilted (both such grasps seen fell when released; rejected, the domino drops back).
     grasp_squeeze_limit: float = 0.00085  # m
     # An approach that ends this close to its grasp pose (rad per joint; the simulator's
-    # default is 0.01) closes the gripper and lets the grasp check judge: a pad resting on
-    # the domino or the table stopped joint 6 0.012-0.016 rad short, ~1.5 mm at the pads.
+    # default is 0.01) closes the gripper and lets the grasp check judge: the gripper body
+    # resting 0.1 mm deep on a pile domino stopped joint 6 0.012 rad (~1.5 mm) short.
     approach_goal_tolerance: float = 0.02  # rad
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
@@ -87,6 +93,7 @@ class Candidate:
     pose: Pose
     source: str  # "pile" or "run <index>"
     neighbours: list[Pose] = field(default_factory=list)
+    posture: str = "fallen"  # as perception named it, for the log
     scored: bool = True  # perception found room for the fingers
     clearance: float = math.inf  # m beside the finger contact sides, as perception measured
 
@@ -254,9 +261,11 @@ class ArmJob:
                 else:
                     (self.state.crowded if with_pile else self.state.unpickable).append(spot)
                 continue
-            if not with_pile or plan.message != "planned":
-                how = plan.message + ("" if with_pile else " ignoring its pile")
-                log(f"{how}: {candidate.source} at {spot.round(3).tolist()}")
+            pile = "" if with_pile else " ignoring its pile"
+            log(
+                f"domino {index + 1}/{len(self.layout)}: picking {candidate.source} "
+                f"({candidate.posture}) at {spot.round(3).tolist()}, {plan.message}{pile}"
+            )
             if candidate.source.startswith("run "):
                 self.state.fallen.pop(int(candidate.source.split()[1]), None)
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
@@ -315,6 +324,7 @@ class ArmJob:
                 detection.pose,
                 "pile",
                 neighbours_of(detection.pose, [d.pose for d in detections]),
+                posture=POSTURE_NAMES[detection.posture],
                 scored=detection.score > 0.0,
                 clearance=detection.clearance,
             )
@@ -520,6 +530,12 @@ PICKABLE_POSTURES = (  # lying flat or leaning; the planner has the last word
     DominoDetection.POSTURE_FLAT,
     DominoDetection.POSTURE_TILTED,
 )
+POSTURE_NAMES = {
+    DominoDetection.POSTURE_FLAT: "flat",
+    DominoDetection.POSTURE_ON_EDGE: "on edge",
+    DominoDetection.POSTURE_UPRIGHT: "upright",
+    DominoDetection.POSTURE_TILTED: "leaning",
+}
 
 
 def spot_of(pose: Pose) -> np.ndarray:
