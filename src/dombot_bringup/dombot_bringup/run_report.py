@@ -122,9 +122,10 @@ def plot_run(report: RunReport, path: Path) -> Path:
         axes.annotate(
             str(domino.index + 1),  # counted from 1, as in the log
             (x, y),
-            textcoords="offset points",
-            xytext=(0, 9),
+            textcoords="offset points",  # beside the run (its left), not on the next domino
+            xytext=(-14 * math.sin(heading), 14 * math.cos(heading)),
             ha="center",
+            va="center",
             fontsize=7,
             color="0.3",
         )
