@@ -18,7 +18,8 @@ from dombot_bringup.arm_job import (
     Candidate,
     neighbours_of,
 )
-from dombot_msgs.srv import CheckPlacement
+from dombot_msgs.msg import DominoDetection
+from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
 
@@ -112,3 +113,51 @@ def test_a_slot_nothing_plans_for_is_put_off_until_the_others_had_their_turn() -
     report = run.run()
     assert turns == [(0, True), (1, True), (2, True), (3, True), (0, False)]
     assert not report.built and report.message.startswith("domino 1 could not be placed")
+
+
+class RefusingClient:
+    """Perception sees three flat dominoes; the planner refuses each with its own code."""
+
+    sim_time = 0.0
+
+    def __init__(self, codes: dict[float, int]) -> None:
+        self.codes = codes  # detection x → refusal code
+        self.offered: list[tuple[float, int]] = []  # (x, pile dominoes sent)
+
+    def wait_for_sim_time(self, seconds: float) -> None:
+        pass
+
+    def detect(self) -> DetectDominoes.Response:
+        answer = DetectDominoes.Response(success=True)
+        answer.detections.detections = [
+            DominoDetection(pose=lying(x, -0.3), score=0.9, clearance=0.01) for x in self.codes
+        ]
+        return answer
+
+    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
+        x = request.domino_pose.position.x
+        self.offered.append((x, len(request.pile_dominoes)))
+        return PlanPlace.Response(success=False, error_code=self.codes[x], message="refused")
+
+
+def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_slot_not() -> None:
+    """No grasp, or the planning budget used up: the same domino would cost the same at the
+    next slot. A slot-specific refusal (place blocked) is forgotten at the next slot."""
+    codes = {
+        0.50: PlanPlace.Response.GRASP_UNREACHABLE,
+        0.55: PlanPlace.Response.TIMEOUT,
+        0.60: PlanPlace.Response.PLACE_IN_COLLISION,
+    }
+    run = job()
+    run.client = RefusingClient(codes)
+    success, why, spot, moved = run._attempt(0, failed := [])
+    assert (success, why, spot, moved) == (False, "planning: 5 offers refused", None, False)
+    # with their pile (all within 25 cm of each other), then the roomiest without it but
+    # the one whose place was blocked (not offered again to this slot)
+    assert run.client.offered == [(0.50, 2), (0.55, 2), (0.60, 2), (0.50, 0), (0.55, 0)]
+    assert [c.tolist() for c in run.state.crowded] == [[0.50, -0.3], [0.55, -0.3]]
+    assert [c.tolist() for c in run.state.unpickable] == [[0.50, -0.3], [0.55, -0.3]]
+    assert [f.tolist() for f in failed] == [[0.60, -0.3]]
+    run.client.offered.clear()
+    run._attempt(1, [])  # the next slot: only the one refused for its place is offered
+    assert run.client.offered == [(0.60, 2)]
