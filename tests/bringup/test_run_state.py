@@ -22,6 +22,7 @@ from dombot_msgs.msg import DominoDetection
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
+MISSING, NOT_SEEN = CheckPlacement.Response.MISSING, CheckPlacement.Response.NOT_SEEN
 
 
 def lying(x: float, y: float) -> Pose:
@@ -161,3 +162,40 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
     run.client.offered.clear()
     run._attempt(1, [])  # the next slot: only the one refused for its place is offered
     assert run.client.offered == [(0.60, 2)]
+
+
+class CheckingClient:
+    """Perception's placement check answering the given statuses, each 1 mm off."""
+
+    sim_time = 0.0
+
+    def __init__(self, statuses: list[int]) -> None:
+        self.statuses = statuses
+
+    def wait_for_sim_time(self, seconds: float) -> None:
+        pass
+
+    def check_placement(self, expected: list[Pose]) -> CheckPlacement.Response:
+        count = len(expected)
+        return CheckPlacement.Response(
+            success=True,
+            status=self.statuses,
+            position_error=[0.001] * count,
+            tilt=[0.0] * count,
+            measured=list(expected),
+        )
+
+
+def test_a_domino_hidden_from_the_camera_stands_until_a_check_sees_it_gone() -> None:
+    """NOT_SEEN (the arm in front of it) is no evidence that it fell: rebuilt on that word,
+    a domino still standing there was hit by the next one."""
+    run = job()
+    run.state.standing = {0: run.targets[0], 1: run.targets[1]}
+    run.client = CheckingClient([STANDING, NOT_SEEN, NOT_SEEN])
+    assert run._check(2)  # the one just placed, hidden too: taken as placed, unmeasured
+    assert sorted(run.state.standing) == [0, 1, 2]
+    assert run.report.dominoes[2].measured_error_mm is None
+    assert run.report.dominoes[2].check.startswith("not seen")
+    run.client = CheckingClient([STANDING, MISSING, STANDING, STANDING])
+    assert run._check(3)
+    assert sorted(run.state.standing) == [0, 2, 3]  # seen gone: built again

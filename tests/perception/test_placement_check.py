@@ -77,3 +77,35 @@ def test_a_domino_that_tipped_forward_belongs_to_the_place_it_fell_from(
     results = check_placements(run_poses[:3], views, pipeline, PlacementConfig())
     assert [r.status for r in results] == [STANDING, FALLEN, MISSING]
     assert np.linalg.norm(results[1].measured[:3, 3] - fallen[:3, 3]) < 0.003
+
+
+def facing(point: np.ndarray, towards: np.ndarray) -> np.ndarray:
+    """A domino at ``point`` with its largest face turned to ``towards``, length upwards."""
+    z = (towards - point) / np.linalg.norm(towards - point)
+    x = np.array([0.0, 0.0, 1.0]) - z[2] * z
+    x /= np.linalg.norm(x)
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    pose[:3, 3] = point
+    return pose
+
+
+def test_a_place_hidden_behind_something_is_not_seen_rather_than_missing(
+    run_poses, pipeline, render_build_area
+) -> None:
+    """The arm above a domino just placed can hide its neighbours from the camera: no
+    evidence that they fell (a run was rebuilt into a domino that still stood)."""
+    camera = next(v for v in render_build_area({}) if v.name == "camera_2").X_WC[:3, 3]
+    place = run_poses[1][:3, 3]
+    occluder = facing(place + (camera - place) / 3.0, camera)  # floats a third of the way
+    empty = check_placements(
+        run_poses[:2], render_build_area({0: run_poses[0]}), pipeline, PlacementConfig()
+    )
+    hidden = check_placements(
+        run_poses[:2],
+        render_build_area({0: run_poses[0], 1: occluder}),
+        pipeline,
+        PlacementConfig(),
+    )
+    assert [r.status for r in empty] == [STANDING, MISSING]
+    assert [r.status for r in hidden] == [STANDING, NOT_SEEN]

@@ -212,10 +212,14 @@ class ArmJob:
             outcome.attempts += 1
             if success:
                 outcome.placed = True
+                seen = (
+                    outcome.check
+                    if outcome.measured_error_mm is None
+                    else f"{outcome.measured_error_mm:.1f} mm, {outcome.measured_tilt_deg:.1f}° off"
+                )
                 log(
                     f"domino {index + 1}/{len(self.layout)} placed (attempt {outcome.attempts}): "
-                    f"{outcome.measured_error_mm:.1f} mm, {outcome.measured_tilt_deg:.1f}° off; "
-                    f"{outcome.simulated_s:.1f} s simulated, {outcome.wall_s:.1f} s wall"
+                    f"{seen}; {outcome.simulated_s:.1f} s simulated, {outcome.wall_s:.1f} s wall"
                 )
                 return PLACED
             outcome.failures.append(why)
@@ -415,7 +419,12 @@ class ArmJob:
         self.client.wait_for_sim_time(settle + 1.0 / self.settings.camera_rate + 0.05)
 
     def _check(self, index: int) -> bool:
-        """Perception looks at every domino placed so far; fallen ones are queued again."""
+        """Perception looks at every domino placed so far; fallen ones are queued again.
+
+        One hidden from the camera (NOT_SEEN: most of it behind something, e.g. the arm
+        above the domino just placed) is taken as standing until the next check: rebuilt
+        on perception's word alone, a domino that still stood there was hit by the next
+        (a whole run fell so)."""
         self._wait_for_fresh_frames(self.settings.settle_after_place)
         indices = sorted(set(self.state.standing) | {index})
         answer = self.client.check_placement([self.targets[i] for i in indices])
@@ -426,7 +435,8 @@ class ArmJob:
         for position, i in enumerate(indices):
             status = answer.status[position]
             error, tilt = answer.position_error[position], answer.tilt[position]
-            upright = (
+            hidden = status == CheckPlacement.Response.NOT_SEEN
+            upright = hidden or (
                 status == CheckPlacement.Response.STANDING
                 and error <= self.settings.place_tolerance
                 and tilt <= self.settings.place_tilt_tolerance
@@ -435,12 +445,13 @@ class ArmJob:
                 outcome = self.report.dominoes[index]
                 outcome.check = check_words(status, error, tilt)
                 outcome.measured_error_mm, outcome.measured_tilt_deg = (
-                    error * 1e3,
-                    math.degrees(tilt),
+                    (None, None) if hidden else (error * 1e3, math.degrees(tilt))
                 )
                 placed = upright
             if upright:
                 self.state.standing[i] = self.targets[i]
+                if hidden and i != index:
+                    log(f"domino {i + 1} {check_words(status, error, tilt)}")
             else:
                 self.state.standing.pop(i, None)
                 self._remember_fallen(i, status, answer.measured[position], tilt)
@@ -597,7 +608,9 @@ def neighbours_of(pose: Pose, others: Iterable[Pose]) -> list[Pose]:
 
 
 def check_words(status: int, error: float, tilt: float) -> str:
-    name = {0: "standing", 1: "fallen", 2: "missing", 3: "not seen"}.get(status, str(status))
+    if status == CheckPlacement.Response.NOT_SEEN:
+        return "not seen (hidden from the camera): taken as standing until the next check"
+    name = {0: "standing", 1: "fallen", 2: "missing"}.get(status, str(status))
     return f"{name}, {error * 1e3:.1f} mm and {math.degrees(tilt):.1f}° from the target"
 
 

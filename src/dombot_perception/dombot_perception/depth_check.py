@@ -65,6 +65,12 @@ class DepthEvidence:
     outside_axis: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
     @property
+    def hidden_fraction(self) -> float:
+        """Of the pixels with a depth return, those where something stands in front."""
+        known = self.supported + self.occluded + self.see_through
+        return self.occluded / known if known else 1.0
+
+    @property
     def see_through_fraction(self) -> float:
         """Of the pixels where the camera could have seen the box, those it saw past."""
         visible = self.supported + self.see_through

@@ -8,7 +8,9 @@ needed, which matters in a run where neighbours hide each other's lower halves. 
 place where that local fit fails is looked up in the full pipeline's detections,
 each detection going to at most one place, the one its foot stands on or fell from
 (a fallen domino lies somewhere near); with no detection there either, the place is
-MISSING when the cameras see almost nothing above the table there, FALLEN otherwise.
+MISSING when the cameras see almost nothing above the table there, FALLEN otherwise —
+unless something in front hides most of the place from every camera (the arm, just
+after placing a domino nearby): then NOT_SEEN, no evidence either way.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ class PlacementConfig:
     min_height_seen: float = 0.5  # of the domino's length, along its (vertical) length axis
     depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
     max_see_through: float = 0.2  # of the box's pixels the camera may see past
+    max_hidden: float = 0.5  # of the box's pixels behind something in front: NOT_SEEN
 
 
 @dataclass
@@ -82,6 +85,9 @@ def check_placements(
             detections = PerceptionPipeline(pipeline.segmenter, local).run(views).detections
             claimed = _claim(detections, expected, config.search_radius)
         mine = detections[claimed[index]] if index in claimed else None
+        if mine is None and _hidden(pose, views, config):
+            results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
+            continue
         results.append(_from_detections(pose, mine, detections, points, config))
     return results
 
@@ -181,6 +187,12 @@ def _local_fit(
     ):
         return None
     return pose
+
+
+def _hidden(expected: np.ndarray, views: list[CameraView], config: PlacementConfig) -> bool:
+    """Most of the expected box's pixels see something in front of it: a domino may stand
+    there unseen (a standing neighbour in front hides at most its lower fifth)."""
+    return depth_evidence(expected, views, config.depth_check).hidden_fraction > config.max_hidden
 
 
 def _from_detections(
