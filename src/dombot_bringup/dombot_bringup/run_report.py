@@ -20,6 +20,8 @@ from matplotlib.patches import Polygon
 
 from dombot_bringup.layouts import DOMINO_THICKNESS, DOMINO_WIDTH, DominoPlacement
 
+LABEL_GAP = 0.008  # m between a domino's end and its number in the picture
+
 
 @dataclass
 class TruthPose:
@@ -119,11 +121,10 @@ def plot_run(report: RunReport, path: Path) -> Path:
     for domino in report.dominoes:
         x, y, heading = domino.target
         axes.add_patch(Polygon(_footprint(x, y, heading), fill=False, edgecolor="0.4", lw=1))
+        beside = DOMINO_WIDTH / 2 + LABEL_GAP  # on the run's left, not on the next domino
         axes.annotate(
             str(domino.index + 1),  # counted from 1, as in the log
-            (x, y),
-            textcoords="offset points",  # beside the run (its left), not on the next domino
-            xytext=(-14 * math.sin(heading), 14 * math.cos(heading)),
+            (x - beside * math.sin(heading), y + beside * math.cos(heading)),
             ha="center",
             va="center",
             fontsize=7,
