@@ -199,3 +199,24 @@ def test_a_domino_hidden_from_the_camera_stands_until_a_check_sees_it_gone() -> 
     run.client = CheckingClient([STANDING, MISSING, STANDING, STANDING])
     assert run._check(3)
     assert sorted(run.state.standing) == [0, 2, 3]  # seen gone: built again
+
+
+class PlanningClient(RefusingClient):
+    """Every offer plans (with no pile detections)."""
+
+    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
+        return PlanPlace.Response(success=True, message="planned")
+
+
+def test_a_run_domino_whose_pick_failed_stays_an_obstacle_where_it_lies() -> None:
+    """A new domino was once built into a domino still standing 4.4 mm off its target after
+    the attempt to pick it up again closed on an edge."""
+    run = job()
+    run._remember_fallen(2, STANDING, lying(0.45, 0.060), math.radians(2.0))
+    run.client = PlanningClient({})
+    run._execute = lambda segments: (False, "approach_grasp: grasp on an edge")
+    assert run._attempt(2, [])[:2] == (False, "approach_grasp: grasp on an edge")
+    assert 2 in run.state.fallen  # still there, not offered again:
+    assert [c.source for c in run._candidates([])] == []
+    from_pile = Candidate(lying(0.55, -0.30), "pile")
+    assert [p.position.y for p in run._debris(from_pile)] == [0.060]  # but kept clear of

@@ -270,13 +270,15 @@ class ArmJob:
                 f"domino {index + 1}/{len(self.layout)}: picking {candidate.source} "
                 f"({candidate.posture}) at {spot.round(3).tolist()}, {plan.message}{pile}"
             )
-            if candidate.source.startswith("run "):
-                self.state.fallen.pop(int(candidate.source.split()[1]), None)
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
             executed, why = self._execute(plan.segments)
             if not executed:  # blocked or missed: unless it moved, the same would happen again
+                # A run domino stays where it was: an obstacle for every later carry (a new
+                # domino was once built into one that still stood there).
                 self.state.unpickable.append(spot)
                 return False, why, spot, True
+            if candidate.source.startswith("run "):
+                self.state.fallen.pop(int(candidate.source.split()[1]), None)  # carried away
             return self._check(index), self.report.dominoes[index].check, None, True
         if refused:
             return False, f"planning: {refused} offers refused", None, False
