@@ -78,9 +78,9 @@ def test_fallen_run_dominoes_are_obstacles_for_every_pick_but_their_own() -> Non
     for index, y in enumerate((0.020, 0.045, 0.300)):
         run._remember_fallen(index, FALLEN, lying(0.45, y), math.radians(80.0))
     fallen = run.state.fallen
-    first = Candidate(fallen[0], "run 0", neighbours_of(fallen[0], fallen.values()))
+    first = Candidate(fallen[0], 0, neighbours_of(fallen[0], fallen.values()))
     assert [p.position.y for p in run._debris(first)] == [0.300]  # itself and its pile not
-    from_pile = Candidate(lying(0.55, -0.30), "pile")
+    from_pile = Candidate(lying(0.55, -0.30))
     assert len(run._debris(from_pile)) == 3
 
 
@@ -218,5 +218,5 @@ def test_a_run_domino_whose_pick_failed_stays_an_obstacle_where_it_lies() -> Non
     assert run._attempt(2, [])[:2] == (False, "approach_grasp: grasp on an edge")
     assert 2 in run.state.fallen  # still there, not offered again:
     assert [c.source for c in run._candidates([])] == []
-    from_pile = Candidate(lying(0.55, -0.30), "pile")
+    from_pile = Candidate(lying(0.55, -0.30))
     assert [p.position.y for p in run._debris(from_pile)] == [0.060]  # but kept clear of

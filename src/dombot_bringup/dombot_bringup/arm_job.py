@@ -91,7 +91,7 @@ class Candidate:
     """Something to pick: a pile detection or a fallen run domino, with what lies near it."""
 
     pose: Pose
-    source: str  # "pile" or "run <index>"
+    run_index: int | None = None  # layout index of a fallen run domino; None: the pile
     neighbours: list[Pose] = field(default_factory=list)
     posture: str = "fallen"  # as perception named it, for the log
     scored: bool = True  # perception found room for the fingers
@@ -99,6 +99,10 @@ class Candidate:
 
     def spot(self) -> np.ndarray:
         return spot_of(self.pose)
+
+    @property
+    def source(self) -> str:
+        return "pile" if self.run_index is None else f"run {self.run_index}"
 
 
 @dataclass
@@ -212,14 +216,10 @@ class ArmJob:
             outcome.attempts += 1
             if success:
                 outcome.placed = True
-                seen = (
-                    outcome.check
-                    if outcome.measured_error_mm is None
-                    else f"{outcome.measured_error_mm:.1f} mm, {outcome.measured_tilt_deg:.1f}° off"
-                )
                 log(
                     f"domino {index + 1}/{len(self.layout)} placed (attempt {outcome.attempts}): "
-                    f"{seen}; {outcome.simulated_s:.1f} s simulated, {outcome.wall_s:.1f} s wall"
+                    f"{outcome.check}; {outcome.simulated_s:.1f} s simulated, "
+                    f"{outcome.wall_s:.1f} s wall"
                 )
                 return PLACED
             outcome.failures.append(why)
@@ -277,8 +277,8 @@ class ArmJob:
                 # domino was once built into one that still stood there).
                 self.state.unpickable.append(spot)
                 return False, why, spot, True
-            if candidate.source.startswith("run "):
-                self.state.fallen.pop(int(candidate.source.split()[1]), None)  # carried away
+            if candidate.run_index is not None:
+                self.state.fallen.pop(candidate.run_index, None)  # carried away
             return self._check(index), self.report.dominoes[index].check, None, True
         if refused:
             return False, f"planning: {refused} offers refused", None, False
@@ -320,7 +320,7 @@ class ArmJob:
         reaches."""
         avoid = failed + self.state.unpickable
         fallen = [
-            Candidate(pose, f"run {index}", neighbours_of(pose, self.state.fallen.values()))
+            Candidate(pose, index, neighbours_of(pose, self.state.fallen.values()))
             for index, pose in sorted(self.state.fallen.items())
             if not near_any(spot_of(pose), avoid)
         ]
@@ -328,7 +328,7 @@ class ArmJob:
         return fallen + [
             Candidate(
                 detection.pose,
-                "pile",
+                None,
                 neighbours_of(detection.pose, [d.pose for d in detections]),
                 posture=POSTURE_NAMES[detection.posture],
                 scored=detection.score > 0.0,
@@ -371,12 +371,13 @@ class ArmJob:
             points = segment.trajectory.points
             if points:
                 # Wall-clock timeouts are generous: the simulator may run well below real time.
-                tolerance = self.settings.approach_goal_tolerance if is_approach(segment) else 0.0
+                approach = is_approach(segment)
+                tolerance = self.settings.approach_goal_tolerance if approach else 0.0
                 result = self.client.execute(
                     segment.trajectory, seconds(points[-1]) * 60 + 120, tolerance
                 )
                 if result.error_code != 0:
-                    if is_approach(segment):
+                    if approach:
                         self._back_out(segment)
                     return False, f"{segment.label}: {result.error_string}"
             if segment.gripper_after == TrajectorySegment.GRIPPER_CLOSE:
