@@ -108,6 +108,7 @@ def run_case(name: str, arguments: list[str], seed: int, out: Path) -> dict:
         "dominoes": summary["dominoes"],
         "placed": summary["placed"],
         "placed_first_attempt": summary["placed_first_attempt"],
+        "placed_off_target": summary["placed_off_target"],
         "retries": summary["retries"],
         "simulated_s_per_domino": summary["simulated_s_per_domino_mean"],
         "wall_s_per_domino": summary["wall_s_per_domino_mean"],
@@ -125,6 +126,7 @@ def aggregate(runs: list[dict]) -> dict:
         "runs": len(runs),
         "placements_first_attempt_rate": first / dominoes if dominoes else None,
         "placements_rate": placed / dominoes if dominoes else None,
+        "placements_off_target": sum(r.get("placed_off_target", 0) for r in runs),
         "runs_completed_rate": len(completed) / len(runs),
         "completed_runs_toppled_rate": (
             sum(r["toppled"] for r in completed) / len(completed) if completed else None

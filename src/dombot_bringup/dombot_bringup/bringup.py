@@ -72,6 +72,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         default=4,
         help="dominoes between safety gaps, filled once the rest stands (4; 0: none)",
     )
+    run.add_argument(
+        "--keep-off-target",
+        type=float,
+        default=6.0,
+        help="[mm] an upright domino this far off its target (beyond the 3 mm tolerance) "
+        "is left standing, not picked up from within the run again (6; 0: re-pick)",
+    )
     cell = parser.add_argument_group("arm job: the cell")
     cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
     cell.add_argument("--seed", type=int, default=0, help="pile seed (default 0)")
@@ -119,6 +126,8 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--pile must be 1..200, got {args.pile}")
     if args.section < 0:
         raise layouts.LayoutError(f"--section must be 0 (no safety gaps) or more: {args.section}")
+    if not 0.0 <= args.keep_off_target <= 20.0:  # beyond ~20 mm the next may not topple
+        raise layouts.LayoutError(f"--keep-off-target must be 0..20 mm: {args.keep_off_target}")
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -128,6 +137,7 @@ def run_arm(args: argparse.Namespace) -> int:
         pile=args.pile,
         seed=args.seed,
         section=args.section,
+        keep_off_target=args.keep_off_target * 1e-3,
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
     )

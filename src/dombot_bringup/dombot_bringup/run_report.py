@@ -45,6 +45,7 @@ class DominoOutcome:
     check: str = ""  # perception's verdict after placing
     measured_error_mm: float | None = None
     measured_tilt_deg: float | None = None
+    off_target: bool = False  # upright but beyond the tolerance: left standing, not re-placed
     simulated_s: float = 0.0
     wall_s: float = 0.0
     truth_built: TruthPose | None = None  # before the strike
@@ -72,13 +73,14 @@ class RunReport:
 
     def summary(self) -> dict:
         placed = [d for d in self.dominoes if d.placed]
-        first_try = [d for d in placed if d.attempts == 1]
+        first_try = [d for d in placed if d.attempts == 1 and not d.off_target]
         per_domino = [d.simulated_s for d in placed]
         return {
             "success": self.success,
             "dominoes": len(self.dominoes),
             "placed": len(placed),
-            "placed_first_attempt": len(first_try),
+            "placed_first_attempt": len(first_try),  # within the tolerance
+            "placed_off_target": sum(d.off_target for d in placed),
             "retries": sum(max(d.attempts - 1, 0) for d in self.dominoes),
             "standing_before_strike_by_truth": self.standing_by_truth,
             "toppled_by_perception": self.toppled_by_perception,
