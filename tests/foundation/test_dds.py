@@ -8,7 +8,7 @@ from rclpy.node import Node
 
 from dombot_msgs.msg import DominoDetectionArray
 from dombot_msgs.srv import ResetSim
-from support.ros_processes import python_process, spin_until
+from support.ros_processes import call_service, python_process, spin_until
 
 TALKER = """
 import rclpy
@@ -64,10 +64,7 @@ def test_custom_message_published_in_one_process_arrives_in_another(node: Node) 
 def test_service_call_crosses_processes(node: Node) -> None:
     client = node.create_client(ResetSim, "/foundation/reset")
     with python_process(RESET_SERVER):
-        assert spin_until(node, client.service_is_ready, timeout=30)
-        future = client.call_async(ResetSim.Request(domino_count=12, seed=4))
-        assert spin_until(node, future.done, timeout=10)
-    response = future.result()
-    assert response.success
+        response = call_service(node, client, ResetSim.Request(domino_count=12, seed=4), 10)
+    assert response is not None and response.success
     assert response.message == "pile of 12 from seed 4"
     assert response.settle_time == pytest.approx(0.12)

@@ -53,3 +53,17 @@ def spin_until(node: Node, done: Callable[[], bool], timeout: float) -> bool:
     while time.monotonic() < deadline and not done():
         rclpy.spin_once(node, timeout_sec=0.05)
     return done()
+
+
+def call_service(node: Node, client, request, timeout: float, tries: int = 3):
+    """The response to ``request``, sent again when none came within ``timeout``; None if
+    no try got one. A new client's first request can lose its response under load: the
+    server may answer before its reply writer has matched the client's reader (a Fast DDS
+    service-discovery race, ros2/ros2#1253). Only for requests that are safe to repeat."""
+    assert spin_until(node, client.service_is_ready, timeout=30), "service not available"
+    for _ in range(tries):
+        future = client.call_async(request)
+        if spin_until(node, future.done, timeout=timeout):
+            return future.result()
+        client.remove_pending_request(future)
+    return None
