@@ -6,23 +6,23 @@ and settled by dombot_sim), the bring-up's default run (an arc of 10 at 0.6 m fr
 base) is built in order. Each attempt: perceive with both pile cameras
 (dombot_perception's pipeline); take the best detection lying flat or leaning, not where
 an attempt at this slot already failed (those perception scored as leaving the fingers
-room first, then the others with the most room); pass the other detections within 8 cm
-as the pile (``PickPlaceRequest.pile``), the dominoes already placed as standing and no
-grasp (the planner chooses; ``--perception-grasp`` passes perception's as the preferred
-one); plan from the simulated arm's joints. A detection the planner refuses is recorded
-(request included, to plan it again) and, up to ``--candidates`` per attempt, the next
-one is planned (the bring-up offers 6 with their pile: ``--candidates 6``; its last
-resort, planning without the pile, is ``--ignore-pile``). Then every segment is executed (as
-bench_planner_execution does) and judged as the simulator's action server judges it
-(every joint within 0.01 rad of the end within 0.5 s, else the goal is aborted), and
-every gripper event is run; a grasp is checked by where the fingers stopped (the
-bring-up's 3 mm) and a placement by the simulator's ground truth after 0.5 s (the
-bring-up's 3 mm horizontal / 3° tilt). After a missed grasp or an aborted approach the
-gripper opens and the arm retraces the approach, as the bring-up does: the next plan
-starts there. A domino carried but not placed, and a run domino knocked out of its
-place, are taken out of the cell (the knocked slots are built again first); an attempt
-succeeds when its domino is placed and no run domino was knocked. A slot gets up to
-``--max-attempts``; a slot not placed by then ends the pile.
+room first, then the others with the most room; flat before leaning); pass the other
+detections within 25 cm as the pile (``PickPlaceRequest.pile``), the dominoes already
+placed as standing and no grasp (the planner chooses; ``--perception-grasp`` passes
+perception's as the preferred one); plan from the simulated arm's joints. A detection
+the planner refuses is recorded (request included, to plan it again) and, up to
+``--candidates`` per attempt, the next one is planned (the bring-up offers 6 with their
+pile: ``--candidates 6``; its last resort, planning without the pile, is
+``--ignore-pile``). Then every segment is executed (as bench_planner_execution does) and
+judged as the simulator's action server judges it (every joint within 0.01 rad of the
+end within 0.5 s, else the goal is aborted), and every gripper event is run; a grasp is
+checked by where the fingers stopped (the bring-up's 3 mm) and a placement by the
+simulator's ground truth after 0.5 s (the bring-up's 3 mm horizontal / 3° tilt). After a
+missed grasp or an aborted approach the gripper opens and the arm retraces the approach,
+as the bring-up does: the next plan starts there. A domino carried but not placed, and a
+run domino knocked out of its place, are taken out of the cell (the knocked slots are
+built again first); an attempt succeeds when its domino is placed and no run domino was
+knocked. A slot gets up to ``--max-attempts``; a slot not placed by then ends the pile.
 
 Prints one JSON object on stdout (a row per attempt; progress on stderr).
 """
@@ -35,6 +35,7 @@ import math
 import os
 import time
 from collections import Counter
+from dataclasses import dataclass
 
 import numpy as np
 from bench_planner import log
@@ -42,10 +43,11 @@ from bench_planner_execution import TRACKING_SETTLE, plan_force, track, wait_for
 from pydrake.math import RigidTransform
 
 from dombot_bringup import layouts
+from dombot_bringup.offers import NEIGHBOUR_RADIUS, with_pile_first
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import pregrasp_opening, upright_pose
 from dombot_description.scenario import load_scenario
-from dombot_perception.frames import POSTURE_FLAT, POSTURE_TILTED, CameraView
+from dombot_perception.frames import POSTURE_FLAT, POSTURE_TILTED, CameraView, Detection
 from dombot_perception.pipeline import build_pipeline
 from dombot_planner.errors import PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
@@ -58,7 +60,6 @@ from dombot_sim.world import CellWorld, WorldConfig
 
 PILE_CAMERAS = ("camera_0", "camera_1")
 PICKABLE = (POSTURE_FLAT, POSTURE_TILTED)  # the bring-up picks leaning dominoes too
-NEIGHBOUR_RADIUS = 0.25  # m: detections this close to the pick are its pile (bring-up's)
 FAILED_SPOT_RADIUS = 0.01  # m: a detection this close to a failed attempt is skipped
 FRESH_FRAMES = 0.55  # s simulated before perceiving (the bring-up waits one camera period)
 SETTLE_AFTER_PLACE = 0.5  # s simulated before the placement is judged
@@ -104,6 +105,25 @@ def within(error: float, tilt: float) -> bool:
     return error <= PLACE_TOLERANCE[0] and tilt <= PLACE_TOLERANCE[1]
 
 
+@dataclass(frozen=True)
+class PileOffer:
+    """A detection as the bring-up's ranking sees it (``offers.Offer``)."""
+
+    detection: Detection
+
+    @property
+    def scored(self) -> bool:
+        return self.detection.score > 0.0
+
+    @property
+    def leaning(self) -> bool:
+        return self.detection.posture == POSTURE_TILTED
+
+    @property
+    def clearance(self) -> float:
+        return self.detection.clearance
+
+
 class PileRun:
     """One pile in the simulated cell and the run being built from it."""
 
@@ -124,9 +144,8 @@ class PileRun:
         return self.detections
 
     def candidates(self, detections: list) -> list:
-        """The bring-up's offers with the pile, best first: lying flat or leaning, not where
-        an attempt failed; those perception scored (in its order), then the others with the
-        most room beside the fingers first."""
+        """The bring-up's offers with the pile, best first (``offers.with_pile_first``):
+        lying flat or leaning, not where an attempt failed."""
         pickable = [
             detection
             for detection in detections
@@ -136,8 +155,7 @@ class PileRun:
                 for f in self.failed_spots
             )
         ]
-        unscored = sorted((d for d in pickable if d.score <= 0.0), key=lambda d: -d.clearance)
-        return [d for d in pickable if d.score > 0.0] + unscored
+        return [offer.detection for offer in with_pile_first([PileOffer(d) for d in pickable])]
 
     def nearest_truth(self, position: np.ndarray) -> tuple[int, float]:
         """Index of the simulated domino nearest ``position`` and its distance [m]."""

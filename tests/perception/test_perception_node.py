@@ -15,10 +15,10 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
 from dombot_description.grasp import upright_pose
+from dombot_description.pose_messages import pose_message
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.domino_model import orientation_error
-from dombot_perception.perception_node import pose_message
 from support.perception_scenes import PILE_CENTRE, flat
 from support.ros_processes import call_service, installed_node, spin_until
 

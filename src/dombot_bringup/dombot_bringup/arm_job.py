@@ -26,24 +26,20 @@ import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Point, Pose, Quaternion
-from scipy.spatial.transform import Rotation
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_bringup.cell_client import CallFailedError, CellClient
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
+from dombot_bringup.offers import NEIGHBOUR_RADIUS, roomiest_first, with_pile_first
 from dombot_bringup.process_group import ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_description import DOMINO_SIZE
+from dombot_description.pose_messages import pose_matrix
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
 NodeCommand = Callable[[str, str, dict], list[str]]
 BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
-# m: detections within this of the pick go to the planner as its pile. Not just the close
-# ones: the gripper body spans 15 cm and leans 60° at a grasp, and the coarse moves pass
-# low over the pile (with 8 cm, a third of the grasps on one S-curve pile ran the gripper
-# into a domino 8-16 cm away).
-NEIGHBOUR_RADIUS = 0.25
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
 DETECT_TRIES = 4
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
@@ -128,14 +124,6 @@ def placement_pose(placement: DominoPlacement) -> Pose:
         position=Point(x=placement.x, y=placement.y, z=placement.z),
         orientation=Quaternion(x=x, y=y, z=z, w=w),
     )
-
-
-def pose_matrix(pose: Pose) -> np.ndarray:
-    q = pose.orientation
-    matrix = np.eye(4)
-    matrix[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
-    matrix[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
-    return matrix
 
 
 def log(message: str) -> None:
@@ -244,23 +232,19 @@ class ArmJob:
         """Offer the planner candidates until one plans; execute and check it.
 
         First with their pile neighbours as obstacles (the planner keeps the pads clear of
-        them, or lets them nudge one a few millimetres): those perception scored as free
-        for the fingers, then the rest with the most room beside the fingers (perception's
-        clearance) first; leaning ones after flat ones (a fifth of the picks, they gave the
-        missed grasps). When every one is refused, the roomiest again without the pile
-        (the pads may push neighbours further; a miss is caught by the grasp check and
-        backed out of). A refusal costs a planning call, not an attempt: the arm has not
+        them, or lets them nudge one a few millimetres), in ``offers.with_pile_first``'s
+        order; when every one is refused, the roomiest again without the pile (the pads
+        may push neighbours further; a miss is caught by the grasp check and backed out
+        of). A refusal costs a planning call, not an attempt: the arm has not
         moved (the last of the returned success, why, spot, moved says whether it did).
         Refusals and failed picks are remembered for the run (refused with the
         pile: not offered with it again; refused without it, or the pick blocked or
         missed: not offered at all), until a pick within DISTURBED_RADIUS moves it.
         """
         candidates = self._candidates(failed)
-        count = self.settings.max_candidates
-        roomiest = sorted(candidates, key=lambda c: (not c.scored, c.leaning, -c.clearance))
-        scored = sorted((c for c in candidates if c.scored), key=lambda c: c.leaning)
-        ranked = scored + [c for c in roomiest if not c.scored]
-        ranked = [c for c in ranked if not near_any(c.spot(), self.state.crowded)]
+        count, crowded = self.settings.max_candidates, self.state.crowded
+        ranked = [c for c in with_pile_first(candidates) if not near_any(c.spot(), crowded)]
+        roomiest = roomiest_first(candidates)
         offers = [(c, True) for c in ranked[:count]] + [(c, False) for c in roomiest[:count]]
         refused = 0
         for candidate, with_pile in offers:

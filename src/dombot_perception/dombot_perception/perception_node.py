@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import Pose, PoseArray, Vector3
+from geometry_msgs.msg import PoseArray, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.exceptions import ParameterUninitializedException
@@ -30,6 +30,7 @@ from rclpy.parameter import Parameter
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
 
+from dombot_description.pose_messages import pose_matrix, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
@@ -495,23 +496,6 @@ def detection_message(index: int, detection: Detection) -> DominoDetection:
         grasp_pose=pose_message(detection.grasp_pose),
         grasp_width=float(detection.grasp_width),
     )
-
-
-def pose_matrix(pose: Pose) -> np.ndarray:
-    q = pose.orientation
-    matrix = np.eye(4)
-    matrix[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
-    matrix[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
-    return matrix
-
-
-def pose_message(matrix: np.ndarray) -> Pose:
-    pose = Pose()
-    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in matrix[:3, 3])
-    x, y, z, w = Rotation.from_matrix(matrix[:3, :3]).as_quat()
-    pose.orientation.x, pose.orientation.y = float(x), float(y)
-    pose.orientation.z, pose.orientation.w = float(z), float(w)
-    return pose
 
 
 def _vector(values: np.ndarray) -> Vector3:

@@ -22,7 +22,7 @@ from typing import TypeVar
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Pose, Twist
+from geometry_msgs.msg import Twist
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -30,11 +30,11 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from dombot_description.pose_messages import pose_message
 from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
@@ -545,19 +545,6 @@ def tolerances(entries, names: list[str], default: float) -> np.ndarray:
         if entry.name in names and entry.position != 0.0:
             values[names.index(entry.name)] = entry.position
     return values
-
-
-def pose_message(pose_matrix: np.ndarray) -> Pose:
-    pose = Pose()
-    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in pose_matrix[:3, 3])
-    x, y, z, w = Rotation.from_matrix(pose_matrix[:3, :3]).as_quat()
-    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (
-        float(x),
-        float(y),
-        float(z),
-        float(w),
-    )
-    return pose
 
 
 def twist_message(velocity: np.ndarray) -> Twist:

@@ -1,0 +1,23 @@
+"""4x4 homogeneous transforms ↔ ``geometry_msgs/Pose``: the one conversion every node
+adapter needs between the plain modules (numpy) and their messages."""
+
+from __future__ import annotations
+
+import numpy as np
+from geometry_msgs.msg import Point, Pose, Quaternion
+from scipy.spatial.transform import Rotation
+
+
+def pose_matrix(pose: Pose) -> np.ndarray:
+    """The transform of ``pose`` (its quaternion normalised by scipy)."""
+    q = pose.orientation
+    matrix = np.eye(4)
+    matrix[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    matrix[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
+    return matrix
+
+
+def pose_message(matrix: np.ndarray) -> Pose:
+    x, y, z = (float(v) for v in matrix[:3, 3])
+    qx, qy, qz, qw = (float(v) for v in Rotation.from_matrix(matrix[:3, :3]).as_quat())
+    return Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
