@@ -11,8 +11,8 @@ detections within 25 cm as the pile (``PickPlaceRequest.pile``), the dominoes al
 placed as standing and no grasp (the planner chooses; ``--perception-grasp`` passes
 perception's as the preferred one); plan from the simulated arm's joints. A detection
 the planner refuses is recorded (request included, to plan it again) and, up to
-``--candidates`` per attempt, the next one is planned (the bring-up offers 6 with their
-pile: ``--candidates 6``; its last resort, planning without the pile, is
+``--candidates`` per attempt, the next one is planned (the bring-up offers 16 with their
+pile: ``--candidates 16``; its last resort, planning without the pile, is
 ``--ignore-pile``). Then every segment is executed (as bench_planner_execution does) and
 judged as the simulator's action server judges it (every joint within 0.01 rad of the
 end within 0.5 s, else the goal is aborted), and every gripper event is run; a grasp is
