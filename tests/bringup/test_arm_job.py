@@ -45,6 +45,7 @@ def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> 
     assert result.returncode == 0, output
     report = json.loads((tmp_path / "run_report.json").read_text())
     assert report["summary"]["placed"] == 3
+    assert report["summary"]["within_tolerance_by_truth"] == 3
     for domino in report["dominoes"]:
         built = domino["truth_built"]  # the simulator's ground truth, before the strike
         assert built["error_mm"] <= 3.0, domino

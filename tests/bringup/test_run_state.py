@@ -18,6 +18,7 @@ from dombot_bringup.arm_job import (
     Candidate,
     neighbours_of,
 )
+from dombot_bringup.run_report import TruthPose
 from dombot_msgs.msg import DominoDetection
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
@@ -263,3 +264,12 @@ def test_flat_dominoes_are_offered_before_leaning_ones() -> None:
     run.client.detect = leaning_first
     run._attempt(0, [])
     assert [x for x, _ in run.client.offered] == [0.55, 0.50, 0.55, 0.50]
+
+
+def test_the_summary_counts_dominoes_the_simulator_had_within_3_mm_and_3_degrees() -> None:
+    run = job()
+    truths = [(2.9, 0.1), (3.1, 0.0), (1.0, 5.0), None]  # (error mm, tilt deg) before the strike
+    for outcome, truth in zip(run.report.dominoes, truths, strict=True):
+        if truth is not None:
+            outcome.truth_built = TruthPose(0.0, 0.0, 0.0, truth[1], truth[0])
+    assert run.report.summary()["within_tolerance_by_truth"] == 1
