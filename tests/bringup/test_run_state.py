@@ -249,7 +249,7 @@ def test_an_upright_domino_a_few_millimetres_off_is_left_standing_not_picked_aga
 
 
 def test_flat_dominoes_are_offered_before_leaning_ones() -> None:
-    """Leaning ones were a fifth of the picks and gave the missed grasps."""
+    """Leaning ones gave half the grasps that closed on nothing, at a fifth of the picks."""
     run = job()
     run.client = RefusingClient(
         {0.50: PlanPlace.Response.GRASP_UNREACHABLE, 0.55: PlanPlace.Response.GRASP_UNREACHABLE}

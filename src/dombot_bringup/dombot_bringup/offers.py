@@ -42,7 +42,7 @@ def roomiest_first(candidates: Sequence[OfferT]) -> list[OfferT]:
 def with_pile_first(candidates: Sequence[OfferT]) -> list[OfferT]:
     """The order of the offers planned with their pile: those perception scored (in its
     order, best grasp first), then the others with the most room for the fingers; flat
-    before leaning in each (leaning ones were a fifth of the picks and gave the missed
-    grasps)."""
+    before leaning in each (in the benchmark logs a fifth of the picks leaned and gave 3
+    of the 6 grasps that closed on nothing; they placed about as often, 64 of 69)."""
     scored = sorted((c for c in candidates if c.scored), key=lambda c: c.leaning)
     return scored + [c for c in roomiest_first(candidates) if not c.scored]
