@@ -167,7 +167,7 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
 
 class CheckingClient:
     """Perception's placement check answering the given statuses, each 1 mm off unless
-    told otherwise, measured where expected."""
+    told otherwise, measured that far off in x."""
 
     sim_time = 0.0
 
@@ -179,13 +179,16 @@ class CheckingClient:
         pass
 
     def check_placement(self, expected: list[Pose]) -> CheckPlacement.Response:
-        count = len(expected)
+        errors = self.errors or [0.001] * len(expected)
         return CheckPlacement.Response(
             success=True,
             status=self.statuses,
-            position_error=self.errors or [0.001] * count,
-            tilt=[0.0] * count,
-            measured=list(expected),
+            position_error=errors,
+            tilt=[0.0] * len(expected),
+            measured=[
+                lying(pose.position.x + error, pose.position.y)
+                for pose, error in zip(expected, errors, strict=True)
+            ],
         )
 
 
@@ -238,7 +241,15 @@ def test_an_upright_domino_a_few_millimetres_off_is_left_standing_not_picked_aga
     outcome.attempts, outcome.placed = 1, True
     assert run.report.summary()["placed_first_attempt"] == 0  # outside the tolerance
     assert run.report.summary()["placed_off_target"] == 1
+    left_at = run.state.standing[1].position.x  # measured 5 mm off
+    assert left_at == run.targets[1].position.x + 0.005
+    # the next check reads 6.5 mm: within 3 mm of where it was left, so it did not move
     run.client = CheckingClient([STANDING] * 4, errors=[0.001, 0.0065, 0.001, 0.001])
+    assert run._check(3)
+    assert sorted(run.state.standing) == [0, 1, 2, 3]
+    assert run.state.standing[1].position.x == left_at
+    # 9 mm: 4 mm from where it was left, beyond keep_off_target: picked up again
+    run.client = CheckingClient([STANDING] * 4, errors=[0.001, 0.009, 0.001, 0.001])
     assert run._check(3)
     assert sorted(run.state.standing) == [0, 2, 3] and sorted(run.state.fallen) == [1]
     strict = ArmJob(
