@@ -31,7 +31,13 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, SceneGraph
+from pydrake.geometry import (
+    CollisionFilterDeclaration,
+    GeometryId,
+    GeometrySet,
+    QueryObject,
+    SceneGraph,
+)
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Body
@@ -84,6 +90,7 @@ class SleepManager:
         self._anchor_time = np.zeros(len(self._dominoes))
         self._filter_id = None
         self._next_check = -np.inf
+        self.distance_fallbacks = 0  # checks answered pair by pair after an FCL error
 
     @property
     def asleep(self) -> np.ndarray:
@@ -188,8 +195,8 @@ class SleepManager:
         query = self._scene_graph.get_query_output_port().Eval(
             self._scene_graph.GetMyContextFromRoot(root)
         )
-        for pair in query.ComputeSignedDistancePairwiseClosestPoints(self._settings.wake_distance):
-            a, b = self._owner.get(pair.id_A), self._owner.get(pair.id_B)
+        for id_a, id_b in self._close_pairs(query):
+            a, b = self._owner.get(id_a), self._owner.get(id_b)
             for this, other in ((a, b), (b, a)):
                 if this is None or this[0] != "domino" or other is None:
                     continue
@@ -200,6 +207,38 @@ class SleepManager:
                 else:
                     near_moving[this[1]] |= domino_moving[index]
         return near_moving, near_robot
+
+    def _close_pairs(self, query: QueryObject) -> list[tuple[GeometryId, GeometryId]]:
+        """Unfiltered geometry pairs within the wake distance.
+
+        FCL's box-box signed distance throws for some nearly touching boxes
+        (fcl#390, drake#18704: "origin is outside of the polytope"); one such pair must
+        not end the simulation, so then every pair is asked on its own and one that
+        throws counts as touching (it only happens within ~1e-14 m of contact).
+        """
+        limit = self._settings.wake_distance
+        try:
+            return [
+                (pair.id_A, pair.id_B)
+                for pair in query.ComputeSignedDistancePairwiseClosestPoints(limit)
+            ]
+        except RuntimeError:
+            self.distance_fallbacks += 1
+        inspector = query.inspector()
+        ids = list(self._owner)
+        close = []
+        for i, id_a in enumerate(ids):
+            for id_b in ids[i + 1 :]:
+                kinds = {self._owner[id_a][0], self._owner[id_b][0]}
+                if "domino" not in kinds or inspector.CollisionFiltered(id_a, id_b):
+                    continue
+                try:
+                    distance = query.ComputeSignedDistancePairClosestPoints(id_a, id_b).distance
+                except RuntimeError:
+                    distance = 0.0
+                if distance <= limit:
+                    close.append((id_a, id_b))
+        return close
 
     def _set_asleep(self, plant_context: Context, index: int, asleep: bool) -> None:
         joint = self._joints[index]
