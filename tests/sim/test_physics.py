@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform
+from pydrake.multibody.math import SpatialVelocity
 
 from dombot_description import DOMINO_SIZE
-from dombot_sim.physics_checks import grip_and_swing, stand_upright, topple_line
+from dombot_sim.physics_checks import grip_and_swing, stand_upright, topple_line, upright_rotation
 from dombot_sim.sleeping import SleepSettings
 from dombot_sim.world import CellWorld, WorldConfig
 
@@ -74,3 +76,20 @@ def test_a_gripped_domino_does_not_slip_during_a_1_m_per_s_move() -> None:
     assert swing.opening == pytest.approx(DOMINO_SIZE[1], abs=0.5e-3)  # closed on the domino
     assert swing.peak_tcp_speed > 1.0, f"the move peaked at {swing.peak_tcp_speed:.2f} m/s"
     assert swing.slip < 1e-3, f"the domino slipped {swing.slip * 1e3:.2f} mm in the fingers"
+
+
+def test_a_diverged_step_is_redone_and_reported_instead_of_ending_the_simulation() -> None:
+    world = world_for(1)
+    heard: list[str] = []
+    world.divergence_listener = heard.append
+    start = RigidTransform(upright_rotation(0.4), [0.55, 0.15, DOMINO_SIZE[0] / 2])
+    world.set_domino_poses({0: start})
+    world.advance(0.1)
+    world.kick_domino(0, SpatialVelocity(np.zeros(3), [1e7, 0.0, 0.0]))  # an exploded contact
+
+    world.advance(0.5)
+
+    assert world.divergences == 1
+    assert len(heard) == 1 and "domino_0" in heard[0]
+    pose = world.domino_truth()[0].X_WD
+    assert np.linalg.norm(pose[:3, 3] - start.translation()) < 1e-3  # stopped where it stood
