@@ -53,6 +53,10 @@ def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> 
         heading_error = math.remainder(built["heading"] - domino["target"][2], math.pi)
         assert abs(math.degrees(heading_error)) <= 3.0, domino
         assert domino["truth_after_strike"]["tilt_deg"] > 45.0, domino
+        # a pick per attempt that moved the arm, each of a domino the simulator had near
+        # where perception saw it
+        assert 1 <= len(domino["pick_seen_off_mm"]) <= domino["attempts"], domino
+        assert all(off < 5.0 for off in domino["pick_seen_off_mm"]), domino
     assert report["toppled_by_truth"] and report["toppled_by_perception"]
     assert (tmp_path / "run.png").stat().st_size > 10_000
     for node in ("[sim_node]", "[perception_node]", "[planner_node]"):
@@ -112,6 +116,9 @@ def test_a_node_killed_mid_run_is_reported_by_name(tmp_path: Path) -> None:
     assert process.returncode == 1
     assert "node 'planner_node' died with exit code -9" in stderr
     assert "Traceback" not in stderr
+    report = json.loads((tmp_path / "run_report.json").read_text())  # what was done so far
+    assert report["message"] == "stopped: node 'planner_node' died (exit code -9)"
+    assert not report["built"] and (tmp_path / "run.png").exists()
 
 
 def _child_process(parent: int, package: str, executable: str) -> int | None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from geometry_msgs.msg import Point, Pose, Quaternion
 
 from dombot_bringup import layouts
@@ -125,6 +126,7 @@ class RefusingClient:
     def __init__(self, codes: dict[float, int]) -> None:
         self.codes = codes  # detection x → refusal code
         self.offered: list[tuple[float, int]] = []  # (x, pile dominoes sent)
+        self.places: list[Pose] = []
 
     def wait_for_sim_time(self, seconds: float) -> None:
         pass
@@ -139,6 +141,7 @@ class RefusingClient:
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
         x = request.domino_pose.position.x
         self.offered.append((x, len(request.pile_dominoes)))
+        self.places.append(request.place_pose)
         return PlanPlace.Response(success=False, error_code=self.codes[x], message="refused")
 
 
@@ -163,6 +166,38 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
     run.client.offered.clear()
     run._attempt(1, [])  # the next slot: only the one refused for its place is offered
     assert run.client.offered == [(0.60, 2)]
+
+
+def test_the_planner_is_asked_to_release_a_domino_ahead_of_its_target_along_the_run() -> None:
+    """Released dominoes end up 0.75 mm behind the release pose on average."""
+    run = job()  # a line heading +y
+    run.client = RefusingClient({0.50: PlanPlace.Response.GRASP_UNREACHABLE})
+    run._attempt(1, [])
+    target = run.targets[1]
+    for place in run.client.places:
+        assert place.position.x == pytest.approx(target.position.x, abs=1e-12)
+        assert place.position.y - target.position.y == pytest.approx(0.00075, abs=1e-12)
+        assert place.orientation == target.orientation
+
+
+def test_a_slot_put_off_when_only_safety_gaps_are_left_lets_them_go_first() -> None:
+    """It was put back in front of the gaps, so it came straight back, for ever."""
+    run = job()
+    run.settings = ArmJobSettings(section=2)  # gap at the 3rd of 4
+    run.client, run._strike = ResetOnlyClient(), lambda: None
+    turns: list[tuple[int, bool]] = []
+
+    def turn(index: int, may_defer: bool) -> str:
+        turns.append((index, may_defer))
+        if index == 3:
+            return DEFERRED if may_defer else FAILED
+        run.state.standing[index] = run.targets[index]
+        return PLACED
+
+    run._place_with_retries = turn
+    report = run.run()
+    assert turns == [(0, True), (1, True), (3, True), (2, False), (3, False)]
+    assert not report.built
 
 
 class CheckingClient:
@@ -212,6 +247,9 @@ class PlanningClient(RefusingClient):
 
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
         return PlanPlace.Response(success=True, message="planned")
+
+    def ground_truth(self, newer_than: float):  # for the report only
+        return type("Truth", (), {"dominoes": []})()
 
 
 def test_a_run_domino_whose_pick_failed_stays_an_obstacle_where_it_lies() -> None:

@@ -31,7 +31,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from dombot_bringup.cell_client import CallFailedError, CellClient
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
 from dombot_bringup.offers import NEIGHBOUR_RADIUS, roomiest_first, with_pile_first
-from dombot_bringup.process_group import ProcessGroup
+from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_description import DOMINO_SIZE
 from dombot_description.pose_messages import pose_matrix
@@ -76,6 +76,11 @@ class ArmJobSettings:
     # topples the next; spacing is ~60 % of its height): lifting it out of the run again is
     # where cascades started (a re-pick 4.4 mm off knocked four standing ones). 0: re-pick.
     keep_off_target: float = 0.006  # m
+    # Released dominoes end up behind the pose they were released at, along the run: by
+    # 0.75 mm on average in truth (sd 0.6-1.0 mm; 170 placements, arc and S-curve alike):
+    # ~0.45 mm from the grasp, the rest as the pads let go. The arm releases them this much
+    # ahead (the check still measures from the target).
+    place_lead: float = 0.00075  # m
     grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
     # ... but not this much inside it: a flat hold stops 0.2-0.8 mm inside (the pads' give
     # at grip_force); 0.9 mm and more inside, the pads met an edge and the domino hangs
@@ -97,7 +102,7 @@ class Candidate:
     pose: Pose
     run_index: int | None = None  # layout index of a fallen run domino; None: the pile
     neighbours: list[Pose] = field(default_factory=list)
-    posture: str = "fallen"  # as perception named it, for the log
+    posture: int | None = None  # perception's DominoDetection posture; None: fallen run domino
     scored: bool = True  # perception found room for the fingers
     clearance: float = math.inf  # m beside the finger contact sides, as perception measured
 
@@ -106,7 +111,11 @@ class Candidate:
 
     @property
     def leaning(self) -> bool:
-        return self.posture == POSTURE_NAMES[DominoDetection.POSTURE_TILTED]
+        return self.posture == DominoDetection.POSTURE_TILTED
+
+    @property
+    def posture_name(self) -> str:
+        return "fallen" if self.posture is None else POSTURE_NAMES[self.posture]
 
     @property
     def source(self) -> str:
@@ -122,10 +131,12 @@ class BuildState:
     crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
 
 
-def placement_pose(placement: DominoPlacement) -> Pose:
+def placement_pose(placement: DominoPlacement, lead: float = 0.0) -> Pose:
+    """The domino's target pose, moved ``lead`` metres ahead along the run."""
     w, x, y, z = placement.quaternion_wxyz()
+    ahead = lead * np.array([math.cos(placement.heading), math.sin(placement.heading)])
     return Pose(
-        position=Point(x=placement.x, y=placement.y, z=placement.z),
+        position=Point(x=placement.x + ahead[0], y=placement.y + ahead[1], z=placement.z),
         orientation=Quaternion(x=x, y=y, z=z, w=w),
     )
 
@@ -147,6 +158,7 @@ class ArmJob:
         self.client = client
         self.layout = list(layout)
         self.targets = [placement_pose(p) for p in self.layout]
+        self.releases = [placement_pose(p, settings.place_lead) for p in self.layout]
         self.settings = settings
         self.state = BuildState()
         self.report = RunReport(
@@ -174,7 +186,10 @@ class ArmJob:
             result = self._place_with_retries(index, may_defer)
             if result == DEFERRED:
                 deferred.add(index)
-                queue.insert(next((k for k, i in enumerate(queue) if i in gaps), len(queue)), index)
+                # before the safety gaps (filled last), but after at least one other slot:
+                # with only gaps left it went back to the front, put off for ever (S-curve 4)
+                first_gap = next((k for k, i in enumerate(queue) if i in gaps), len(queue))
+                queue.insert(max(first_gap, 1), index)
                 continue
             if result == FAILED:
                 self.report.message = f"domino {index + 1} could not be placed; stopping the build"
@@ -268,11 +283,15 @@ class ArmJob:
             pile = "" if with_pile else " ignoring its pile"
             log(
                 f"domino {index + 1}/{len(self.layout)}: picking {candidate.source} "
-                f"({candidate.posture}) at {spot.round(3).tolist()}, {plan.message}{pile}"
+                f"({candidate.posture_name}) at {spot.round(3).tolist()}, {plan.message}{pile}"
             )
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
+            seen_off = self._truth_offset_mm(candidate.pose)
+            self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
             executed, why = self._execute(plan.segments)
             if not executed:  # blocked or missed: unless it moved, the same would happen again
+                if seen_off is not None:
+                    log(f"(truth, report only: that domino lay {seen_off:.1f} mm from where seen)")
                 # A run domino stays where it was: an obstacle for every later carry (a new
                 # domino was once built into one that still stood there).
                 self.state.unpickable.append(spot)
@@ -297,7 +316,7 @@ class ArmJob:
                 grasp_pose=Pose(),  # the planner picks among all grasps, regrasp included
                 pile_dominoes=candidate.neighbours if with_pile else [],
                 grasp_width=0.0,
-                place_pose=self.targets[index],
+                place_pose=self.releases[index],
                 standing_dominoes=list(self.state.standing.values()) + self._debris(candidate),
                 time_budget=self.settings.plan_budget,
             ),
@@ -330,7 +349,7 @@ class ArmJob:
                 detection.pose,
                 None,
                 neighbours_of(detection.pose, [d.pose for d in detections]),
-                posture=POSTURE_NAMES[detection.posture],
+                posture=detection.posture,
                 scored=detection.score > 0.0,
                 clearance=detection.clearance,
             )
@@ -516,6 +535,15 @@ class ArmJob:
         self.report.toppled_by_perception = answer.success and all(fallen)
         log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")
 
+    def _truth_offset_mm(self, pose: Pose) -> float | None:
+        """How far from ``pose`` the simulator has its nearest domino's centre [mm]."""
+        truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
+        centres = [pose_matrix(d.pose)[:3, 3] for d in truth.dominoes]
+        if not centres:
+            return None
+        seen = pose_matrix(pose)[:3, 3]
+        return float(np.linalg.norm(np.array(centres) - seen, axis=1).min() * 1e3)
+
     def _record_truth(self, before_strike: bool) -> None:
         """Ground truth for the report: the simulator domino nearest each target."""
         truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
@@ -653,6 +681,7 @@ def run_arm_job(
         group.start("planner_node", node_command("dombot_planner", "planner_node", on_sim_time))
         rclpy.init()
         client = CellClient(watchdog=group.check)
+        job = None
         try:
             group.wait_until(lambda: client.ready(NEEDED_SERVICES), 600.0, "the nodes to be ready")
             log(
@@ -662,6 +691,14 @@ def run_arm_job(
             job = ArmJob(client, layout, layout_name, settings)
             report = job.run()
             group.check()
+        except NodeDiedError as error:
+            if job is not None:  # what was built so far, for the user to see
+                job.report.message = (
+                    f"stopped: node '{error.name}' died (exit code {error.returncode})"
+                )
+                json_path, png_path = write_report(job.report, out_dir)
+                log(f"{job.report.message}; partial report: {json_path}  picture: {png_path}")
+            raise
         finally:
             client.close()
             rclpy.try_shutdown()

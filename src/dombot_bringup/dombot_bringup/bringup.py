@@ -79,6 +79,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="[mm] an upright domino this far off its target (beyond the 3 mm tolerance) "
         "is left standing, not picked up from within the run again (6; 0: re-pick)",
     )
+    run.add_argument(
+        "--place-lead",
+        type=float,
+        default=0.75,
+        help="[mm] release each domino this far ahead of its target along the run: released "
+        "dominoes end up 0.75 mm behind on average (0.75; 0..3)",
+    )
     cell = parser.add_argument_group("arm job: the cell")
     cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
     cell.add_argument("--seed", type=int, default=0, help="pile seed (default 0)")
@@ -128,6 +135,8 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--section must be 0 (no safety gaps) or more: {args.section}")
     if not 0.0 <= args.keep_off_target <= 20.0:  # beyond ~20 mm the next may not topple
         raise layouts.LayoutError(f"--keep-off-target must be 0..20 mm: {args.keep_off_target}")
+    if not 0.0 <= args.place_lead <= 3.0:  # the placement tolerance is 3 mm
+        raise layouts.LayoutError(f"--place-lead must be 0..3 mm: {args.place_lead}")
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -138,6 +147,7 @@ def run_arm(args: argparse.Namespace) -> int:
         seed=args.seed,
         section=args.section,
         keep_off_target=args.keep_off_target * 1e-3,
+        place_lead=args.place_lead * 1e-3,
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
     )

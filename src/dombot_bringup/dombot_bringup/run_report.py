@@ -49,6 +49,9 @@ class DominoOutcome:
     off_target: bool = False  # upright but beyond the tolerance: left standing, not re-placed
     simulated_s: float = 0.0
     wall_s: float = 0.0
+    # Per pick executed: how far the simulator had the nearest domino from the pose
+    # perception gave the planner (to tell a misperceived domino from a missed grasp).
+    pick_seen_off_mm: list[float | None] = field(default_factory=list)
     truth_built: TruthPose | None = None  # before the strike
     truth_after_strike: TruthPose | None = None
 
