@@ -76,6 +76,10 @@ class ArmJobSettings:
     # topples the next; spacing is ~60 % of its height): lifting it out of the run again is
     # where cascades started (a re-pick 4.4 mm off knocked four standing ones). 0: re-pick.
     keep_off_target: float = 0.006  # m
+    # ... and up to this far off once picking it up again failed: it blocks its own slot
+    # (S-curve seed 4: one stood 8.9 mm off, both re-picks missed, and every place for its
+    # slot was refused for ever). 12 mm off, the next still stands within the toppling range.
+    keep_when_stuck: float = 0.012  # m
     # Released dominoes end up behind the pose they were released at, along the run: by
     # 0.75 mm on average in truth (sd 0.6-1.0 mm; 170 placements, arc and S-curve alike):
     # ~0.45 mm from the grasp, the rest as the pads let go. The arm releases them this much
@@ -128,6 +132,7 @@ class BuildState:
     fallen: dict[int, Pose] = field(default_factory=dict)  # layout index → measured pose
     # (x, y) of dominoes no grasp reaches or whose pick failed: not offered again
     unpickable: list[np.ndarray] = field(default_factory=list)
+    stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
     crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
 
 
@@ -182,6 +187,8 @@ class ArmJob:
         deferred: set[int] = set()  # slots put off since the last placement
         while queue:
             index = queue.pop(0)
+            if index in self.state.standing:
+                continue  # kept standing where it was (see _keep_if_standing)
             may_defer = any(i not in deferred for i in queue)
             result = self._place_with_retries(index, may_defer)
             if result == DEFERRED:
@@ -295,6 +302,8 @@ class ArmJob:
                 # A run domino stays where it was: an obstacle for every later carry (a new
                 # domino was once built into one that still stood there).
                 self.state.unpickable.append(spot)
+                if candidate.run_index is not None:
+                    return self._keep_if_standing(index, candidate.run_index, why, spot)
                 return False, why, spot, True
             if candidate.run_index is not None:
                 self.state.fallen.pop(candidate.run_index, None)  # carried away
@@ -302,6 +311,23 @@ class ArmJob:
         if refused:
             return False, f"planning: {refused} offers refused", None, False
         return False, "no graspable domino seen", None, False
+
+    def _keep_if_standing(
+        self, index: int, run_index: int, why: str, spot: np.ndarray
+    ) -> tuple[bool, str, np.ndarray | None, bool]:
+        """After a failed pick of run domino ``run_index``: if it still stands upright within
+        keep_when_stuck of its target, it stays as that slot's domino (when that is the slot
+        being built, the attempt succeeded); otherwise the attempt failed with ``why``."""
+        self.state.stuck.add(run_index)
+        if not self._check(run_index):
+            return False, why, spot, True
+        self.state.fallen.pop(run_index, None)
+        outcome = self.report.dominoes[run_index]
+        outcome.placed = True
+        if run_index == index:
+            return True, outcome.check, None, True
+        log(f"domino {run_index + 1} kept standing where it is ({outcome.check})")
+        return False, why, spot, True
 
     def _log_refusal(self, index: int, candidate: Candidate, with_pile: bool, why: str) -> None:
         """One short line per refusal: the planner's reason up to its details."""
@@ -448,7 +474,8 @@ class ArmJob:
         on perception's word alone, a domino that still stood there was hit by the next
         (a whole run fell so). One upright but off target by up to keep_off_target is left
         standing where perception measured it, not picked up from within the run; so is
-        one that stays within the tolerance of where it was left."""
+        one that stays within the tolerance of where it was left, and one whose pick-up
+        again failed, up to keep_when_stuck."""
         self._wait_for_fresh_frames(self.settings.settle_after_place)
         indices = sorted(set(self.state.standing) | {index})
         answer = self.client.check_placement([self.targets[i] for i in indices])
@@ -467,9 +494,8 @@ class ArmJob:
             # left 6.0 mm off read 6.6 mm at the next check and was to be picked again)
             stayed = last is not None and near(spot_of(measured), spot_of(last), tolerance)
             erect = status == CheckPlacement.Response.STANDING and tilt <= tilt_tolerance
-            off_target = (
-                erect and error > tolerance and (error <= settings.keep_off_target or stayed)
-            )
+            keep = settings.keep_when_stuck if i in self.state.stuck else settings.keep_off_target
+            off_target = erect and error > tolerance and (error <= keep or stayed)
             upright = hidden or off_target or (erect and error <= tolerance)
             if i == index:
                 outcome = self.report.dominoes[index]

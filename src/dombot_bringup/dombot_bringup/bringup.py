@@ -80,6 +80,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "is left standing, not picked up from within the run again (6; 0: re-pick)",
     )
     run.add_argument(
+        "--keep-when-stuck",
+        type=float,
+        default=12.0,
+        help="[mm] ... and this far off once picking it up again failed: it would block its "
+        "own slot (12; 0..20)",
+    )
+    run.add_argument(
         "--place-lead",
         type=float,
         default=0.75,
@@ -135,6 +142,8 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--section must be 0 (no safety gaps) or more: {args.section}")
     if not 0.0 <= args.keep_off_target <= 20.0:  # beyond ~20 mm the next may not topple
         raise layouts.LayoutError(f"--keep-off-target must be 0..20 mm: {args.keep_off_target}")
+    if not 0.0 <= args.keep_when_stuck <= 20.0:
+        raise layouts.LayoutError(f"--keep-when-stuck must be 0..20 mm: {args.keep_when_stuck}")
     if not 0.0 <= args.place_lead <= 3.0:  # the placement tolerance is 3 mm
         raise layouts.LayoutError(f"--place-lead must be 0..3 mm: {args.place_lead}")
     if args.pile < len(placements):
@@ -147,6 +156,7 @@ def run_arm(args: argparse.Namespace) -> int:
         seed=args.seed,
         section=args.section,
         keep_off_target=args.keep_off_target * 1e-3,
+        keep_when_stuck=args.keep_when_stuck * 1e-3,
         place_lead=args.place_lead * 1e-3,
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
