@@ -86,6 +86,21 @@ def test_fallen_run_dominoes_are_obstacles_for_every_pick_but_their_own() -> Non
     assert len(run._debris(from_pile)) == 3
 
 
+def test_ignoring_its_pile_a_run_domino_still_keeps_clear_of_fallen_ones_at_the_place() -> None:
+    """S-curve seed 2: run dominoes picked ignoring their pile were placed onto the fallen
+    ones lying there, and fell. Those far from the place may still be nudged."""
+    run = job()  # slots 28.8 mm apart along +y from (0.45, 0)
+    run._remember_fallen(1, FALLEN, lying(0.45, 0.050), math.radians(80.0))  # over slot 1
+    run._remember_fallen(2, FALLEN, lying(0.47, 0.080), math.radians(80.0))
+    run._remember_fallen(3, FALLEN, lying(0.49, 0.110), math.radians(80.0))  # far from slot 1
+    fallen = run.state.fallen
+    picked = Candidate(fallen[2], 2, neighbours_of(fallen[2], fallen.values()))
+    assert len(picked.neighbours) == 2
+    place = np.array([run.targets[1].position.x, run.targets[1].position.y])
+    assert run._debris(picked, with_pile=True, place=place) == []  # sent as its pile
+    assert [p.position.y for p in run._debris(picked, with_pile=False, place=place)] == [0.050]
+
+
 class ResetOnlyClient:
     """What run() asks of the cell around the slots' turns: a reset, the clock, the truth."""
 

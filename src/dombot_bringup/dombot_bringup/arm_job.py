@@ -343,20 +343,32 @@ class ArmJob:
                 pile_dominoes=candidate.neighbours if with_pile else [],
                 grasp_width=0.0,
                 place_pose=self.releases[index],
-                standing_dominoes=list(self.state.standing.values()) + self._debris(candidate),
+                standing_dominoes=[
+                    *self.state.standing.values(),
+                    *self._debris(candidate, with_pile, spot_of(self.releases[index])),
+                ],
                 time_budget=self.settings.plan_budget,
             ),
             timeout=self.settings.plan_budget + 30.0,
         )
 
-    def _debris(self, candidate: Candidate) -> list[Pose]:
-        """Fallen run dominoes lying in the build area (not the one to pick, nor its pile):
-        the carry and the placement must keep clear of them as of the standing ones (a
-        placement that met one fell)."""
+    def _debris(
+        self, candidate: Candidate, with_pile: bool = True, place: np.ndarray | None = None
+    ) -> list[Pose]:
+        """Fallen run dominoes lying in the build area (not the one to pick): the carry and
+        the placement must keep clear of them as of the standing ones (a placement that met
+        one fell). Its pile neighbours go to the planner as its pile instead; ignoring its
+        pile, those within a domino length of the ``place`` stay obstacles: a run domino
+        picked so was placed onto the fallen ones beside it, and fell (S-curve seed 2)."""
+        pile = [
+            pose
+            for pose in candidate.neighbours
+            if with_pile or place is None or not near(spot_of(pose), place, DOMINO_LENGTH)
+        ]
         return [
             pose
             for pose in self.state.fallen.values()
-            if pose is not candidate.pose and pose not in candidate.neighbours
+            if pose is not candidate.pose and not any(pose is p for p in pile)
         ]
 
     def _candidates(self, failed: list[np.ndarray]) -> list[Candidate]:
