@@ -81,7 +81,7 @@ def test_a_gripped_domino_does_not_slip_during_a_1_m_per_s_move() -> None:
 def test_a_diverged_step_is_redone_and_reported_instead_of_ending_the_simulation() -> None:
     world = world_for(1)
     heard: list[str] = []
-    world.divergence_listener = heard.append
+    world.trouble_listener = heard.append
     start = RigidTransform(upright_rotation(0.4), [0.55, 0.15, DOMINO_SIZE[0] / 2])
     world.set_domino_poses({0: start})
     world.advance(0.1)
@@ -93,3 +93,22 @@ def test_a_diverged_step_is_redone_and_reported_instead_of_ending_the_simulation
     assert len(heard) == 1 and "domino_0" in heard[0]
     pose = world.domino_truth()[0].X_WD
     assert np.linalg.norm(pose[:3, 3] - start.translation()) < 1e-3  # stopped where it stood
+
+
+def test_a_domino_that_leaves_the_cell_is_removed_not_left_falling_for_ever() -> None:
+    """Falling for ever (no floor under the table), one ran into the divergence check and
+    the simulator ended (S-curve seed 3)."""
+    world = world_for(2)
+    heard: list[str] = []
+    world.trouble_listener = heard.append
+    on_table = RigidTransform(upright_rotation(0.4), [0.55, 0.15, DOMINO_SIZE[0] / 2])
+    world.set_domino_poses({0: on_table, 1: RigidTransform([0.55, 0.25, 0.05])})
+    world.kick_domino(1, SpatialVelocity(np.zeros(3), [0.0, 40.0, 0.0]))  # off its edge
+
+    world.advance(1.0)
+
+    assert world.domino_count == 1 and world.divergences == 0
+    assert len(heard) == 1 and heard[0].startswith("domino_1 left the cell")
+    truth = world.domino_truth()
+    assert truth[0].in_use and not truth[1].in_use
+    assert np.linalg.norm(truth[0].X_WD[:3, 3] - on_table.translation()) < 1e-3

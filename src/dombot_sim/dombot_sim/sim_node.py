@@ -123,7 +123,7 @@ class SimNode(Node):
             sleep=SleepSettings(enabled=self._param("sleeping")),
         )
         self.world = CellWorld(config)
-        self.world.divergence_listener = self.get_logger().warning
+        self.world.trouble_listener = self.get_logger().warning
         if self.world.meshcat_url():
             self.get_logger().info(f"Meshcat: {self.world.meshcat_url()}")
         self._make_interfaces()

@@ -62,6 +62,8 @@ GRIPPER_OPEN = 0.10  # m, opening after a reset
 UPRIGHT_TOLERANCE = np.radians(10.0)  # body x this close to vertical counts as upright
 WAVE_FALL_TIME = 0.35  # s simulated between pour waves
 DIVERGED_STATE = 1e3  # m, m/s or rad/s: no state of the cell comes near this
+LEFT_CELL_BELOW = -0.2  # m: a domino this far under the table top fell off the table
+LEFT_CELL_BEYOND = 3.0  # m from the robot base: flung out of the cell
 
 
 @dataclass(frozen=True)
@@ -143,7 +145,8 @@ class CellWorld:
         self._root = None
         self.divergences = 0  # physics steps undone after diverging
         self._diverged_last_step = False
-        self.divergence_listener: Callable[[str], None] | None = None
+        # hears what went wrong in the physics and what was done about it (the node logs it)
+        self.trouble_listener: Callable[[str], None] | None = None
         self._build(self.config.domino_capacity)
 
     # ------------------------------------------------------------------ construction
@@ -200,6 +203,9 @@ class CellWorld:
         self._arm_source, self._gripper = arm_source, gripper
         self._domino_bodies = [plant.GetBodyByName("domino", m) for m in domino_models]
         self._domino_names = [plant.GetModelInstanceName(m) for m in domino_models]
+        self._domino_xyz = np.array(  # each domino's position entries in the plant's q
+            [b.floating_positions_start() + 4 + np.arange(3) for b in self._domino_bodies]
+        )
         self._label_lookup = label_lookup(
             {int(body.index()): i for i, body in enumerate(self._domino_bodies)}
         )
@@ -288,6 +294,7 @@ class CellWorld:
         diverged = ~(np.abs(after) < DIVERGED_STATE)  # NaN compares False
         if not diverged.any():
             self._diverged_last_step = False
+            self._remove_escaped(after)
             return
         owners = sorted(set(self._state_owners[diverged]))
         message = f"physics diverged at t={start:.3f} s (state of {', '.join(owners)})"
@@ -295,12 +302,31 @@ class CellWorld:
             raise RuntimeError(f"{message} in two steps running; the simulation cannot go on")
         self._diverged_last_step = True
         self.divergences += 1
-        if self.divergence_listener is not None:
-            self.divergence_listener(f"{message}; step undone, their velocities zeroed")
+        self._tell(f"{message}; step undone, their velocities zeroed")
         velocities = slice(self._plant.num_positions(), None)
         restart = before.copy()
         restart[velocities][np.isin(self._state_owners[velocities], owners)] = 0.0
         self._plant.SetPositionsAndVelocities(self._plant_context, restart)
+
+    def _remove_escaped(self, state: np.ndarray) -> None:
+        """Park the dominoes in use that left the cell (off the table, or flung away).
+
+        Falling for ever, one ran its state up to the divergence check, whose undo could
+        not stop the fall, and the simulator ended (S-curve seed 3). Parked, it is no
+        longer in use: perception, the truth and the report no longer see it.
+        """
+        in_use = np.array(self._in_use, dtype=int)
+        xyz = state[self._domino_xyz[in_use]].reshape(-1, 3)
+        gone = (xyz[:, 2] < LEFT_CELL_BELOW) | (np.hypot(xyz[:, 0], xyz[:, 1]) > LEFT_CELL_BEYOND)
+        for index, position in zip(in_use[gone], xyz[gone], strict=True):
+            self._in_use.remove(int(index))
+            self._park([int(index)])
+            where = np.round(position, 2).tolist()
+            self._tell(f"{self._domino_names[index]} left the cell at {where} m: removed")
+
+    def _tell(self, trouble: str) -> None:
+        if self.trouble_listener is not None:
+            self.trouble_listener(trouble)
 
     # ------------------------------------------------------------------ dominoes
     def reset(self, domino_count: int, seed: int) -> ResetReport:
