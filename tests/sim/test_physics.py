@@ -112,3 +112,10 @@ def test_a_domino_that_leaves_the_cell_is_removed_not_left_falling_for_ever() ->
     truth = world.domino_truth()
     assert truth[0].in_use and not truth[1].in_use
     assert np.linalg.norm(truth[0].X_WD[:3, 3] - on_table.translation()) < 1e-3
+
+
+def test_a_cell_without_dominoes_steps() -> None:
+    """sim_node starts with none (the watch for dominoes leaving the cell once broke it)."""
+    world = world_for(0)
+    world.advance(0.01)
+    assert world.time == pytest.approx(0.01) and world.domino_count == 0

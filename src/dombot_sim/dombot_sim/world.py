@@ -204,8 +204,9 @@ class CellWorld:
         self._domino_bodies = [plant.GetBodyByName("domino", m) for m in domino_models]
         self._domino_names = [plant.GetModelInstanceName(m) for m in domino_models]
         self._domino_xyz = np.array(  # each domino's position entries in the plant's q
-            [b.floating_positions_start() + 4 + np.arange(3) for b in self._domino_bodies]
-        )
+            [b.floating_positions_start() + 4 + np.arange(3) for b in self._domino_bodies],
+            dtype=int,
+        ).reshape(-1, 3)
         self._label_lookup = label_lookup(
             {int(body.index()): i for i, body in enumerate(self._domino_bodies)}
         )
