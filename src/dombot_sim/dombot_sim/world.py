@@ -318,7 +318,8 @@ class CellWorld:
         """
         in_use = np.array(self._in_use, dtype=int)
         xyz = state[self._domino_xyz[in_use]].reshape(-1, 3)
-        gone = (xyz[:, 2] < LEFT_CELL_BELOW) | (np.hypot(xyz[:, 0], xyz[:, 1]) > LEFT_CELL_BEYOND)
+        away = (xyz[:, 2] < LEFT_CELL_BELOW) | (np.hypot(xyz[:, 0], xyz[:, 1]) > LEFT_CELL_BEYOND)
+        gone = away & ~self._sleep.asleep[in_use]  # asleep: parked, e.g. not yet poured
         for index, position in zip(in_use[gone], xyz[gone], strict=True):
             self._in_use.remove(int(index))
             self._park([int(index)])
