@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from geometry_msgs.msg import Point, Pose, Quaternion
@@ -19,12 +20,13 @@ from dombot_bringup.arm_job import (
     Candidate,
     neighbours_of,
 )
-from dombot_bringup.run_report import TruthPose
+from dombot_bringup.run_report import TruthPose, plot_run
 from dombot_msgs.msg import DominoDetection
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
 MISSING, NOT_SEEN = CheckPlacement.Response.MISSING, CheckPlacement.Response.NOT_SEEN
+BLUE_ON_WHITE = 0.5 + 0.5 * np.array([0x1F, 0x77, 0xB4]) / 255  # tab:blue, alpha 0.5
 
 
 def lying(x: float, y: float) -> Pose:
@@ -373,3 +375,18 @@ def test_the_summary_counts_dominoes_the_simulator_had_within_3_mm_and_3_degrees
         if truth is not None:
             outcome.truth_built = TruthPose(0.0, 0.0, 0.0, truth[1], truth[0])
     assert run.report.summary()["within_tolerance_by_truth"] == 1
+
+
+def test_without_the_truth_the_picture_shows_what_perception_counted_placed(tmp_path) -> None:
+    """The simulator died: no truth, but the user still sees how far the build got."""
+    run = job()
+    for outcome in run.report.dominoes[:3]:
+        outcome.placed = True
+
+    def blue_pixels() -> int:
+        image = plt.imread(plot_run(run.report, tmp_path / "run.png"))[..., :3]
+        return int(np.sum(np.all(np.abs(image - BLUE_ON_WHITE) < 0.08, axis=-1)))
+
+    partly = blue_pixels()
+    run.report.dominoes[3].placed = True
+    assert 0 < partly < blue_pixels()

@@ -130,8 +130,11 @@ def _footprint(x: float, y: float, heading: float) -> np.ndarray:
 
 
 def plot_run(report: RunReport, path: Path) -> Path:
-    """Top-down: target outlines, where each domino stood (truth), where it lay after the strike."""
+    """Top-down: target outlines, where each domino stood (truth), where it lay after the
+    strike. Without the truth (the simulator died), placed ones are drawn at their targets
+    as perception's check counted them."""
     figure, axes = plt.subplots(figsize=(8, 7))
+    unseen_by_truth = False
     for domino in report.dominoes:
         x, y, heading = domino.target
         axes.add_patch(Polygon(_footprint(x, y, heading), fill=False, edgecolor="0.4", lw=1))
@@ -150,6 +153,9 @@ def plot_run(report: RunReport, path: Path) -> Path:
             axes.add_patch(
                 Polygon(_footprint(built.x, built.y, built.heading), color=colour, alpha=0.7)
             )
+        elif domino.placed:
+            unseen_by_truth = True
+            axes.add_patch(Polygon(_footprint(x, y, heading), color="tab:blue", alpha=0.5))
         fallen = domino.truth_after_strike
         if fallen is not None and fallen.tilt_deg > 45:
             axes.plot(fallen.x, fallen.y, "x", color="tab:red", ms=6)
@@ -157,6 +163,8 @@ def plot_run(report: RunReport, path: Path) -> Path:
     axes.plot([], [], "s", color="tab:green", label="standing after the build (truth)")
     axes.plot([], [], "s", color="tab:orange", label="placed but not upright (truth)")
     axes.plot([], [], "x", color="tab:red", label="fallen after the strike (truth)")
+    if unseen_by_truth:
+        axes.plot([], [], "s", color="tab:blue", label="placed, by perception (no truth)")
     axes.set_aspect("equal")
     axes.autoscale_view()
     axes.margins(0.15)
