@@ -20,7 +20,7 @@ from dombot_bringup.arm_job import (
     Candidate,
     neighbours_of,
 )
-from dombot_bringup.run_report import TruthPose, plot_run
+from dombot_bringup.run_report import RunReport, TruthPose, plot_run
 from dombot_msgs.msg import DominoDetection
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
@@ -115,22 +115,27 @@ class ResetOnlyClient:
         return type("Truth", (), {"dominoes": []})()
 
 
-def test_a_slot_nothing_plans_for_is_put_off_until_the_others_had_their_turn() -> None:
-    """E.g. fallen dominoes lie where it stands: building the others may use them up. Put
-    off again with no placement in between, it gets its attempts (and may fail the run)."""
-    run = job()
+def turns_with_one_slot_put_off(run: ArmJob, put_off: int) -> tuple[list, RunReport]:
+    """Run the job where every slot is placed at once but ``put_off``, for which nothing
+    ever plans: the (slot, may defer) turns it took, and the report."""
     run.client, run._strike = ResetOnlyClient(), lambda: None
     turns: list[tuple[int, bool]] = []
 
     def turn(index: int, may_defer: bool) -> str:
         turns.append((index, may_defer))
-        if index == 0:
+        if index == put_off:
             return DEFERRED if may_defer else FAILED
         run.state.standing[index] = run.targets[index]
         return PLACED
 
     run._place_with_retries = turn
-    report = run.run()
+    return turns, run.run()
+
+
+def test_a_slot_nothing_plans_for_is_put_off_until_the_others_had_their_turn() -> None:
+    """E.g. fallen dominoes lie where it stands: building the others may use them up. Put
+    off again with no placement in between, it gets its attempts (and may fail the run)."""
+    turns, report = turns_with_one_slot_put_off(job(), put_off=0)
     assert turns == [(0, True), (1, True), (2, True), (3, True), (0, False)]
     assert not report.built and report.message.startswith("domino 1 could not be placed")
 
@@ -201,18 +206,7 @@ def test_a_slot_put_off_when_only_safety_gaps_are_left_lets_them_go_first() -> N
     """It was put back in front of the gaps, so it came straight back, for ever."""
     run = job()
     run.settings = ArmJobSettings(section=2)  # gap at the 3rd of 4
-    run.client, run._strike = ResetOnlyClient(), lambda: None
-    turns: list[tuple[int, bool]] = []
-
-    def turn(index: int, may_defer: bool) -> str:
-        turns.append((index, may_defer))
-        if index == 3:
-            return DEFERRED if may_defer else FAILED
-        run.state.standing[index] = run.targets[index]
-        return PLACED
-
-    run._place_with_retries = turn
-    report = run.run()
+    turns, report = turns_with_one_slot_put_off(run, put_off=3)
     assert turns == [(0, True), (1, True), (3, True), (2, False), (3, False)]
     assert not report.built
 

@@ -573,10 +573,14 @@ class ArmJob:
         self.report.toppled_by_perception = answer.success and all(fallen)
         log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")
 
+    def _truth_poses(self) -> list[np.ndarray]:
+        """The simulator's dominoes now, as 4x4 poses: for the report only."""
+        truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
+        return [pose_matrix(d.pose) for d in truth.dominoes]
+
     def _truth_offset_mm(self, pose: Pose) -> float | None:
         """How far from ``pose`` the simulator has its nearest domino's centre [mm]."""
-        truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
-        centres = [pose_matrix(d.pose)[:3, 3] for d in truth.dominoes]
+        centres = [p[:3, 3] for p in self._truth_poses()]
         if not centres:
             return None
         seen = pose_matrix(pose)[:3, 3]
@@ -584,8 +588,7 @@ class ArmJob:
 
     def _record_truth(self, before_strike: bool) -> None:
         """Ground truth for the report: the simulator domino nearest each target."""
-        truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
-        poses = [pose_matrix(d.pose) for d in truth.dominoes]
+        poses = self._truth_poses()
         if not poses:
             return
         centres = np.array([p[:2, 3] for p in poses])

@@ -285,7 +285,7 @@ class CellWorld:
         The contact physics diverged once in 15 benchmark runs (NaN poses; not
         reproducible, paced runs differ in timing). Rather than losing the run, the state
         goes back to the one before the step with the diverged bodies' velocities zeroed
-        (time still moves on by the step), and the divergence listener (the node's log)
+        (time still moves on by the step), and the trouble listener (the node's log)
         hears which bodies. Diverging again in the next step raises.
         """
         start = self.time
@@ -317,7 +317,7 @@ class CellWorld:
         longer in use: perception, the truth and the report no longer see it.
         """
         in_use = np.array(self._in_use, dtype=int)
-        xyz = state[self._domino_xyz[in_use]].reshape(-1, 3)
+        xyz = state[self._domino_xyz[in_use]]  # (dominoes in use, 3)
         away = (xyz[:, 2] < LEFT_CELL_BELOW) | (np.hypot(xyz[:, 0], xyz[:, 1]) > LEFT_CELL_BEYOND)
         gone = away & ~self._sleep.asleep[in_use]  # asleep: parked, e.g. not yet poured
         for index, position in zip(in_use[gone], xyz[gone], strict=True):
