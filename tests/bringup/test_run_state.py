@@ -384,3 +384,21 @@ def test_without_the_truth_the_picture_shows_what_perception_counted_placed(tmp_
     partly = blue_pixels()
     run.report.dominoes[3].placed = True
     assert 0 < partly < blue_pixels()
+
+
+def attempts_until_failed(spot: np.ndarray | None) -> int:
+    """Attempts slot 1 gets when every one fails the same way: a pick that failed where
+    ``spot`` lies, or (None) a domino carried that did not stand."""
+    run = job()
+    run.client = ResetOnlyClient()
+    run._attempt = lambda index, failed: (False, "it failed", spot, True)
+    assert run._place_with_retries(0, may_defer=False) == FAILED
+    return run.report.dominoes[0].attempts
+
+
+def test_picks_that_missed_get_more_attempts_than_carries_that_failed() -> None:
+    """A missed pick leaves the run as it was and stirs the pile (S-curve seed 3 stopped
+    after 4 misses in a row with a dozen dominoes left); a carry that failed may not."""
+    settings = ArmJobSettings()
+    assert attempts_until_failed(np.array([0.55, -0.30])) == settings.max_missed_picks
+    assert attempts_until_failed(None) == settings.max_attempts < settings.max_missed_picks
