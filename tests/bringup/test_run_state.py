@@ -398,7 +398,7 @@ def attempts_until_failed(spot: np.ndarray | None) -> int:
 
 def test_picks_that_missed_get_more_attempts_than_carries_that_failed() -> None:
     """A missed pick leaves the run as it was and stirs the pile (S-curve seed 3 stopped
-    after 4 misses in a row with a dozen dominoes left); a carry that failed may not."""
+    after 4 misses in a row, 16 dominoes still seen in the pile); a carry that failed may not."""
     settings = ArmJobSettings()
     assert attempts_until_failed(np.array([0.55, -0.30])) == settings.max_missed_picks
     assert attempts_until_failed(None) == settings.max_attempts < settings.max_missed_picks

@@ -303,6 +303,17 @@ def test_bad_requests_get_their_error_code(planner, changes, code) -> None:
     assert failure(planner, request(**changes)).code == code
 
 
+def test_a_place_on_an_obstacle_names_which_and_where(planner) -> None:
+    """The bring-up sends fallen dominoes among the standing ones: "standing domino 4"
+    named the 5th obstacle, which was a fallen one, and sent the reader to the 4th."""
+    neighbour = upright_pose(0.55, 0.15, 0.3)
+    error = failure(
+        planner, request(place_pose=neighbour, standing=(flat_pose(0.3, 0.2, 0.0), neighbour))
+    )
+    assert error.code == ErrorCode.PLACE_IN_COLLISION
+    assert "overlaps standing_dominoes[1] at (0.550, 0.150) m" in error.message
+
+
 def test_planner_keeps_working_after_failures(planner) -> None:
     for bad in ({"time_budget": -1.0}, {"time_budget": 1e-4}):
         failure(planner, request(**bad))

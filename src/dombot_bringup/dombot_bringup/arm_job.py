@@ -63,7 +63,7 @@ class ArmJobSettings:
     max_attempts: int = 4  # per domino: perceive, plan, carry and place
     # ... and picks that failed before anything was carried (missed, blocked): they leave
     # the run as it was and stir the pile. S-curve seed 3 stopped after 4 misses in a row
-    # at its last gap, a dozen dominoes still in the pile.
+    # at its last gap with 16 dominoes still detected in the pile.
     max_missed_picks: int = 8
     # Per attempt, dominoes offered to the planner with their pile until one plans, then
     # the roomiest without it (the last resort: 2 of the 9 such picks in the benchmark logs

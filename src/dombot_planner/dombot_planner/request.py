@@ -200,8 +200,9 @@ def check_place_is_free(
         )
     for index, other in enumerate(standing):
         if dominoes_overlap(place, other, OVERLAP_TOLERANCE):
+            x, y = other.translation()[:2]
             raise PlanningError(
                 ErrorCode.PLACE_IN_COLLISION,
                 "validation",
-                f"{what} overlaps standing domino {index}",
+                f"{what} overlaps standing_dominoes[{index}] at ({x:.3f}, {y:.3f}) m",
             )

@@ -5,6 +5,8 @@ Publishes ``/clock``, ``/joint_states``, per camera colour, depth and camera_inf
 (FollowJointTrajectory semantics), ``/gripper_command`` (GripperCommand semantics) and
 ``/sim/reset``. The simulation runs in the main thread, paced to ``real_time_factor``;
 ROS callbacks run on a multi-threaded executor and reach the world under one lock.
+After each trajectory and gripper goal it logs the dominoes that moved ``log_moved_mm``
+or more meanwhile (the truth, for whoever reads the log; nothing else sees it).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
 from dombot_sim.cameras import CameraFrame
+from dombot_sim.motion_watch import describe_motion, take_snapshot
 from dombot_sim.sleeping import SleepSettings
 from dombot_sim.trajectory import TrajectoryError, build_trajectory
 from dombot_sim.world import CONTACT_APPROXIMATIONS, CellWorld, WorldConfig
@@ -112,6 +115,7 @@ class SimNode(Node):
         self._lock = WorldLock()
         self._loop_tasks: queue.Queue[Callable[[], None]] = queue.Queue()
         self._generation = 0  # bumped by reset and by new trajectory goals (preemption)
+        self._resets = 0
         self.rates = self._read_rates()
         config = WorldConfig(
             scenario_path=self._param("scenario") or None,
@@ -145,6 +149,7 @@ class SimNode(Node):
             "cameras": True,
             "meshcat": False,
             "sleeping": True,
+            "log_moved_mm": 1.0,  # 0: no log of the dominoes that moved during a goal
         }
         for name, value in defaults.items():
             self.declare_parameter(name, value)
@@ -177,6 +182,10 @@ class SimNode(Node):
             problems.append(
                 f"contact_approximation must be one of {sorted(CONTACT_APPROXIMATIONS)}, "
                 f"got {approximation!r}"
+            )
+        if "log_moved_mm" in values and not 0.0 <= values["log_moved_mm"] < math.inf:
+            problems.append(
+                f"log_moved_mm must be a finite distance >= 0, got {values['log_moved_mm']}"
             )
         if "domino_count" in values and not 0 <= values["domino_count"] <= MAX_DOMINOES:
             problems.append(f"domino_count must be 0..{MAX_DOMINOES}, got {values['domino_count']}")
@@ -378,6 +387,7 @@ class SimNode(Node):
         self.get_logger().info(f"pouring {count} dominoes (seed {seed}) ...")
         with self._lock:
             self._generation += 1
+            self._resets += 1
             report = self.world.reset(count, seed)
         summary = (
             f"pile of {count} (seed {seed}) %s after {report.settle_time:.2f} s simulated, "
@@ -389,8 +399,30 @@ class SimNode(Node):
             self.get_logger().warning(summary % "STILL MOVING")
         return report
 
-    # ------------------------------------------------------------------ trajectory action
+    # ------------------------------------------------------------------ goals, watched
+    def _watched(self, motion: str, execute: Callable[[object], T], goal_handle) -> T:
+        """Execute the goal; then log which dominoes moved meanwhile (not across a reset)."""
+        threshold = self._param("log_moved_mm") * 1e-3
+        with self._lock:
+            before, resets = take_snapshot(self.world), self._resets
+        result = execute(goal_handle)
+        with self._lock:
+            after = take_snapshot(self.world) if resets == self._resets else None
+        if after is None or threshold <= 0.0:
+            return result
+        moved = describe_motion(before, after, threshold)
+        if moved:
+            self.get_logger().info(f"during the {motion}: " + "; ".join(moved))
+        return result
+
     def _execute_trajectory(self, goal_handle) -> ExecuteTrajectory.Result:
+        return self._watched("trajectory", self._follow_trajectory, goal_handle)
+
+    def _execute_gripper(self, goal_handle) -> GripperCommand.Result:
+        return self._watched("gripper motion", self._move_gripper, goal_handle)
+
+    # ------------------------------------------------------------------ trajectory action
+    def _follow_trajectory(self, goal_handle) -> ExecuteTrajectory.Result:
         goal = goal_handle.request
         points = goal.trajectory.points
         with self._lock:
@@ -483,7 +515,7 @@ class SimNode(Node):
         )
 
     # ------------------------------------------------------------------ gripper action
-    def _execute_gripper(self, goal_handle) -> GripperCommand.Result:
+    def _move_gripper(self, goal_handle) -> GripperCommand.Result:
         goal = goal_handle.request
         with self._lock:
             try:
