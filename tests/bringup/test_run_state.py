@@ -21,7 +21,7 @@ from dombot_bringup.arm_job import (
     neighbours_of,
 )
 from dombot_bringup.run_report import RunReport, TruthPose, plot_run
-from dombot_msgs.msg import DominoDetection
+from dombot_msgs.msg import DominoDetection, DominoState
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
@@ -402,3 +402,24 @@ def test_picks_that_missed_get_more_attempts_than_carries_that_failed() -> None:
     settings = ArmJobSettings()
     assert attempts_until_failed(np.array([0.55, -0.30])) == settings.max_missed_picks
     assert attempts_until_failed(None) == settings.max_attempts < settings.max_missed_picks
+
+
+class TruthClient:
+    """The simulator's truth: two dominoes."""
+
+    sim_time = 5.0
+
+    def ground_truth(self, newer_than: float):
+        dominoes = [
+            DominoState(name="domino_3", pose=lying(0.45, -0.40)),
+            DominoState(name="domino_7", pose=lying(0.5507, -0.30)),
+        ]
+        return type("Truth", (), {"dominoes": dominoes})()
+
+
+def test_a_failed_pick_names_the_simulator_domino_it_was_after() -> None:
+    """The name finds that domino in sim_node's log of what moved during each goal."""
+    run = job()
+    run.client = TruthClient()
+    name, off_mm = run._nearest_truth(lying(0.55, -0.30))
+    assert name == "domino_7" and off_mm == pytest.approx(0.7)

@@ -303,12 +303,12 @@ class ArmJob:
                 f"({candidate.posture_name}) at {spot.round(3).tolist()}, {plan.message}{pile}"
             )
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
-            seen_off = self._truth_offset_mm(candidate.pose)
+            truth_name, seen_off = self._nearest_truth(candidate.pose)
             self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
             executed, why = self._execute(plan.segments)
             if not executed:  # blocked or missed: unless it moved, the same would happen again
-                if seen_off is not None:
-                    log(f"(truth, report only: that domino lay {seen_off:.1f} mm from where seen)")
+                if seen_off is not None:  # the name finds it in sim_node's "during the" lines
+                    log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
                 # A run domino stays where it was: an obstacle for every later carry (a new
                 # domino was once built into one that still stood there).
                 self.state.unpickable.append(spot)
@@ -583,22 +583,25 @@ class ArmJob:
         self.report.toppled_by_perception = answer.success and all(fallen)
         log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")
 
-    def _truth_poses(self) -> list[np.ndarray]:
-        """The simulator's dominoes now, as 4x4 poses: for the report only."""
+    def _truth(self) -> list[tuple[str, np.ndarray]]:
+        """The simulator's dominoes now, names and 4x4 poses: for the report only."""
         truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
-        return [pose_matrix(d.pose) for d in truth.dominoes]
+        return [(d.name, pose_matrix(d.pose)) for d in truth.dominoes]
 
-    def _truth_offset_mm(self, pose: Pose) -> float | None:
-        """How far from ``pose`` the simulator has its nearest domino's centre [mm]."""
-        centres = [p[:3, 3] for p in self._truth_poses()]
-        if not centres:
-            return None
-        seen = pose_matrix(pose)[:3, 3]
-        return float(np.linalg.norm(np.array(centres) - seen, axis=1).min() * 1e3)
+    def _nearest_truth(self, pose: Pose) -> tuple[str, float | None]:
+        """The simulator's domino whose centre is nearest ``pose``'s, and how far [mm]."""
+        truth = self._truth()
+        if not truth:
+            return "", None
+        distances = [
+            np.linalg.norm(matrix[:3, 3] - pose_matrix(pose)[:3, 3]) for _, matrix in truth
+        ]
+        nearest = int(np.argmin(distances))
+        return truth[nearest][0], float(distances[nearest] * 1e3)
 
     def _record_truth(self, before_strike: bool) -> None:
         """Ground truth for the report: the simulator domino nearest each target."""
-        poses = self._truth_poses()
+        poses = [matrix for _, matrix in self._truth()]
         if not poses:
             return
         centres = np.array([p[:2, 3] for p in poses])
