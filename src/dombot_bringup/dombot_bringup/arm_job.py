@@ -593,9 +593,8 @@ class ArmJob:
         truth = self._truth()
         if not truth:
             return "", None
-        distances = [
-            np.linalg.norm(matrix[:3, 3] - pose_matrix(pose)[:3, 3]) for _, matrix in truth
-        ]
+        centres = np.array([matrix[:3, 3] for _, matrix in truth])
+        distances = np.linalg.norm(centres - pose_matrix(pose)[:3, 3], axis=1)
         nearest = int(np.argmin(distances))
         return truth[nearest][0], float(distances[nearest] * 1e3)
 

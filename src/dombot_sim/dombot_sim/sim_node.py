@@ -403,12 +403,14 @@ class SimNode(Node):
     def _watched(self, motion: str, execute: Callable[[object], T], goal_handle) -> T:
         """Execute the goal; then log which dominoes moved meanwhile (not across a reset)."""
         threshold = self._param("log_moved_mm") * 1e-3
+        if threshold <= 0.0:
+            return execute(goal_handle)
         with self._lock:
             before, resets = take_snapshot(self.world), self._resets
         result = execute(goal_handle)
         with self._lock:
             after = take_snapshot(self.world) if resets == self._resets else None
-        if after is None or threshold <= 0.0:
+        if after is None:
             return result
         moved = describe_motion(before, after, threshold)
         if moved:
