@@ -1,6 +1,6 @@
 """sim_node over real DDS: images with the right encodings and intrinsics, a trajectory
 that moves the arm, a gripper that closes, resets that change the pile, and clear errors
-for bad goals and requests while the node keeps running."""
+for bad goals, requests and parameters while the node keeps running."""
 
 from __future__ import annotations
 
@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 import rclpy
 from builtin_interfaces.msg import Duration
+from rcl_interfaces.srv import SetParameters
 from rclpy.action import ActionClient
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -187,3 +189,20 @@ def test_reset_pours_the_pile_the_seed_asks_for(probe: Probe) -> None:
     refused = probe.call_reset(100000, seed=1)
     assert not refused.success and "domino_count" in refused.message
     assert probe.fresh("/joint_states")  # still serving
+
+
+def test_bad_parameters_are_refused_with_a_reason_and_good_ones_taken(probe: Probe) -> None:
+    client = probe.node.create_client(SetParameters, "/sim_node/set_parameters")
+    assert client.wait_for_service(timeout_sec=30)
+
+    def set_log_moved(value: float):
+        parameter = Parameter("log_moved_mm", Parameter.Type.DOUBLE, value).to_parameter_msg()
+        future = client.call_async(SetParameters.Request(parameters=[parameter]))
+        assert spin_until(probe.node, future.done, 10)
+        return future.result().results[0]
+
+    for bad in (-1.0, float("nan"), float("inf")):
+        result = set_log_moved(bad)
+        assert not result.successful and "log_moved_mm must be" in result.reason
+    assert set_log_moved(2.0).successful
+    assert probe.arm_position().shape == (7,)  # still serving
