@@ -24,6 +24,7 @@ from dombot_planner import coarse
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.ik import PoseIK, straight_line
 from dombot_planner.scene import (
+    HELD,
     MOVING,
     OBSTACLES,
     PILE,
@@ -203,15 +204,20 @@ class RequestMotions:
         self.start, self.deadline = start, deadline
         self.rng = np.random.default_rng(self.settings.seed)
 
-    def check_start(self, scene: Scene) -> None:
+    def check_start(self, scene: Scene, held_perceived: bool = False) -> None:
         """A start inside the table, a standing domino or the arm itself is refused.
 
-        Perceived dominoes (the target, the pile) are ±2 mm: the arm may already touch them
-        where it stopped (e.g. after a grasp that missed).
+        Perceived dominoes (the target, the pile; ``held_perceived``: the held one) are
+        ±2 mm: the arm may already touch them where it stopped (e.g. after a grasp that
+        missed), a held domino may touch the table where it is about to stand.
         """
         touching = self.planner.coarse_rules(floor=0.0).minimum
+
+        def perceived(pair: tuple[str, str]) -> bool:
+            return pair[1] in PERCEIVED or (held_perceived and pair[0] == HELD)
+
         rules = ClearanceRules(
-            {pair: -np.inf if pair[1] in PERCEIVED else low for pair, low in touching.items()}
+            {pair: -np.inf if perceived(pair) else low for pair, low in touching.items()}
         )
         violations = rules.violations(scene.clearance(self.start))
         if violations:

@@ -71,6 +71,7 @@ from dombot_planner.scene import (
     ClearanceRules,
     Scene,
 )
+from dombot_planner.timing import TimedPath
 
 FREE_SIDE_RADIUS = 0.1  # m: standing dominoes this close decide the free side
 # Where the pads and the held domino are depends only on the TCP pose: when one of these
@@ -225,12 +226,15 @@ class PickPlacePlanner(ArmPlanner):
         """A plan for ``request``; raises PlanningError with a code and the failing stage."""
         self.check(request)
         deadline = Deadline(request.time_budget or self.settings.default_time_budget)
-        try:
-            plan = self._plan_around_pile(request, deadline)
-        except PlanningError as error:
-            if not (error.code == ErrorCode.GRASP_UNREACHABLE and self.settings.allow_regrasp):
-                raise
-            plan = self._plan_with_regrasp(request, deadline, error)
+        if request.holding:
+            plan = RequestPlanning(self, request, deadline).plan_held()
+        else:
+            try:
+                plan = self._plan_around_pile(request, deadline)
+            except PlanningError as error:
+                if not (error.code == ErrorCode.GRASP_UNREACHABLE and self.settings.allow_regrasp):
+                    raise
+                plan = self._plan_with_regrasp(request, deadline, error)
         plan.planning_time = deadline.elapsed()
         return plan
 
@@ -374,13 +378,61 @@ class RequestPlanning(RequestMotions):
                 connect_error = error  # try the next pair of ends
         raise connect_error or self.search.error()
 
+    def plan_held(self) -> PickPlacePlan:
+        """The carry of a domino already in the hand to the place, and the retreat.
+
+        For a domino measured where it is held (e.g. it turned in the hand on the way and
+        the fingers have not let go): the hold is what the start TCP and the measured pose
+        say. The held pose is perceived (± 1 mm), so it may touch the table at the start
+        (it stood on it); a start that close is left straight up first. Among the place
+        poses the one turned least from the start's TCP comes first: the same side of the
+        run as the hold had, without turning the wrist over.
+        """
+        request = self.request
+        grasp = self.approach.tcp_pose(request.start)
+        held = domino_in_tcp(grasp, request.domino_pose)
+        transfer = self._scene("closed", held_in_tcp=held)
+        self.check_start(transfer, held_perceived=True)
+        escape = self.escape(transfer)
+        begin = request.start if escape is None else escape[-1]
+        places = [p for p in place_grasps(self._release(), held) if comes_from_above(p)]
+        places.sort(key=lambda pose: turn_angle(pose.rotation(), grasp.rotation()))
+        connect_error = None
+        for place in self._place_ends(places, transfer, [request.start]):
+            attempts: dict[str, int] = {}
+            try:
+                to_place = self.coarse_move("transfer", transfer, begin, place.above, attempts)
+            except PlanningError as error:
+                if error.code == ErrorCode.TIMEOUT:
+                    raise
+                connect_error = error
+                continue
+            self.deadline.check("retiming")
+            leave = [] if escape is None else [self.timed_line("escape", escape, transfer)]
+            carry = [
+                *leave,
+                to_place,
+                self.timed_line("descend_to_place", place.line[::-1], transfer),
+            ]
+            return PickPlacePlan(
+                [
+                    self._place_segment(carry),
+                    self._retreat_segment(place),
+                ],
+                grasp_pose=grasp,
+                release_pose=place.tcp_pose,
+                held_in_tcp=held,
+                kto_attempts=attempts,
+            )
+        raise connect_error or self.search.error()
+
     # ------------------------------------------------------------------ ends
     def _ends(self) -> Iterator[tuple[End, End, Scene]]:
         """Pick and place ends that pass their checks, best candidates first."""
-        request, s = self.request, self.settings
+        request = self.request
         grasps = self.grasps
         self.search.grasp_candidates = len(grasps)
-        release = RigidTransform(s.release_height * UP) @ request.place_pose
+        release = self._release()
         free = self._free_direction()
         for index, grasp in enumerate(grasps):
             self.deadline.check("grasp")
@@ -388,7 +440,7 @@ class RequestPlanning(RequestMotions):
             transfer = self._scene("closed", held_in_tcp=held)
             pick = self._end(
                 grasp,
-                s.pick_approach_distance,
+                self.settings.pick_approach_distance,
                 lift_directions(grasp),
                 [self.approach, transfer],
                 self.planner.fine_rules(at_pick=True, nudge=self.nudge),
@@ -400,19 +452,30 @@ class RequestPlanning(RequestMotions):
             self.search.picks_found += 1
             self.search.steeper_picks_found += index >= self.first_steeper
             places = [p for p in place_grasps(release, held, free) if comes_from_above(p)]
-            self.search.place_candidates = len(places)
-            for place_pose in places:
-                place = self._end(
-                    place_pose,
-                    s.place_approach_distance,
-                    [UP],
-                    [transfer, self.retreat],
-                    self.planner.fine_rules(at_pick=False),
-                    self.seeds([pick.line[0], request.start]),
-                    self.search.place_failures,
-                )
-                if place is not None:
-                    yield pick, place, transfer
+            for place in self._place_ends(places, transfer, [pick.line[0], request.start]):
+                yield pick, place, transfer
+
+    def _place_ends(
+        self, places: list[RigidTransform], transfer: Scene, seeds: list[np.ndarray]
+    ) -> Iterator[End]:
+        """The place ends among ``places`` (TCP poses, best first) that pass their checks."""
+        self.search.place_candidates = len(places)
+        for place_pose in places:
+            place = self._end(
+                place_pose,
+                self.settings.place_approach_distance,
+                [UP],
+                [transfer, self.retreat],
+                self.planner.fine_rules(at_pick=False),
+                self.seeds(seeds),
+                self.search.place_failures,
+            )
+            if place is not None:
+                yield place
+
+    def _release(self) -> RigidTransform:
+        """The held domino's pose when the fingers open: release_height above the place."""
+        return RigidTransform(self.settings.release_height * UP) @ self.request.place_pose
 
     def _free_direction(self) -> np.ndarray:
         """The side of the place pose (±its z) where standing dominoes are farthest."""
@@ -473,7 +536,6 @@ class RequestPlanning(RequestMotions):
             "down_to_grasp": self.timed_line("descend_to_grasp", pick.line[::-1], self.approach),
             "lift": self.timed_line("lift", pick.line, transfer),
             "down_to_place": self.timed_line("descend_to_place", place.line[::-1], transfer),
-            "retreat": self.timed_line("retreat", place.line, self.retreat),
         }
         segments = [
             Segment(
@@ -492,14 +554,8 @@ class RequestPlanning(RequestMotions):
                 0.0,
                 force,
             ),
-            Segment(
-                "transfer",
-                [pieces["lift"], to_place, pieces["down_to_place"]],
-                openings["closed"],
-                GRIPPER_OPEN,
-                openings["release"],
-            ),
-            Segment("retreat", [pieces["retreat"]], openings["release"]),
+            self._place_segment([pieces["lift"], to_place, pieces["down_to_place"]]),
+            self._retreat_segment(place),
         ]
         held_in_tcp = domino_in_tcp(pick.tcp_pose, self.request.domino_pose)
         return PickPlacePlan(
@@ -509,3 +565,17 @@ class RequestPlanning(RequestMotions):
             held_in_tcp=held_in_tcp,
             kto_attempts=attempts,
         )
+
+    def _place_segment(self, pieces: list[TimedPath]) -> Segment:
+        """Carrying the held domino down to its place, the fingers opening there."""
+        openings = self.openings
+        return Segment("transfer", pieces, openings["closed"], GRIPPER_OPEN, openings["release"])
+
+    def _retreat_segment(self, place: End) -> Segment:
+        line = self.timed_line("retreat", place.line, self.retreat)
+        return Segment("retreat", [line], self.openings["release"])
+
+
+def turn_angle(a: RotationMatrix, b: RotationMatrix) -> float:
+    """The angle [rad] of the rotation between two orientations."""
+    return float(a.InvertAndCompose(b).ToAngleAxis().angle())

@@ -237,6 +237,7 @@ class PlannerNode(Node):
             standing=poses_of(request.standing_dominoes, "standing_dominoes"),
             pile=poses_of(request.pile_dominoes, "pile_dominoes"),
             time_budget=request.time_budget,
+            holding=request.holding,
         )
 
     def _strike_request(self, request: PlanStrike.Request) -> StrikeRequest:

@@ -38,6 +38,9 @@ class PickPlaceRequest:
     standing: tuple[RigidTransform, ...] = ()  # dominoes already placed
     pile: tuple[RigidTransform, ...] = ()  # other dominoes seen near the one to pick
     time_budget: float = 0.0  # s; 0: the planner's default
+    # The domino is in the hand already, at domino_pose (measured there), held where the
+    # start puts the TCP: plan only the carry to place_pose and the retreat.
+    holding: bool = False
 
 
 @dataclass(frozen=True)
@@ -123,7 +126,7 @@ def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
         )
     for what, pose in (("domino_pose", request.domino_pose), ("place_pose", request.place_pose)):
         check_workspace(pose, what, settings)
-    if request.grasp_pose is not None:
+    if request.grasp_pose is not None and not request.holding:
         reach = np.linalg.norm(request.grasp_pose.translation() - request.domino_pose.translation())
         if reach > GRASP_REACH:
             raise invalid(
