@@ -155,6 +155,19 @@ def test_placement_check_over_dds(cameras: Cameras) -> None:
     assert "1 standing" in response.message
 
 
+def test_placement_check_in_hand_over_dds(cameras: Cameras) -> None:
+    """The in_hand field reaches the check: a standing domino (no gripper in this scene) is
+    measured from its lower part; a place that is not upright cannot be held there."""
+    request = CheckPlacement.Request(expected=[pose_message(STANDING_IN_RUN)], in_hand=True)
+    response = cameras.call(CheckPlacement, "/perception/check_placement", request)
+    assert response.success, response.message
+    assert list(response.status) == [CheckPlacement.Response.STANDING]
+    assert response.position_error[0] < 0.003 and response.tilt[0] < np.radians(2)
+    request.expected = [pose_message(TRUTH)]  # lying flat
+    response = cameras.call(CheckPlacement, "/perception/check_placement", request)
+    assert not response.success and "in_hand" in response.message
+
+
 def test_placement_check_rejects_a_non_unit_quaternion(cameras: Cameras) -> None:
     request = CheckPlacement.Request(expected=[pose_message(STANDING_IN_RUN)])
     request.expected[0].orientation.w *= 2.0

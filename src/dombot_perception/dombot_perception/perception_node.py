@@ -41,6 +41,7 @@ from dombot_perception.placement_check import PlacementConfig, check_placements
 from dombot_perception.segmentation import SegmenterError
 
 DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
+MAX_IN_HAND_TILT = math.degrees(PlacementConfig().max_tilt)  # expected poses when in_hand
 SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
 SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one stream late
 DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
@@ -339,9 +340,12 @@ class PerceptionNode(Node):
         problem = self._placement_request_problem(request, names)
         if problem:
             response.success, response.message = False, problem
-            self.get_logger().error(f"check_placement rejected: {problem}")
+            held = " (in hand)" if request.in_hand else ""
+            self.get_logger().error(f"check_placement{held} rejected: {problem}")
             return response
-        config = PlacementConfig(search_radius=request.search_radius or DEFAULT_SEARCH_RADIUS)
+        config = PlacementConfig(
+            search_radius=request.search_radius or DEFAULT_SEARCH_RADIUS, in_hand=request.in_hand
+        )
         expected = [pose_matrix(pose) for pose in request.expected]
         try:
             views, warnings = self._views(names)
@@ -368,7 +372,8 @@ class PerceptionNode(Node):
                 *warnings,
             ]
         )
-        self.get_logger().info(f"placement check of {len(expected)}: {response.message}")
+        held = " held in the gripper" if request.in_hand else ""
+        self.get_logger().info(f"placement check of {len(expected)}{held}: {response.message}")
         return response
 
     def _placement_request_problem(
@@ -386,6 +391,13 @@ class PerceptionNode(Node):
                 return f"expected pose {index} is not finite"
             if abs(math.sqrt(q.x**2 + q.y**2 + q.z**2 + q.w**2) - 1.0) > 1e-3:
                 return f"expected pose {index}: quaternion is not unit length (within 1e-3)"
+            if request.in_hand:  # fitted from the expected foot up to below the pads
+                tilt = math.degrees(math.acos(min(1.0, abs(pose_matrix(pose)[2, 0]))))
+                if tilt > MAX_IN_HAND_TILT:
+                    return (
+                        f"in_hand: expected pose {index} is not upright "
+                        f"(body x {tilt:.0f}° from vertical)"
+                    )
         return None
 
     def _detect(self, names: list[str]) -> tuple[PipelineResult | None, str]:

@@ -11,6 +11,15 @@ each detection going to at most one place, the one its foot stands on or fell fr
 MISSING when the cameras see almost nothing above the table there, FALLEN otherwise —
 unless something in front hides most of the place from every camera (the arm, just
 after placing a domino nearby): then NOT_SEEN, no evidence either way.
+
+In hand (``PlacementConfig.in_hand``) the domino is checked before the fingers let go: the
+pads pinch its top (their lower edges ~29-31 mm above the table at the place grasp) and
+the gripper leans over it, so only its points lower than ``in_hand_fit_height`` above the
+expected foot are fitted and the fit must cover ``min_height_seen`` of that part only.
+What the caller needs from it, the foot's horizontal position and the tilt, does not
+depend on the hidden top. A place not fitted that way is never STANDING: the pipeline's
+detections cannot tell a held domino from the pads around it, so there a standing one
+is NOT_SEEN (no evidence), a fallen one still FALLEN.
 """
 
 from __future__ import annotations
@@ -44,6 +53,15 @@ class PlacementConfig:
     depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
     max_see_through: float = 0.2  # of the box's pixels the camera may see past
     max_hidden: float = 0.5  # of the box's pixels behind something in front: NOT_SEEN
+    in_hand: bool = False  # still held at their top by the gripper: fit only below the pads
+    in_hand_fit_height: float = 0.025  # m above the expected foot: highest point fitted in hand
+    in_hand_min_turn_support: float = 0.025  # m (_turn_support): less leaves the tilt unsure
+    in_hand_iterations: int = 100  # of the box fit: a short visible part converges slowly
+
+    @property
+    def fitted_length(self) -> float:
+        """How much of a standing domino's length can be fitted (from its foot up)."""
+        return min(self.in_hand_fit_height, DOMINO_SIZE[0]) if self.in_hand else DOMINO_SIZE[0]
 
 
 @dataclass
@@ -76,6 +94,8 @@ def check_placements(
             results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
             continue
         near = _around_box(points, pose, config.fit_margin) & (owner == index)
+        if config.in_hand:
+            near &= points[:, 2] < _foot_height(pose) + config.in_hand_fit_height
         fitted = _local_fit(pose, points[near], views, config)
         if fitted is not None:
             results.append(_placement(STANDING, fitted, pose))
@@ -88,7 +108,10 @@ def check_placements(
         if mine is None and _hidden(pose, views, config):
             results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
             continue
-        results.append(_from_detections(pose, mine, detections, points, config))
+        found = _from_detections(pose, mine, detections, points, config)
+        if config.in_hand and found.status == STANDING:
+            found = Placement(NOT_SEEN, pose, 0.0, 0.0)
+        results.append(found)
     return results
 
 
@@ -154,6 +177,11 @@ def _around_box(points: np.ndarray, pose: np.ndarray, margin: float) -> np.ndarr
     return np.all(np.abs((points - pose[:3, 3]) @ pose[:3, :3]) < HALF_SIZE + margin, axis=1)
 
 
+def _foot_height(pose: np.ndarray) -> float:
+    """Height of the lower end of the box's length axis."""
+    return float(pose[2, 3] - abs(pose[2, 0]) * HALF_SIZE[0])
+
+
 def _near(points: np.ndarray, pose: np.ndarray, radius: float) -> np.ndarray:
     return np.hypot(points[:, 0] - pose[0, 3], points[:, 1] - pose[1, 3]) < radius
 
@@ -162,7 +190,13 @@ def _local_fit(
     expected: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
 ) -> np.ndarray | None:
     """The box fitted from the expected pose, if it stands there: enough points on it,
-    spread over most of its height, and no camera seeing through it.
+    spread over most of its height that can be fitted (``fitted_length``), and no
+    camera seeing through it.
+
+    In hand, the ~20 mm below the pads are all there is to fit: the fit runs longer (with
+    15 steps a turn in the hand came out 2-6° short) and must pin the turn about the
+    pinch axis (``_turn_support``; a camera looking at the domino's narrow side sees
+    little of that turn and the fit stays near the expected upright pose).
 
     The first fit uses only points higher than a lying domino: one that fell and lies
     at this domino's foot would otherwise pull its bottom aside and tilt the box.
@@ -171,22 +205,46 @@ def _local_fit(
     if high.shape[0] < config.min_points:
         return None
     fit_config = BoxFitConfig()
+    if config.in_hand:
+        fit_config = replace(fit_config, iterations=config.in_hand_iterations)
     pose = refine_pose(expected, high, fit_config)
     on_box = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
     inliers = on_box < config.inlier_distance
     if inliers.sum() < config.min_points:
         return None
     pose = refine_pose(pose, points[inliers], fit_config)
+    if config.in_hand and _turn_support(pose, points[inliers]) < config.in_hand_min_turn_support:
+        return None
     lengthwise = (points[inliers] - pose[:3, 3]) @ pose[:3, 0]
     if (
         _tilt(pose) > config.max_tilt
         or _horizontal(pose, expected) > config.search_radius
-        or np.ptp(lengthwise) < config.min_height_seen * DOMINO_SIZE[0]
+        or np.ptp(lengthwise) < config.min_height_seen * config.fitted_length
         or depth_evidence(pose, views, config.depth_check).see_through_fraction
         > config.max_see_through
     ):
         return None
     return pose
+
+
+def _turn_support(pose: np.ndarray, points: np.ndarray) -> float:
+    """How firmly ``points`` on the box at ``pose`` pin its turn about its width (y) axis,
+    the pinch axis of a held domino [m]: the square root of the information their
+    point-to-face distances carry about that turn, the other five degrees of freedom left
+    free. A turn of δ rad moves the points δ·support off their faces in root-sum-square,
+    so with point errors of σ the turn is known to ~σ/support rad.
+    """
+    body = (points - pose[:3, 3]) @ pose[:3, :3]
+    axis = np.argmax(np.abs(body) - HALF_SIZE, axis=1)
+    rows = np.arange(body.shape[0])
+    normal = np.zeros_like(body)
+    normal[rows, axis] = np.sign(body[rows, axis])
+    jacobian = np.hstack([np.cross(body, normal), normal])  # d(distance)/d(turn, shift)
+    information = jacobian.T @ jacobian
+    free = [0, 2, 3, 4, 5]
+    coupled = information[1, free]
+    rest = np.linalg.pinv(information[np.ix_(free, free)], rcond=1e-9)
+    return float(np.sqrt(max(information[1, 1] - coupled @ rest @ coupled, 0.0)))
 
 
 def _hidden(expected: np.ndarray, views: list[CameraView], config: PlacementConfig) -> bool:

@@ -488,6 +488,29 @@ class CellWorld:
             velocity=np.array([j.velocity_upper_limits()[0] for j in joints]),
         )
 
+    def set_robot_positions(
+        self, arm: np.ndarray | None = None, opening: float | None = None
+    ) -> None:
+        """Put the arm at ``arm`` (joint positions; None: home) and the fingers ``opening``
+        apart (None: fully open), at rest, and hold them there.
+
+        Like ``set_domino_poses``, for building scenes by hand (e.g. a domino held by the
+        gripper in front of a camera); no physics runs.
+        """
+        arm = self.scenario.home_position if arm is None else np.asarray(arm, dtype=float)
+        opening = GRIPPER_OPEN if opening is None else float(opening)
+        if arm.shape != (7,) or not np.all(np.isfinite(arm)):
+            raise ValueError(f"need 7 finite arm joint positions, got {arm}")
+        if not (np.isfinite(opening) and 0.0 <= opening <= self.gripper_stroke):
+            raise ValueError(f"gripper opening must be within 0–{self.gripper_stroke:.3f} m")
+        plant, context = self._plant, self._plant_context
+        plant.SetPositions(context, self._models.arm, arm)
+        plant.SetVelocities(context, self._models.arm, np.zeros(7))
+        plant.SetPositions(context, self._models.gripper, [opening / 2] * 2)
+        plant.SetVelocities(context, self._models.gripper, np.zeros(2))
+        self._command_arm(lambda: self._arm_source.hold(arm))
+        self._gripper.command(opening, 0.0, self.time, opening)
+
     def follow_trajectory(self, trajectory: PiecewisePolynomial) -> float:
         """Start tracking ``trajectory`` (arm joints, time from 0) now; returns its end time."""
         if trajectory.rows() != 7 or trajectory.cols() != 1:
