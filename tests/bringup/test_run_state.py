@@ -21,11 +21,12 @@ from dombot_bringup.arm_job import (
     neighbours_of,
 )
 from dombot_bringup.run_report import RunReport, TruthPose, plot_run
-from dombot_msgs.msg import DominoDetection, DominoState
+from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
 MISSING, NOT_SEEN = CheckPlacement.Response.MISSING, CheckPlacement.Response.NOT_SEEN
+OPEN = TrajectorySegment.GRIPPER_OPEN
 BLUE_ON_WHITE = 0.5 + 0.5 * np.array([0x1F, 0x77, 0xB4]) / 255  # tab:blue, alpha 0.5
 
 
@@ -283,7 +284,7 @@ def test_a_run_domino_whose_pick_failed_stays_an_obstacle_where_it_lies() -> Non
     run = job()
     run._remember_fallen(2, STANDING, lying(0.45, 0.060), math.radians(2.0))
     run.client = PlanningCheckingClient([FALLEN], [0.0], [math.radians(80.0)])
-    run._execute = lambda segments: (False, "approach_grasp: grasp on an edge")
+    run._execute = lambda segments, **_: (False, "approach_grasp: grasp on an edge")
     assert run._attempt(2, [])[:2] == (False, "approach_grasp: grasp on an edge")
     assert 2 in run.state.fallen  # still there, not offered again:
     assert [c.source for c in run._candidates([])] == []
@@ -299,7 +300,7 @@ def test_an_upright_run_domino_whose_pick_up_again_missed_is_kept_if_still_close
     run.state.standing = {0: run.targets[0], 1: run.targets[1]}
     run._remember_fallen(2, STANDING, lying(0.45 + 0.0089, 0.060), math.radians(2.0))
     run.client = PlanningCheckingClient([STANDING] * 3, [0.001, 0.001, 0.009], [0.01] * 3)
-    run._execute = lambda segments: (False, "approach_grasp: grasp missed")
+    run._execute = lambda segments, **_: (False, "approach_grasp: grasp missed")
     success, why, spot, moved = run._attempt(2, [])
     assert success and why.startswith("standing") and spot is None and moved
     assert sorted(run.state.standing) == [0, 1, 2] and not run.state.fallen
@@ -308,7 +309,7 @@ def test_an_upright_run_domino_whose_pick_up_again_missed_is_kept_if_still_close
     run = job()
     run._remember_fallen(2, STANDING, lying(0.45 + 0.013, 0.060), math.radians(2.0))
     run.client = PlanningCheckingClient([STANDING], [0.013], [0.01])
-    run._execute = lambda segments: (False, "approach_grasp: grasp missed")
+    run._execute = lambda segments, **_: (False, "approach_grasp: grasp missed")
     assert run._attempt(2, [])[:2] == (False, "approach_grasp: grasp missed")
     assert sorted(run.state.fallen) == [2] and 2 not in run.state.standing
 
@@ -423,3 +424,71 @@ def test_a_failed_pick_names_the_simulator_domino_it_was_after() -> None:
     run.client = TruthClient()
     name, off_mm = run._nearest_truth(lying(0.55, -0.30))
     assert name == "domino_7" and off_mm == pytest.approx(0.7)
+
+
+class HandCheckingClient:
+    """Perception sees the held domino ``off`` metres beside its release pose (in x) with
+    ``status``; the held plan opens the fingers to 31 mm; gripper commands are recorded."""
+
+    sim_time = 0.0
+
+    def __init__(self, status: int, off: float) -> None:
+        self.status, self.off = status, off
+        self.held_requests: list[PlanPlace.Request] = []
+        self.openings: list[float] = []
+
+    def wait_for_sim_time(self, seconds: float) -> None:
+        pass
+
+    def check_placement(self, expected: list[Pose], in_hand: bool = False):
+        assert in_hand
+        pose = expected[0]
+        measured = Pose(
+            position=Point(x=pose.position.x + self.off, y=pose.position.y, z=pose.position.z),
+            orientation=pose.orientation,
+        )
+        return CheckPlacement.Response(
+            success=True,
+            status=[self.status],
+            measured=[measured],
+            position_error=[self.off],
+            tilt=[0.0],
+        )
+
+    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
+        self.held_requests.append(request)
+        segments = [
+            TrajectorySegment(label="transfer", gripper_after=OPEN, gripper_position=0.031),
+            TrajectorySegment(label="retreat"),
+        ]
+        return PlanPlace.Response(success=True, segments=segments)
+
+    def gripper(self, position: float, max_effort: float):
+        self.openings.append(position)
+
+
+@pytest.mark.parametrize(
+    ("status", "off", "placed_again"),
+    [(STANDING, 0.003, True), (STANDING, 0.001, False), (NOT_SEEN, 0.003, False)],
+)
+def test_a_domino_found_off_in_the_hand_is_placed_again_before_the_fingers_let_go(
+    status: int, off: float, placed_again: bool
+) -> None:
+    """Both off placements seen with the motion log had turned in the hand on the way:
+    seen 3 mm off before letting go, it is carried again from where it is held (once); 1 mm
+    off, or not seen, it is let go as planned. Only the fingers at the slot ask."""
+    run = job()
+    run.client = HandCheckingClient(status, off)
+    planned = [
+        TrajectorySegment(label="open_gripper", gripper_after=OPEN, gripper_position=0.04),
+        TrajectorySegment(label="transfer", gripper_after=OPEN, gripper_position=0.034),
+        TrajectorySegment(label="retreat"),
+    ]
+    assert run._execute(planned, place_index=1) == (True, "")
+    held = run.client.held_requests
+    assert run.client.openings == [0.04, 0.031 if placed_again else 0.034]  # let go once
+    assert len(held) == placed_again
+    assert len(run.report.dominoes[1].corrected_in_hand) == placed_again
+    if placed_again:
+        assert held[0].holding and held[0].place_pose == run.releases[1]
+        assert held[0].domino_pose.position.x == pytest.approx(run.releases[1].position.x + off)

@@ -47,6 +47,7 @@ SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 # its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
 GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE, PlanPlace.Response.TIMEOUT)
 PLACED, FAILED, DEFERRED = "placed", "failed", "deferred"  # how a slot's turn ended
+PLACE_SEGMENT = "transfer"  # opens the fingers at the slot (a regrasp's own is prefixed)
 NEEDED_SERVICES = (
     "/sim/reset",
     "/perception/detect",
@@ -89,6 +90,15 @@ class ArmJobSettings:
     # ~0.45 mm from the grasp, the rest as the pads let go. The arm releases them this much
     # ahead (the check still measures from the target).
     place_lead: float = 0.00075  # m
+    # Before the fingers let go, perception looks at the held domino: one whose foot is
+    # this far from its release pose, or that leans this much, turned or slid in the hand
+    # on the way (the off placements seen with sim_node's motion log did: 2.1 mm / 5.4° in
+    # the hand, 3.4 mm off once let go) and is placed again from where it is held, once.
+    # 0: no check (it costs a camera frame and a fit, ~0.6 s simulated per domino).
+    # Perception's in-hand foot reads up to ~1 mm off with nothing wrong (its tilt is within
+    # 0.15°): at 1.5 mm the first line of three was corrected once, at 1.5 mm read.
+    in_hand_tolerance: float = 0.002  # m
+    in_hand_tilt_tolerance: float = math.radians(1.5)
     grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
     # ... but not this much inside it: a flat hold stops 0.2-0.8 mm inside (the pads' give
     # at grip_force); 0.9 mm and more inside, the pads met an edge and the domino hangs
@@ -305,7 +315,7 @@ class ArmJob:
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
             truth_name, seen_off = self._nearest_truth(candidate.pose)
             self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
-            executed, why = self._execute(plan.segments)
+            executed, why = self._execute(plan.segments, place_index=index)
             if not executed:  # blocked or missed: unless it moved, the same would happen again
                 if seen_off is not None:  # the name finds it in sim_node's "during the" lines
                     log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
@@ -426,13 +436,17 @@ class ArmJob:
         state.crowded = [u for u in state.crowded if not near(u, spot, DISTURBED_RADIUS)]
 
     def _execute(
-        self, segments: Sequence[TrajectorySegment], holds_domino: bool = True
+        self,
+        segments: Sequence[TrajectorySegment],
+        holds_domino: bool = True,
+        place_index: int | None = None,
     ) -> tuple[bool, str]:
         """Run the segments and their gripper events.
 
         A close that should hold a domino is checked by where the fingers stopped (the
         strike closes them on nothing). When a grasp fails, the arm backs out the way it
-        came before anything else is tried.
+        came before anything else is tried. Before the fingers let go of the domino for
+        slot ``place_index``, it is looked at in the hand (``_placed_again``).
         """
         for segment in segments:
             points = segment.trajectory.points
@@ -457,8 +471,51 @@ class ArmJob:
                         f"{closed.position * 1e3:.1f} mm, domino {DOMINO_SIZE[1] * 1e3:.0f} mm)"
                     )
             elif segment.gripper_after == TrajectorySegment.GRIPPER_OPEN:
+                if place_index is not None and segment.label == PLACE_SEGMENT:
+                    again = self._placed_again(place_index)
+                    if again is not None:
+                        return self._execute(again)
                 self.client.gripper(segment.gripper_position, 0.0)
         return True, ""
+
+    def _placed_again(self, index: int) -> list[TrajectorySegment] | None:
+        """The held domino about to be let go at slot ``index``, seen by perception: when
+        it turned or slid in the hand on the way (``in_hand_tolerance``), a plan from
+        where it is held to its release pose (the fingers open there, then the retreat).
+        None: let go as planned (within the tolerance, not seen well, or no plan)."""
+        settings = self.settings
+        if settings.in_hand_tolerance <= 0.0:
+            return None
+        self._wait_for_fresh_frames()
+        release = self.releases[index]
+        answer = self.client.check_placement([release], in_hand=True)
+        if not (answer.success and answer.status[0] == CheckPlacement.Response.STANDING):
+            return None
+        measured, tilt = answer.measured[0], answer.tilt[0]
+        off = foot_distance(measured, release)
+        if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
+            return None
+        seen = f"foot {off * 1e3:.1f} mm off, leaning {math.degrees(tilt):.1f}°"
+        self.report.dominoes[index].corrected_in_hand.append(seen)
+        plan = self.client.plan_place(
+            PlanPlace.Request(
+                domino_pose=measured,
+                place_pose=release,
+                standing_dominoes=[*self.state.standing.values(), *self.state.fallen.values()],
+                time_budget=self.settings.plan_budget,
+                holding=True,
+            ),
+            timeout=self.settings.plan_budget + 30.0,
+        )
+        n = len(self.layout)
+        if not plan.success:
+            log(
+                f"domino {index + 1}/{n} in the hand: {seen}; placing it again refused, "
+                f"letting go ({plan.message.split(' (')[0]})"
+            )
+            return None
+        log(f"domino {index + 1}/{n} in the hand: {seen}; placing it again from where it is held")
+        return list(plan.segments)
 
     def _grasp_problem(self, opening: float) -> str:
         """What the finger opening after a close says is wrong with the grasp, or ""."""
@@ -648,6 +705,17 @@ POSTURE_NAMES = {
 def spot_of(pose: Pose) -> np.ndarray:
     """Where a domino lies on the table: (x, y) [m]."""
     return np.array([pose.position.x, pose.position.y])
+
+
+def foot_distance(measured: Pose, expected: Pose) -> float:
+    """Horizontal distance [m] between the lower ends (feet) of two dominoes' length axes:
+    where a leaning domino's foot is, it will stand once let go."""
+    feet = []
+    for pose in (measured, expected):
+        matrix = pose_matrix(pose)
+        axis = matrix[:3, 0] * (1.0 if matrix[2, 0] <= 0.0 else -1.0)  # pointing down
+        feet.append(matrix[:2, 3] + axis[:2] * DOMINO_LENGTH / 2.0)
+    return float(np.linalg.norm(feet[0] - feet[1]))
 
 
 def near(spot: np.ndarray, other: np.ndarray, radius: float) -> bool:

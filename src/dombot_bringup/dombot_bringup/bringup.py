@@ -93,6 +93,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="[mm] release each domino this far ahead of its target along the run: released "
         "dominoes end up 0.75 mm behind on average (0.75; 0..3)",
     )
+    run.add_argument(
+        "--in-hand-tolerance",
+        type=float,
+        default=2.0,
+        help="[mm] before letting go, a held domino whose foot is this far off (or leaning "
+        "1.5°) is placed again from where it is held (2; 0: no check)",
+    )
     cell = parser.add_argument_group("arm job: the cell")
     cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
     cell.add_argument("--seed", type=int, default=0, help="pile seed (default 0)")
@@ -146,6 +153,8 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--keep-when-stuck must be 0..20 mm: {args.keep_when_stuck}")
     if not 0.0 <= args.place_lead <= 3.0:  # the placement tolerance is 3 mm
         raise layouts.LayoutError(f"--place-lead must be 0..3 mm: {args.place_lead}")
+    if not 0.0 <= args.in_hand_tolerance <= 3.0:  # beyond 3 mm the placement has failed
+        raise layouts.LayoutError(f"--in-hand-tolerance must be 0..3 mm: {args.in_hand_tolerance}")
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -158,6 +167,7 @@ def run_arm(args: argparse.Namespace) -> int:
         keep_off_target=args.keep_off_target * 1e-3,
         keep_when_stuck=args.keep_when_stuck * 1e-3,
         place_lead=args.place_lead * 1e-3,
+        in_hand_tolerance=args.in_hand_tolerance * 1e-3,
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
     )

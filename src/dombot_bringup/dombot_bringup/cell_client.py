@@ -162,8 +162,10 @@ class CellClient:
     def detect(self) -> DetectDominoes.Response:
         return self.call("/perception/detect", DetectDominoes.Request(), 30.0)
 
-    def check_placement(self, expected: Sequence[Pose]) -> CheckPlacement.Response:
-        request = CheckPlacement.Request(expected=list(expected))
+    def check_placement(
+        self, expected: Sequence[Pose], in_hand: bool = False
+    ) -> CheckPlacement.Response:
+        request = CheckPlacement.Request(expected=list(expected), in_hand=in_hand)
         return self.call("/perception/check_placement", request, 30.0)
 
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:

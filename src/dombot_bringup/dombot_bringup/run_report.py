@@ -47,6 +47,9 @@ class DominoOutcome:
     measured_error_mm: float | None = None
     measured_tilt_deg: float | None = None
     off_target: bool = False  # upright but beyond the tolerance: left standing, not re-placed
+    # Held dominoes found off before the fingers let go, and placed again from where they
+    # were held: what perception measured each time.
+    corrected_in_hand: list[str] = field(default_factory=list)
     simulated_s: float = 0.0
     wall_s: float = 0.0
     # Per pick executed: how far the simulator had the nearest domino from the pose
