@@ -47,6 +47,12 @@ SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 # its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
 GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE, PlanPlace.Response.TIMEOUT)
 PLACED, FAILED, DEFERRED = "placed", "failed", "deferred"  # how a slot's turn ended
+# What the in-hand check says when it cannot measure the held domino.
+IN_HAND_WORDS = {
+    CheckPlacement.Response.FALLEN: "no upright domino fitted below the pads",
+    CheckPlacement.Response.MISSING: "nothing seen below the pads (dropped?)",
+    CheckPlacement.Response.NOT_SEEN: "not seen well enough (hidden, or seen edge-on)",
+}
 PLACE_SEGMENT = "transfer"  # opens the fingers at the slot (a regrasp's own is prefixed)
 NEEDED_SERVICES = (
     "/sim/reset",
@@ -487,15 +493,18 @@ class ArmJob:
         if settings.in_hand_tolerance <= 0.0:
             return None
         self._wait_for_fresh_frames()
-        release = self.releases[index]
+        release, n = self.releases[index], len(self.layout)
         answer = self.client.check_placement([release], in_hand=True)
         if not (answer.success and answer.status[0] == CheckPlacement.Response.STANDING):
+            status = IN_HAND_WORDS.get(answer.status[0], "?") if answer.success else answer.message
+            log(f"domino {index + 1}/{n} in the hand: {status}; letting go")
             return None
         measured, tilt = answer.measured[0], answer.tilt[0]
         off = foot_distance(measured, release)
-        if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
-            return None
         seen = f"foot {off * 1e3:.1f} mm off, leaning {math.degrees(tilt):.1f}°"
+        if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
+            log(f"domino {index + 1}/{n} in the hand: {seen}; letting go")
+            return None
         self.report.dominoes[index].corrected_in_hand.append(seen)
         plan = self.client.plan_place(
             PlanPlace.Request(
@@ -507,7 +516,6 @@ class ArmJob:
             ),
             timeout=self.settings.plan_budget + 30.0,
         )
-        n = len(self.layout)
         if not plan.success:
             log(
                 f"domino {index + 1}/{n} in the hand: {seen}; placing it again refused, "

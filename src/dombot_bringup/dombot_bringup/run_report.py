@@ -90,6 +90,7 @@ class RunReport:
             "placed_off_target": sum(d.off_target for d in placed),
             "within_tolerance_by_truth": sum(map(_within_tolerance, self.dominoes)),
             "retries": sum(max(d.attempts - 1, 0) for d in self.dominoes),
+            "corrected_in_hand": sum(len(d.corrected_in_hand) for d in self.dominoes),
             "standing_before_strike_by_truth": self.standing_by_truth,
             "toppled_by_perception": self.toppled_by_perception,
             "toppled_by_truth": self.toppled_by_truth,
