@@ -23,16 +23,16 @@ def world():
     return CellWorld(WorldConfig(cameras=True, domino_capacity=3))
 
 
-def renderer(world, pile: bool):
+def renderer(world, pile: bool | None):
     """Render dominoes at exact poses: {index: 4x4} -> a CameraView per pile camera
-    (``pile``) or per build-area camera."""
+    (``pile``), per build-area camera (not ``pile``) or per camera (None)."""
 
     def render(poses: dict[int, np.ndarray]) -> list[CameraView]:
         world.set_domino_poses(poses)
         return [
             CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
             for f in world.render().values()
-            if (f.name in PILE_CAMERAS) == pile
+            if pile is None or (f.name in PILE_CAMERAS) == pile
         ]
 
     return render
@@ -48,3 +48,9 @@ def render_scene(world):
 def render_build_area(world):
     """Dominoes at exact poses, seen by the build-area camera (camera_2)."""
     return renderer(world, pile=False)
+
+
+@pytest.fixture(scope="session")
+def render_every_camera(world):
+    """Dominoes at exact poses, seen by every camera."""
+    return renderer(world, pile=None)

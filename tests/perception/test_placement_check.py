@@ -124,8 +124,9 @@ CLOSED = 0.024  # m: the fingers closed on the domino's width
 
 
 @pytest.fixture(scope="module")
-def hold(world, render_build_area):
-    """hold(target, turn, shift, lean, neighbours) -> (views, truth): the domino at
+def hold(world, render_build_area, render_every_camera):
+    """hold(target, turn, shift, lean, neighbours, every_camera) -> (views, truth): the
+    views of camera_2 (``every_camera``: of all cameras) and the domino at
     ``target`` held at the canonical place grasp with the gripper leaning over the
     target's ``lean``·z side, turned by ``turn`` rad about the pinch axis and moved by
     ``shift`` (domino frame) in the hand, its lowest corner 0.2 mm above the table; the
@@ -147,7 +148,7 @@ def hold(world, render_build_area):
         assert result.is_success(), "no arm configuration holds the domino there"
         return result.GetSolution(ik.q())
 
-    def held(target, turn=0.0, shift=(0.0, 0.0, 0.0), lean=1, neighbours=()):
+    def held(target, turn=0.0, shift=(0.0, 0.0, 0.0), lean=1, neighbours=(), every_camera=False):
         place = RigidTransform(target)
         tcp = place_grasps(place, canonical_grasp().inverse(), lean * target[:3, 2])[0]
         in_tcp = tcp.inverse() @ place
@@ -159,7 +160,8 @@ def hold(world, render_build_area):
         world.set_robot_positions(arm_at(lift @ tcp), CLOSED)
         truth = (lift @ domino).GetAsMatrix4()
         poses = {0: truth} | {i + 1: pose for i, pose in enumerate(neighbours)}
-        return render_build_area(poses), truth
+        render = render_every_camera if every_camera else render_build_area
+        return render(poses), truth
 
     yield held
     world.set_robot_positions()  # home, open: the other tests see no arm
@@ -210,24 +212,29 @@ def test_a_domino_hidden_by_the_gripper_leaning_towards_the_camera_is_not_seen(
     assert held.status == NOT_SEEN
 
 
-def test_held_dominoes_are_standing_where_they_are_or_not_seen(pipeline, hold) -> None:
+@pytest.mark.parametrize("every_camera", [False, True])
+def test_held_dominoes_are_standing_where_they_are_or_not_seen(
+    pipeline, hold, every_camera
+) -> None:
     """Several run directions, lean directions and turns in the hand: a held domino is
     either measured within the tolerances or not called STANDING (e.g. a gripper leaning
-    towards camera_2 hides it; an edge-on view pins the turn too weakly)."""
+    towards camera_2 hides it; an edge-on view pins the turn too weakly). With every
+    camera (the node's in_hand_cameras), each camera's points are fitted alone: fused from
+    two sides, their offsets twisted the box by up to 2°."""
     statuses = []
     for heading in np.radians([45.0, -45.0, 135.0, -135.0, 90.0, 0.0]):
         step = SPACING * np.array([np.cos(heading), np.sin(heading)])
         centre = np.array([0.53, 0.14])
         run = [upright_pose(*(centre + i * step), heading).GetAsMatrix4() for i in (-1, 0, 1)]
         for lean, turn, shift in [(1, 5.0, (0.003, 0.0, 0.0)), (-1, -6.0, (-0.002, 0.0, 0.002))]:
-            views, truth = hold(run[1], np.radians(turn), shift, lean, [run[0]])
+            views, truth = hold(run[1], np.radians(turn), shift, lean, [run[0]], every_camera)
             [held] = check_placements(run[1:2], views, pipeline, PlacementConfig(in_hand=True))
             statuses.append(held.status)
             if held.status == STANDING:
                 foot, tilt = foot_and_tilt_errors(held.measured, truth)
                 assert foot < FOOT_TOLERANCE and tilt < TILT_TOLERANCE, (foot, np.degrees(tilt))
-    print("in hand:", statuses)
-    assert statuses.count(STANDING) >= 2 and MISSING not in statuses
+    print("in hand, every camera" if every_camera else "in hand, camera_2:", statuses)
+    assert statuses.count(STANDING) >= 2 and set(statuses) <= {STANDING, NOT_SEEN}
 
 
 # A real slot: domino 7 of the S-curve (--start 0.50 -0.07 --heading 90 --length 0.55

@@ -122,6 +122,12 @@ class PerceptionNode(Node):
             ("cameras", ["camera_0", "camera_1", "camera_2"], "cameras to subscribe (/<name>/...)"),
             ("detect_cameras", ["camera_0", "camera_1"], "cameras that watch the pile"),
             ("placement_cameras", ["camera_2"], "cameras that watch the build area"),
+            (
+                "in_hand_cameras",
+                ["camera_0", "camera_1", "camera_2"],
+                "cameras of in_hand placement checks (each fitted alone; the gripper hides "
+                "the held domino from some)",
+            ),
             ("backend", "geometric", "segmentation backend: geometric | sam"),
             ("sam_checkpoint", "", "path of a SAM checkpoint (.pth), needed by backend sam"),
             ("sam_model_type", "vit_b", "SAM model type of the checkpoint: vit_b | vit_l | vit_h"),
@@ -336,7 +342,8 @@ class PerceptionNode(Node):
     def _on_check_placement(
         self, request: CheckPlacement.Request, response: CheckPlacement.Response
     ) -> CheckPlacement.Response:
-        names = list(request.cameras) or list(self._param("placement_cameras"))
+        default = "in_hand_cameras" if request.in_hand else "placement_cameras"
+        names = list(request.cameras) or list(self._param(default))
         problem = self._placement_request_problem(request, names)
         if problem:
             response.success, response.message = False, problem

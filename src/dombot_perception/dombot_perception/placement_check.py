@@ -15,11 +15,11 @@ after placing a domino nearby): then NOT_SEEN, no evidence either way.
 In hand (``PlacementConfig.in_hand``) the domino is checked before the fingers let go: the
 pads pinch its top (their lower edges ~29-31 mm above the table at the place grasp) and
 the gripper leans over it, so only its points lower than ``in_hand_fit_height`` above the
-expected foot are fitted and the fit must cover ``min_height_seen`` of that part only.
-What the caller needs from it, the foot's horizontal position and the tilt, does not
-depend on the hidden top. A place not fitted that way is never STANDING: the pipeline's
-detections cannot tell a held domino from the pads around it, so there a standing one
-is NOT_SEEN (no evidence), a fallen one still FALLEN.
+expected foot are fitted and the fit must cover ``min_height_seen`` of that part only,
+in each camera's points alone (``_held``). What the caller needs from it, the foot's
+horizontal position and the tilt, does not depend on the hidden top. A place not fitted
+that way is NOT_SEEN (no evidence): the pipeline's detections cannot tell a held domino
+from the pads around it.
 """
 
 from __future__ import annotations
@@ -84,6 +84,10 @@ def check_placements(
     if not expected:
         return []
     region = _run_region(expected, pipeline.config.region, config)
+    if config.in_hand:
+        return [
+            _held(pose, views, region, pipeline.config.depth_range, config) for pose in expected
+        ]
     clouds = [organised_cloud(v, region, pipeline.config.depth_range) for v in views]
     seen = [c.valid_points() for c in clouds if c is not None]
     points = np.concatenate(seen) if seen else np.zeros((0, 3))
@@ -96,8 +100,6 @@ def check_placements(
             results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
             continue
         near = _around_box(points, pose, config.fit_margin) & (owner == index)
-        if config.in_hand:
-            near &= points[:, 2] < _foot_height(pose) + config.in_hand_fit_height
         fitted = _local_fit(pose, points[near], views, config)
         if fitted is not None:
             results.append(_placement(STANDING, fitted, pose))
@@ -110,11 +112,47 @@ def check_placements(
         if mine is None and _hidden(pose, views, config):
             results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
             continue
-        found = _from_detections(pose, mine, detections, points, config)
-        if config.in_hand and found.status == STANDING:
-            found = Placement(NOT_SEEN, pose, 0.0, 0.0)
-        results.append(found)
+        results.append(_from_detections(pose, mine, detections, points, config))
     return results
+
+
+def _held(
+    expected: np.ndarray,
+    views: list[CameraView],
+    region: WorkRegion,
+    depth_range: tuple[float, float],
+    config: PlacementConfig,
+) -> Placement:
+    """A domino still in the gripper, fitted in each camera's points alone: the fit that
+    pins its turn about the pinch axis best (``_turn_support``), else NOT_SEEN.
+
+    Each camera alone, because each camera's points carry their own ~0.6-0.9 mm offset,
+    partly along its view direction: fused from two sides they twisted the box by up to
+    2° at S-curve slots, each camera alone was within 0.2°. Every camera, because the
+    gripper leaning over the run's free side hides the domino from camera_2 at some
+    slots where a pile camera sees it. No fit is no evidence (NOT_SEEN): the pipeline's
+    detections cannot tell a held domino from the pads around it.
+    """
+    best, best_support = None, 0.0
+    for view in views:
+        cloud = organised_cloud(view, region, depth_range) if _in_view(expected, view) else None
+        if cloud is None:
+            continue
+        points = cloud.valid_points()
+        below_pads = points[:, 2] < _foot_height(expected) + config.in_hand_fit_height
+        points = points[_around_box(points, expected, config.fit_margin) & below_pads]
+        fitted = _local_fit(expected, points, [view], config)
+        if fitted is None:
+            continue
+        on_box = np.abs(box_signed_distance((points - fitted[:3, 3]) @ fitted[:3, :3]))
+        support = _turn_support(fitted, points[on_box < config.inlier_distance])
+        if support > best_support:
+            best, best_support = fitted, support
+    return (
+        Placement(NOT_SEEN, expected, 0.0, 0.0)
+        if best is None
+        else _placement(STANDING, best, expected)
+    )
 
 
 def _claim(
