@@ -19,8 +19,15 @@ from dombot_bringup.arm_job import (
     ArmJobSettings,
     Candidate,
     neighbours_of,
+    placement_pose,
 )
-from dombot_bringup.run_report import RunReport, TruthPose, plot_run
+from dombot_bringup.run_report import (
+    DominoOutcome,
+    RunReport,
+    TruthPose,
+    plot_run,
+    target_of,
+)
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
 
@@ -116,15 +123,18 @@ class ResetOnlyClient:
         return type("Truth", (), {"dominoes": []})()
 
 
-def turns_with_one_slot_put_off(run: ArmJob, put_off: int) -> tuple[list, RunReport]:
-    """Run the job where every slot is placed at once but ``put_off``, for which nothing
-    ever plans: the (slot, may defer) turns it took, and the report."""
+def turns_with_one_slot_put_off(
+    run: ArmJob, put_off: int, also: tuple[int, ...] = ()
+) -> tuple[list, RunReport]:
+    """Run the job where every slot is placed at once but ``put_off`` (and ``also``), for
+    which nothing ever plans: the (slot, may defer) turns it took, and the report."""
     run.client, run._strike = ResetOnlyClient(), lambda: None
     turns: list[tuple[int, bool]] = []
 
     def turn(index: int, may_defer: bool) -> str:
         turns.append((index, may_defer))
-        if index == put_off:
+        assert len(turns) < 50, f"put off for ever: {turns[-6:]}"
+        if index == put_off or index in also:
             return DEFERRED if may_defer else FAILED
         run.state.standing[index] = run.targets[index]
         return PLACED
@@ -210,6 +220,21 @@ def test_a_slot_put_off_when_only_safety_gaps_are_left_lets_them_go_first() -> N
     turns, report = turns_with_one_slot_put_off(run, put_off=3)
     assert turns == [(0, True), (1, True), (3, True), (2, False), (3, False)]
     assert not report.built
+
+
+def test_two_slots_nothing_plans_for_do_not_put_each_other_off_for_ever() -> None:
+    """S-curve seed 2: a standing slot left at the end of the queue (here the last gap,
+    kept standing) counted as one still to build, so two blocked slots took turns being
+    put off for ever."""
+    run = job()
+    run.layout = layouts.line((0.45, 0.0), math.pi / 2, 7)
+    run.targets = run.releases = [placement_pose(p) for p in run.layout]
+    run.report.dominoes = [DominoOutcome(p.index, target_of(p)) for p in run.layout]
+    run.settings = ArmJobSettings(section=2)  # gaps at the 3rd and 6th
+    run.state.standing[5] = run.targets[5]
+    turns, report = turns_with_one_slot_put_off(run, put_off=6, also=(2,))
+    assert turns == [(0, True), (1, True), (3, True), (4, True), (6, True), (2, False)]
+    assert not report.built and report.message.startswith("domino 3 could not be placed")
 
 
 class CheckingClient:

@@ -209,7 +209,9 @@ class ArmJob:
             index = queue.pop(0)
             if index in self.state.standing:
                 continue  # kept standing where it was (see _keep_if_standing)
-            may_defer = any(i not in deferred for i in queue)
+            # Only slots still to build count: a standing one left behind in the queue kept
+            # two slots nothing planned for putting each other off for ever (S-curve seed 2).
+            may_defer = any(i not in deferred and i not in self.state.standing for i in queue)
             result = self._place_with_retries(index, may_defer)
             if result == DEFERRED:
                 deferred.add(index)
