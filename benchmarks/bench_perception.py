@@ -34,7 +34,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
 
 from dombot_bringup import layouts
-from dombot_description import DOMINO_SIZE
+from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.grasp import pick_grasps, upright_pose
 from dombot_perception.debug_image import draw_detections, mask_overlay
 from dombot_perception.evaluation import (
@@ -56,7 +56,7 @@ from dombot_perception.placement_check import (
     PlacementConfig,
     check_placements,
 )
-from dombot_sim.physics_checks import PUSH_SPIN, tilt_from_vertical
+from dombot_sim.physics_checks import PUSH_SPIN
 from dombot_sim.world import CellWorld, WorldConfig
 
 CAMERA_SETS = {

@@ -33,7 +33,7 @@ from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
 from dombot_bringup.offers import NEIGHBOUR_RADIUS, roomiest_first, with_pile_first
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
-from dombot_description import DOMINO_SIZE
+from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.pose_messages import pose_matrix
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
@@ -679,7 +679,7 @@ class ArmJob:
             if distances[nearest] > (0.02 if before_strike else DOMINO_LENGTH):
                 continue
             pose = poses[nearest]
-            tilt = math.degrees(math.acos(min(1.0, abs(pose[2, 0]))))
+            tilt = math.degrees(tilt_from_vertical(pose))
             along = pose[:3, 2]
             record = TruthPose(
                 float(pose[0, 3]),

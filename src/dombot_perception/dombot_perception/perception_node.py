@@ -30,6 +30,7 @@ from rclpy.parameter import Parameter
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
 
+from dombot_description import tilt_from_vertical
 from dombot_description.pose_messages import pose_matrix, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
@@ -399,7 +400,7 @@ class PerceptionNode(Node):
             if abs(math.sqrt(q.x**2 + q.y**2 + q.z**2 + q.w**2) - 1.0) > 1e-3:
                 return f"expected pose {index}: quaternion is not unit length (within 1e-3)"
             if request.in_hand:  # fitted from the expected foot up to below the pads
-                tilt = math.degrees(math.acos(min(1.0, abs(pose_matrix(pose)[2, 0]))))
+                tilt = math.degrees(tilt_from_vertical(pose_matrix(pose)))
                 if tilt > MAX_IN_HAND_TILT:
                     return (
                         f"in_hand: expected pose {index} is not upright "

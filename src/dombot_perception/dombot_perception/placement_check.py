@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from dombot_description import tilt_from_vertical
 from dombot_perception.backprojection import WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, refine_pose
 from dombot_perception.depth_check import DepthCheckConfig, depth_evidence
@@ -257,7 +258,7 @@ def _local_fit(
         return None
     lengthwise = (points[inliers] - pose[:3, 3]) @ pose[:3, 0]
     if (
-        _tilt(pose) > config.max_tilt
+        tilt_from_vertical(pose) > config.max_tilt
         or _horizontal(pose, expected) > config.search_radius
         or np.ptp(lengthwise) < config.min_height_seen * config.fitted_length
         or depth_evidence(pose, views, config.depth_check).see_through_fraction
@@ -306,7 +307,7 @@ def _from_detections(
     footprint mean something lies there that no box fits (FALLEN, pose unknown).
     """
     if mine is not None:
-        status = STANDING if _tilt(mine.X_WD) <= config.max_tilt else FALLEN
+        status = STANDING if tilt_from_vertical(mine.X_WD) <= config.max_tilt else FALLEN
         return _placement(status, mine.X_WD, expected)
     footprint = points[_near(points, expected, HALF_SIZE[1])]
     for detection in detections:
@@ -318,12 +319,9 @@ def _from_detections(
 
 
 def _placement(status: int, measured: np.ndarray, expected: np.ndarray) -> Placement:
-    return Placement(status, measured, _horizontal(measured, expected), _tilt(measured))
-
-
-def _tilt(pose: np.ndarray) -> float:
-    """Angle of the body x (length) axis from vertical, either direction."""
-    return float(np.arccos(np.clip(abs(pose[2, 0]), 0.0, 1.0)))
+    return Placement(
+        status, measured, _horizontal(measured, expected), tilt_from_vertical(measured)
+    )
 
 
 def _horizontal(pose: np.ndarray, expected: np.ndarray) -> float:

@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 
-from dombot_description import DOMINO_SIZE
+from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.grasp import gripper_geometry, pregrasp_opening
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.settings import PlannerSettings
@@ -145,12 +145,11 @@ def check_strike_request(request: StrikeRequest, settings: PlannerSettings) -> N
         if not (math.isfinite(value) and 0.0 <= value <= most):
             raise invalid("validation", f"{name} must be 0 (default) to {most}, got {value}")
     check_workspace(request.domino_pose, "domino_pose", settings)
-    up = request.domino_pose.rotation().matrix()[2, 0]
-    if abs(up) < math.cos(UPRIGHT_TOLERANCE):
-        tilt = math.degrees(math.acos(min(1.0, abs(up))))
+    tilt = tilt_from_vertical(request.domino_pose.rotation().matrix())
+    if tilt > UPRIGHT_TOLERANCE:
         raise invalid(
             "validation",
-            f"domino_pose is not upright: its body x is {tilt:.0f}° from vertical "
+            f"domino_pose is not upright: its body x is {math.degrees(tilt):.0f}° from vertical "
             f"(at most {math.degrees(UPRIGHT_TOLERANCE):.0f}°)",
         )
     check_place_is_free(request.domino_pose, request.standing, "domino_pose")

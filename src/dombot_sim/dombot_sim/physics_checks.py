@@ -16,7 +16,7 @@ from pydrake.multibody.math import SpatialVelocity
 from pydrake.solvers import Solve
 from pydrake.trajectories import PiecewisePolynomial
 
-from dombot_description import DOMINO_SIZE
+from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.cell import build_shadow_plant
 from dombot_sim.world import CellWorld
 
@@ -29,11 +29,6 @@ def upright_rotation(heading: float) -> RotationMatrix:
     tangent = np.array([np.cos(heading), np.sin(heading), 0.0])
     up = np.array([0.0, 0.0, 1.0])
     return RotationMatrix(np.column_stack([up, np.cross(tangent, up), tangent]))
-
-
-def tilt_from_vertical(pose: np.ndarray) -> float:
-    """Angle [rad] between a domino's length axis and the vertical."""
-    return float(np.arccos(min(1.0, abs(pose[2, 0]))))
 
 
 @dataclass(frozen=True)
