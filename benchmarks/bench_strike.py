@@ -11,7 +11,12 @@ samples): clearances per segment, fingertip height at the push, travel past firs
 contact and the speed there, joint limit use. ``--execute N`` then runs the first N plans
 in the Drake simulation (dombot_sim.world.CellWorld, as bench_planner_execution does):
 how far any domino moved before the push began, and every domino's tilt from vertical
-3 s after the retreat (fallen: > 45°). Prints one JSON object on stdout.
+3 s after the retreat (fallen: > 45°). ``--sweeps N`` also plans and executes N sweeps
+(/plan_strike with a sweep direction) of a domino fallen flat across a run between two
+standing neighbours, 13 mm off the run's line to alternate sides and turned up to 24°
+from square (as a cascade left one in S-curve seed 2), pushed by the bring-up's own
+choice (``dombot_bringup.debris``): where the swept domino ends, and how far the
+neighbours moved and tilted. Prints one JSON object on stdout.
 """
 
 from __future__ import annotations
@@ -29,8 +34,16 @@ from bench_planner import clearance_summary, draw, log, percentile
 from bench_planner_execution import gripper_event, plan_force, track
 from pydrake.math import RigidTransform
 
-from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import OrientedBox, gripper_geometry, release_opening, upright_pose
+from dombot_bringup.debris import sweep_pushes
+from dombot_bringup.layouts import DOMINO_WIDTH, DominoPlacement
+from dombot_description import DOMINO_SIZE, domino_corners
+from dombot_description.grasp import (
+    OrientedBox,
+    flat_pose,
+    gripper_geometry,
+    release_opening,
+    upright_pose,
+)
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_planner.errors import PlanningError
 from dombot_planner.request import StrikeRequest
@@ -40,6 +53,8 @@ from dombot_planner.verify import StrikeCheck, StrikeChecker
 from dombot_sim.world import CellWorld, WorldConfig
 
 SPACING_RATIO = 0.6
+SWEEP_MARGIN = 0.008  # m beyond the run's side, as the bring-up asks
+DEBRIS_OFFSET = 0.013  # m off the run's line
 RUN_LENGTHS = (3, 4, 5)
 TOPPLE_WAIT = 3.0  # s simulated after the retreat, as the bring-up waits
 FALLEN = math.radians(45.0)
@@ -121,6 +136,55 @@ def execute(world: CellWorld, run: Run, planner: StrikePlanner, request: StrikeR
     }
 
 
+def sweep_case(world: CellWorld, run: Run, planner: StrikePlanner) -> dict:
+    """Domino 2 of ``run`` fallen flat across it: swept clear of the run's side?"""
+    poses = run.poses()
+    slot = poses[1].translation()
+    across = np.array([-math.sin(run.heading), math.cos(run.heading), 0.0])
+    side = 1.0 if run.index % 2 == 0 else -1.0
+    centre = slot + side * DEBRIS_OFFSET * across
+    neighbours = [poses[0], poses[2]]
+    yaw = run.heading + math.pi / 2 + side * math.radians(8.0 * (run.index % 4))
+    world.reset(domino_count=0, seed=run.index)
+    world.set_domino_poses({0: flat_pose(*centre[:2], yaw), 1: neighbours[0], 2: neighbours[1]})
+    world.settle(1.0)
+    truth = [d.X_WD for d in world.domino_truth()[:3]]
+    placement = DominoPlacement(1, *slot[:2], run.heading)
+    direction, distance = sweep_pushes(truth[0], placement, SWEEP_MARGIN)[0]
+    joints = world.joint_state().position
+    request = StrikeRequest(
+        RigidTransform(truth[0]),
+        joints[:7],
+        float(joints[7] + joints[8]),
+        tuple(RigidTransform(pose) for pose in truth[1:]),
+        push_distance=distance,
+        sweep=direction,
+    )
+    began = time.perf_counter()
+    try:
+        plan = planner.plan(request)
+    except PlanningError as error:
+        return {"run": run.index, "planned": False, "why": str(error)}
+    for segment in plan.sampled(planner.settings.sample_period):
+        track(world, segment)
+        gripper_event(world, segment, plan_force(plan, segment.label))
+    world.advance(TOPPLE_WAIT)
+    after = [d.X_WD for d in world.domino_truth()[:3]]
+    moved = [float(np.linalg.norm(a[:3, 3] - b[:3, 3])) for a, b in zip(after, truth, strict=True)]
+    # the swept domino's nearest corner to the run's line, beyond its side (>0: clear)
+    clear = np.min(np.abs((domino_corners(after[0]) - slot) @ across)) - DOMINO_WIDTH / 2
+    crossed = np.sign((domino_corners(after[0]) - slot) @ across)
+    return {
+        "run": run.index,
+        "planned": True,
+        "push_mm": round(distance * 1000, 1),
+        "beyond_side_mm": round(float(clear) * 1000 if len(set(crossed)) == 1 else -1.0, 1),
+        "neighbours_moved_mm": round(max(moved[1:]) * 1000, 2),
+        "neighbours_tilt_deg": round(max(math.degrees(tilt(a)) for a in after[1:]), 2),
+        "wall_s": round(time.perf_counter() - began, 1),
+    }
+
+
 def pusher_lean(plan: StrikePlan) -> float:
     """Degrees between the fingers and straight down at the strike pose."""
     approach = plan.strike_pose.rotation().matrix()[:, 2]
@@ -153,9 +217,11 @@ def write_strike_figure(path: str, settings: PlannerSettings) -> None:
     import matplotlib.pyplot as plt
 
     run = Run(0, (0.0, 0.0), 0.0, 3).poses()
+    along = run[0].rotation().matrix()[:, 2]  # upright: body z is horizontal
     start = strike_pose(
         run[0],
-        pusher_rotations(np.array([1.0, 0.0, 0.0]))[0],
+        pusher_rotations(along)[0],
+        along,
         settings.strike_height,
         settings.strike_standoff,
     )
@@ -201,6 +267,7 @@ def main() -> None:
     parser.add_argument("--count", type=int, default=100, help="runs to plan")
     parser.add_argument("--seed", type=int, default=2026, help="seed of the run set")
     parser.add_argument("--execute", type=int, default=0, help="execute the first N runs")
+    parser.add_argument("--sweeps", type=int, default=0, help="sweep debris in the first N runs")
     parser.add_argument("--push-distance", type=float, default=0.0, help="m; 0: default")
     parser.add_argument("--push-speed", type=float, default=0.0, help="m/s; 0: default")
     parser.add_argument("--time-budget", type=float, default=0.0, help="s; 0: default")
@@ -252,6 +319,12 @@ def main() -> None:
             row.update(execute(world, run, planner, request))
             executed.append(row)
         log(json.dumps(row))
+    swept = []
+    for run in make_runs(scenario, args.count, args.seed)[: args.sweeps]:
+        if world is None:
+            world = CellWorld(WorldConfig(cameras=False, domino_capacity=5), scenario)
+        swept.append(sweep_case(world, run, planner))
+        log(json.dumps(swept[-1]))
     result = {
         "benchmark": "strike",
         "runs": args.count,
@@ -290,6 +363,18 @@ def main() -> None:
             "wall_s_per_run": percentile([r["wall_s"] for r in executed], 50),
             "with_leaning_pusher": sum(r["pusher_lean_deg"] > 1.0 for r in executed),
             "rows": executed,
+        },
+        "sweeps": {
+            "runs": len(swept),
+            "planned": sum(r["planned"] for r in swept),
+            "cleared": sum(r.get("beyond_side_mm", -1.0) > 0.0 for r in swept),
+            "neighbours_moved_mm_max": max(
+                (r["neighbours_moved_mm"] for r in swept if r["planned"]), default=None
+            ),
+            "neighbours_tilt_deg_max": max(
+                (r["neighbours_tilt_deg"] for r in swept if r["planned"]), default=None
+            ),
+            "rows": swept,
         },
         "settings": dataclasses.asdict(settings),
         "push_distance": args.push_distance or settings.push_distance,

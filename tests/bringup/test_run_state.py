@@ -20,7 +20,9 @@ from dombot_bringup.arm_job import (
     Candidate,
     neighbours_of,
     placement_pose,
+    spot_of,
 )
+from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.run_report import (
     DominoOutcome,
     RunReport,
@@ -29,7 +31,7 @@ from dombot_bringup.run_report import (
     target_of,
 )
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
-from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace
+from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
 MISSING, NOT_SEEN = CheckPlacement.Response.MISSING, CheckPlacement.Response.NOT_SEEN
@@ -524,3 +526,75 @@ def test_a_domino_found_off_in_the_hand_is_placed_again_before_the_fingers_let_g
     if placed_again:
         assert held[0].holding and held[0].place_pose == run.releases[1]
         assert held[0].domino_pose.position.x == pytest.approx(run.releases[1].position.x + off)
+
+
+def test_sweeps_push_debris_across_the_run_towards_its_side_first() -> None:
+    """A domino fallen flat across the run, 13 mm to its right: pushed right 31 mm (its
+    near end then 8 mm beyond the run's 12 mm half width), else left 57 mm."""
+    run = job()  # along +y: the run's left is -x
+    slot = run.layout[1]
+    debris = np.eye(4)
+    debris[:3, 3] = [slot.x + 0.013, slot.y, 0.00375]  # flat, length along x
+    pushes = sweep_pushes(debris, slot, margin=0.008)
+    assert [d.round(6).tolist() for d, _ in pushes] == [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]
+    assert [distance for _, distance in pushes] == pytest.approx([0.031, 0.057])
+    debris[0, 3] = slot.x - 0.08  # 56 mm beyond the other side: pushed back across, too far
+    assert [d[0] for d, _ in sweep_pushes(debris, slot, margin=0.008)] == [pytest.approx(-1.0)]
+
+
+class SweepingClient(PlanningClient):
+    """Every place is refused while the debris lies there; the sweep plans and clears it.
+    The placement check answers ``statuses`` in turn (then everything STANDING)."""
+
+    def __init__(self, statuses: list[list[int]]) -> None:
+        super().__init__({0.55: 0})  # one flat domino in the pile
+        self.statuses = statuses
+        self.sweeps: list[PlanStrike.Request] = []
+
+    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
+        if not self.sweeps:
+            return PlanPlace.Response(
+                success=False, error_code=PlanPlace.Response.PLACE_IN_COLLISION, message="debris"
+            )
+        return super().plan_place(request, timeout)
+
+    def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
+        self.sweeps.append(request)
+        return PlanStrike.Response(success=True, message="planned")
+
+    def check_placement(self, expected: list[Pose]) -> CheckPlacement.Response:
+        statuses = self.statuses.pop(0) if self.statuses else [STANDING] * len(expected)
+        return CheckingClient(statuses).check_placement(expected)
+
+
+def test_fallen_debris_no_grasp_reaches_is_swept_out_of_the_slot_it_blocks() -> None:
+    """S-curve seed 2: domino 11 fell flat 13 mm off its target between standing 10 and
+    12; no grasp reached it, every place at its slot was refused, and the run looped. It is
+    pushed across the run; the slot, hidden from the camera then, is not taken as built."""
+    run = job()
+    run.state.standing = {0: run.targets[0], 1: run.targets[1], 3: run.targets[3]}
+    run.state.fallen[2] = lying(run.targets[2].position.x + 0.013, run.targets[2].position.y)
+    run.state.unpickable.append(spot_of(run.state.fallen[2]))
+    run.client = SweepingClient([[STANDING, STANDING, NOT_SEEN, STANDING]])
+    assert run._place_with_retries(2, may_defer=True) == PLACED
+    (sweep,) = run.client.sweeps
+    assert [sweep.sweep_direction.x, sweep.sweep_direction.y] == pytest.approx([1.0, 0.0])
+    assert sweep.push_distance == pytest.approx(0.031)
+    assert sweep.domino_pose.position.x == pytest.approx(run.targets[2].position.x + 0.013)
+    assert len(sweep.standing_dominoes) == 3
+    assert 2 not in run.state.fallen and sorted(run.state.standing) == [0, 1, 2, 3]
+    assert len(run.report.dominoes[2].sweeps) == 1
+    assert run.report.dominoes[2].attempts == 1  # the sweep cost no attempt
+    assert run.report.summary()["debris_swept"] == 1
+
+
+def test_debris_a_grasp_reaches_or_away_from_the_slot_is_not_swept() -> None:
+    run = job()
+    run.state.fallen[2] = lying(run.targets[2].position.x + 0.06, run.targets[2].position.y)
+    run.state.unpickable.append(spot_of(run.state.fallen[2]))
+    run.client = SweepingClient([])
+    assert run._place_with_retries(2, may_defer=True) == DEFERRED  # 60 mm away
+    run.state.fallen[2] = lying(run.targets[2].position.x + 0.013, run.targets[2].position.y)
+    run.state.unpickable.clear()
+    assert not run._sweep_debris(2, failed=[])  # not refused: picked up, not swept
+    assert run.client.sweeps == []

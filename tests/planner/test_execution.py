@@ -1,5 +1,6 @@
 """Plans executed in the Drake simulation (dombot_sim): a place stands the domino where it
-was asked; a strike knocks the whole run down without touching it before the push.
+was asked; a strike knocks the whole run down without touching it before the push; a
+sweep pushes a domino fallen across a run out past its side, the neighbours untouched.
 
 Runs benchmarks/bench_planner_execution.py on the first pairs of the planner benchmark
 (one with neighbours on both sides) and benchmarks/bench_strike.py on its first runs
@@ -37,7 +38,7 @@ def executed() -> dict:
 
 @pytest.fixture(scope="module")
 def struck() -> dict:
-    return benchmark("bench_strike.py", "--count", "2", "--execute", "2")
+    return benchmark("bench_strike.py", "--count", "2", "--execute", "2", "--sweeps", "2")
 
 
 def test_every_pair_is_planned_and_executed(executed) -> None:
@@ -75,3 +76,13 @@ def test_strike_touches_no_domino_before_the_push(struck) -> None:
     for row in struck["executed"]["rows"]:
         assert row["moved_before_push_mm"] <= 0.1, row
         assert row["tilted_before_push_deg"] <= 0.5, row
+
+
+def test_sweep_pushes_fallen_debris_past_the_runs_side_and_nothing_else(struck) -> None:
+    rows = struck["sweeps"]["rows"]
+    assert len(rows) == 2
+    for row in rows:
+        assert row["planned"], row
+        assert row["beyond_side_mm"] >= 5.0, row  # asked for 8 mm
+        assert row["neighbours_moved_mm"] <= 0.1, row
+        assert row["neighbours_tilt_deg"] <= 0.5, row

@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 import rclpy
-from geometry_msgs.msg import Point, Pose, Quaternion
+from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
@@ -199,6 +199,18 @@ def test_good_strike_request_closes_the_gripper_then_pushes(client: Client) -> N
     assert 0.0 < response.planning_time < 30.0
 
 
+def test_a_sweep_pushes_a_fallen_domino_along_the_direction_given(client: Client) -> None:
+    response = client.call(
+        strike_request(
+            domino_pose=pose_message(flat_pose(0.55, -0.05, 0.0)),
+            sweep_direction=Vector3(x=1.0),
+            push_distance=0.03,
+        )
+    )
+    assert response.success, response.message
+    assert [s.label for s in response.segments] == ["close_gripper", "approach", "push", "retreat"]
+
+
 @pytest.mark.parametrize(
     ("changes", "code"),
     [
@@ -225,6 +237,8 @@ def test_good_strike_request_closes_the_gripper_then_pushes(client: Client) -> N
             PlanStrike.Response.OUTSIDE_WORKSPACE,
         ),
         ({"push_distance": 0.03}, PlanStrike.Response.PLACE_IN_COLLISION),
+        ({"sweep_direction": Vector3(x=math.nan)}, PlanStrike.Response.INVALID_REQUEST),
+        ({"sweep_direction": Vector3(z=1.0)}, PlanStrike.Response.INVALID_REQUEST),
     ],
     ids=[
         "inf",
@@ -233,6 +247,8 @@ def test_good_strike_request_closes_the_gripper_then_pushes(client: Client) -> N
         "negative_push",
         "outside_workspace",
         "push_reaches_next",
+        "nan_sweep",
+        "vertical_sweep",
     ],
 )
 def test_bad_strike_requests_get_an_error_code_and_a_message(client: Client, changes, code) -> None:

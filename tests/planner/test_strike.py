@@ -204,6 +204,70 @@ def test_bad_requests_get_their_error_code(planner, changes, code) -> None:
     assert error.message
 
 
+HEADING = 0.3
+ACROSS = np.array([-math.sin(HEADING), math.cos(HEADING), 0.0])  # the run's left normal
+
+
+def sweep_request(**changes) -> StrikeRequest:
+    """A domino fallen flat across the run at its second slot, 13 mm off the run's line,
+    between two standing neighbours (as S-curve seed 2 left one, out of every grasp's
+    reach): pushed 31 mm along the run's normal, its near end 8 mm beyond the run's side."""
+    run = run_poses(0.55, 0.15, HEADING)
+    slot = run[1].translation()
+    fallen = flat_pose(*(slot + 0.013 * ACROSS)[:2], HEADING + math.pi / 2)
+    base = StrikeRequest(
+        fallen,
+        SCENARIO.home_position,
+        OPEN,
+        (run[0], *run[2:]),
+        push_distance=0.031,
+        sweep=ACROSS,
+    )
+    return dataclasses.replace(base, **changes)
+
+
+def test_sweep_pushes_a_fallen_domino_low_across_the_run(planner) -> None:
+    req = sweep_request()
+    plan = planner.plan(req)
+    checker = StrikeChecker(SCENARIO, req.domino_pose, req.standing, SETTINGS.acceleration_limit)
+    result = checker.check(plan.sampled(SETTINGS.sample_period), req.start, req.finger_opening)
+    assert [s.label for s in plan.segments] == ["close_gripper", "approach", "push", "retreat"]
+    assert result.fingertip_height == pytest.approx(0.4 * DOMINO_SIZE[2], abs=1e-3)
+    assert result.push_past_contact == pytest.approx(0.031, abs=1e-3)
+    assert result.min_clearance("push", "pads", "target") < 0.0
+    assert result.min_clearance("push", "pads", "standing") >= SETTINGS.fine_obstacle_clearance
+    assert result.min_clearance("push", "pads", "table") >= SETTINGS.pad_table_clearance
+    for phase in ("approach", "push", "retreat"):
+        assert result.min_clearance(phase, "arm", "standing") >= SETTINGS.coarse_clearance
+    pushed = plan.segments[2].pieces[-1]
+    end, start = (
+        checker.tcp_pose(pushed.sample([t])[0][0]).translation() for t in (pushed.duration, 0.0)
+    )
+    travel = end - start
+    assert travel / np.linalg.norm(travel) == pytest.approx(ACROSS, abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("changes", "code"),
+    [
+        ({"sweep": np.array([math.nan, 0.0, 0.0])}, ErrorCode.INVALID_REQUEST),
+        ({"sweep": np.array([0.0, 0.0, 1.0])}, ErrorCode.INVALID_REQUEST),
+        ({"sweep": 2.0 * ACROSS}, ErrorCode.INVALID_REQUEST),
+        ({"push_distance": 0.2}, ErrorCode.INVALID_REQUEST),
+        # along the run: into the next standing domino
+        (
+            {"sweep": np.array([math.cos(HEADING), math.sin(HEADING), 0.0])},
+            ErrorCode.PLACE_IN_COLLISION,
+        ),
+    ],
+    ids=["nan", "vertical", "not_unit", "too_far", "into_the_run"],
+)
+def test_bad_sweeps_get_their_error_code(planner, changes, code) -> None:
+    error = failure(planner, sweep_request(**changes))
+    assert error.code == code, error
+    assert error.message
+
+
 def test_planner_keeps_working_after_failures(planner) -> None:
     for bad in ({"time_budget": -1.0}, {"time_budget": 1e-4}, {"push_distance": 0.03}):
         failure(planner, request(**bad))

@@ -9,6 +9,9 @@ gripper events) → check the grasp by the finger opening → place → check th
 with perception (camera_2 watches the build area) → on failure retry with the next
 candidate; a domino that fell is picked up again from where perception found it.
 
+A fallen domino that no grasp reaches and that lies where a slot goes is swept aside
+(``/plan_strike`` with a sweep direction: pushed low across the run).
+
 When the run stands, ``/plan_strike`` knocks the first domino over and perception
 checks that every domino fell. The simulator's ground truth goes into the report only.
 """
@@ -25,10 +28,11 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Point, Pose, Quaternion
+from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_bringup.cell_client import CallFailedError, CellClient
+from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
 from dombot_bringup.offers import NEIGHBOUR_RADIUS, roomiest_first, with_pile_first
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
@@ -119,6 +123,11 @@ class ArmJobSettings:
     # default is 0.01) closes the gripper and lets the grasp check judge: the gripper body
     # resting 0.1 mm deep on a pile domino stopped joint 6 0.012 rad (~1.5 mm) short.
     approach_goal_tolerance: float = 0.02  # rad
+    # Fallen dominoes no grasp reaches, lying within a domino length of the slot to build
+    # (debris of a cascade, wedged between standing neighbours), are pushed across the
+    # run until they lie this far beyond its side; at most max_sweeps per slot.
+    sweep_margin: float = 0.008  # m
+    max_sweeps: int = 2
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
     meshcat: bool = False
@@ -251,6 +260,7 @@ class ArmJob:
         outcome = self.report.dominoes[index]
         failed: list[np.ndarray] = []
         missed = 0  # picks that failed (the attempt returned where)
+        sweeps = 0
         sim_start, wall_start = self.client.sim_time, time.monotonic()
         settings = self.settings
         while (
@@ -263,6 +273,10 @@ class ArmJob:
             outcome.simulated_s += self.client.sim_time - sim_start
             outcome.wall_s += time.monotonic() - wall_start
             sim_start, wall_start = self.client.sim_time, time.monotonic()
+            if not moved and sweeps < settings.max_sweeps and self._sweep_debris(index, failed):
+                sweeps += 1
+                failed.clear()  # refused while the debris lay there (missed picks: unpickable)
+                continue
             if not moved and may_defer:
                 outcome.deferrals.append(why)
                 log(f"domino {index + 1}/{len(self.layout)} put off ({why}): others first")
@@ -344,6 +358,46 @@ class ArmJob:
         if refused:
             return False, f"planning: {refused} offers refused", None, False
         return False, "no graspable domino seen", None, False
+
+    def _sweep_debris(self, index: int, failed: list[np.ndarray]) -> bool:
+        """Push aside the nearest fallen domino within a domino length of slot ``index`` that
+        no grasp reached (refused, or its pick failed); True once one was pushed (or the
+        push failed after the arm moved)."""
+        place, avoid = spot_of(self.releases[index]), failed + self.state.unpickable
+        debris = sorted(
+            (float(np.linalg.norm(spot_of(pose) - place)), k)
+            for k, pose in self.state.fallen.items()
+            if near(spot_of(pose), place, DOMINO_LENGTH) and near_any(spot_of(pose), avoid)
+        )
+        for _, k in debris:
+            pose = self.state.fallen[k]
+            others = [p for i, p in self.state.fallen.items() if i != k]
+            margin = self.settings.sweep_margin
+            for direction, distance in sweep_pushes(pose_matrix(pose), self.layout[index], margin):
+                plan = self.client.plan_strike(
+                    PlanStrike.Request(
+                        domino_pose=pose,
+                        standing_dominoes=[*self.state.standing.values(), *others],
+                        sweep_direction=Vector3(x=direction[0], y=direction[1], z=0.0),
+                        push_distance=distance,
+                        time_budget=self.settings.plan_budget,
+                    ),
+                    timeout=self.settings.plan_budget + 30.0,
+                )
+                what = f"domino {k + 1} lying at {spot_of(pose).round(3).tolist()}"
+                if not plan.success:
+                    log(f"sweeping {what} aside refused: {plan.message.split(' (')[0]}")
+                    continue
+                executed, why = self._execute(plan.segments, holds_domino=False)
+                swept = f"{what}: swept {distance * 1e3:.0f} mm across the run"
+                swept += "" if executed else f", stopped ({why})"
+                self.report.dominoes[index].sweeps.append(swept)
+                log(f"domino {index + 1}/{len(self.layout)}: {swept}")
+                self.state.fallen.pop(k)
+                self._forget_refusals_near(spot_of(pose))
+                self._check(k, just_placed=False)  # still there (fallen again) or gone
+                return True
+        return False
 
     def _keep_if_standing(
         self, index: int, run_index: int, why: str, spot: np.ndarray
@@ -567,8 +621,9 @@ class ArmJob:
         frames perception uses were taken after the arm stopped."""
         self.client.wait_for_sim_time(settle + 1.0 / self.settings.camera_rate + 0.05)
 
-    def _check(self, index: int) -> bool:
-        """Perception looks at every domino placed so far; fallen ones are queued again.
+    def _check(self, index: int, just_placed: bool = True) -> bool:
+        """Perception looks at every domino placed so far and at slot ``index``; fallen
+        ones are queued again.
 
         One hidden from the camera (NOT_SEEN: most of it behind something, e.g. the arm
         above the domino just placed) is taken as standing until the next check: rebuilt
@@ -576,7 +631,8 @@ class ArmJob:
         (a whole run fell so). One upright but off target by up to keep_off_target is left
         standing where perception measured it, not picked up from within the run; so is
         one that stays within the tolerance of where it was left, and one whose pick-up
-        again failed, up to keep_when_stuck."""
+        again failed, up to keep_when_stuck. A hidden ``index`` not ``just_placed`` (e.g.
+        the slot a fallen domino was swept out of) is not taken as standing."""
         self._wait_for_fresh_frames(self.settings.settle_after_place)
         indices = sorted(set(self.state.standing) | {index})
         answer = self.client.check_placement([self.targets[i] for i in indices])
@@ -589,7 +645,7 @@ class ArmJob:
         for position, i in enumerate(indices):
             status = answer.status[position]
             error, tilt = answer.position_error[position], answer.tilt[position]
-            hidden = status == CheckPlacement.Response.NOT_SEEN
+            hidden = status == CheckPlacement.Response.NOT_SEEN and (just_placed or i != index)
             measured, last = answer.measured[position], self.state.standing.get(i)
             # within the tolerance of where it was last taken to stand: not moved (one
             # left 6.0 mm off read 6.6 mm at the next check and was to be picked again)

@@ -50,6 +50,8 @@ class DominoOutcome:
     # Held dominoes found off before the fingers let go, and placed again from where they
     # were held: what perception measured each time.
     corrected_in_hand: list[str] = field(default_factory=list)
+    # Fallen dominoes no grasp reached, pushed out of this slot's way.
+    sweeps: list[str] = field(default_factory=list)
     simulated_s: float = 0.0
     wall_s: float = 0.0
     # Per pick executed: how far the simulator had the nearest domino from the pose
@@ -91,6 +93,7 @@ class RunReport:
             "within_tolerance_by_truth": sum(map(_within_tolerance, self.dominoes)),
             "retries": sum(max(d.attempts - 1, 0) for d in self.dominoes),
             "corrected_in_hand": sum(len(d.corrected_in_hand) for d in self.dominoes),
+            "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
             "standing_before_strike_by_truth": self.standing_by_truth,
             "toppled_by_perception": self.toppled_by_perception,
             "toppled_by_truth": self.toppled_by_truth,

@@ -19,9 +19,10 @@ import time
 import traceback
 from collections.abc import Callable
 
+import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Pose
+from geometry_msgs.msg import Pose, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
@@ -60,6 +61,12 @@ def is_unset(message: Pose) -> bool:
     """A grasp_pose left at the origin (inside the arm base): the planner chooses."""
     p = message.position
     return p.x == 0.0 and p.y == 0.0 and p.z == 0.0
+
+
+def sweep_of(message: Vector3) -> np.ndarray | None:
+    """A sweep direction, or None for a strike (the zero vector)."""
+    direction = np.array([message.x, message.y, message.z])
+    return None if not np.any(direction) else direction
 
 
 def poses_of(poses: list[Pose], field: str) -> tuple:
@@ -252,6 +259,7 @@ class PlannerNode(Node):
             push_distance=request.push_distance,
             push_speed=request.push_speed,
             time_budget=request.time_budget,
+            sweep=sweep_of(request.sweep_direction),
         )
 
     def _fill(self, response, plan: Plan, period: float, remark: str) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 
-from dombot_description import DOMINO_SIZE, tilt_from_vertical
+from dombot_description import DOMINO_SIZE, domino_corners, tilt_from_vertical
 from dombot_description.grasp import gripper_geometry, pregrasp_opening
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.settings import PlannerSettings
@@ -25,6 +25,8 @@ TABLE_TOLERANCE = 5e-4  # m a place pose may reach into the table top
 GRASP_REACH = 0.05  # m: a grasp TCP farther than this from its domino's centre is a mistake
 UPRIGHT_TOLERANCE = math.radians(10.0)  # body x this close to vertical stands upright
 MAX_PUSH_DISTANCE = 0.05  # m past the back face: farther reaches the next domino of a run
+MAX_SWEEP_DISTANCE = 0.1  # m a sweep may push a domino (two lengths)
+SWEEP_CHECK_STEP = 0.005  # m between the poses of a swept domino checked against the run
 MAX_PUSH_SPEED = 0.5  # m/s: faster throws the domino instead of tipping it
 
 
@@ -46,12 +48,15 @@ class PickPlaceRequest:
 @dataclass(frozen=True)
 class StrikeRequest:
     domino_pose: RigidTransform  # the upright domino to push over (first of the run)
+    # ... or, with ``sweep`` (a horizontal unit vector), a domino in any pose to push that
+    # way across the table: debris lying where the run goes that no grasp reaches.
     start: np.ndarray  # arm joint positions [rad]
     finger_opening: float | None = None  # m at the start; None: unknown (closed first)
     standing: tuple[RigidTransform, ...] = ()  # the rest of the run
     push_distance: float = 0.0  # m past the back face; 0: the planner's default
     push_speed: float = 0.0  # m/s; 0: the planner's default
     time_budget: float = 0.0  # s; 0: the planner's default
+    sweep: np.ndarray | None = None
 
 
 def invalid(stage: str, message: str) -> PlanningError:
@@ -136,23 +141,58 @@ def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
 
 
 def check_strike_request(request: StrikeRequest, settings: PlannerSettings) -> None:
-    """Everything that can be said about a strike request without planning."""
+    """Everything that can be said about a strike or sweep request without planning."""
     check_budget(request.time_budget)
+    sweep = request.sweep is not None
+    longest = MAX_SWEEP_DISTANCE if sweep else MAX_PUSH_DISTANCE
     for name, value, most in (
-        ("push_distance", request.push_distance, MAX_PUSH_DISTANCE),
+        ("push_distance", request.push_distance, longest),
         ("push_speed", request.push_speed, MAX_PUSH_SPEED),
     ):
         if not (math.isfinite(value) and 0.0 <= value <= most):
             raise invalid("validation", f"{name} must be 0 (default) to {most}, got {value}")
     check_workspace(request.domino_pose, "domino_pose", settings)
+    if sweep:
+        check_sweep(request, request.push_distance or settings.push_distance)
+        return
     tilt = tilt_from_vertical(request.domino_pose.rotation().matrix())
     if tilt > UPRIGHT_TOLERANCE:
         raise invalid(
             "validation",
             f"domino_pose is not upright: its body x is {math.degrees(tilt):.0f}° from vertical "
-            f"(at most {math.degrees(UPRIGHT_TOLERANCE):.0f}°)",
+            f"(at most {math.degrees(UPRIGHT_TOLERANCE):.0f}°); to push a fallen domino aside, "
+            "give a sweep direction",
         )
     check_place_is_free(request.domino_pose, request.standing, "domino_pose")
+
+
+def check_sweep(request: StrikeRequest, distance: float) -> None:
+    """A horizontal unit direction, and a path on which the swept domino meets no standing
+    domino it does not touch already (debris often leans on its neighbours)."""
+    direction = np.asarray(request.sweep, dtype=float)
+    if direction.shape != (3,) or not np.all(np.isfinite(direction)):
+        raise invalid("validation", f"sweep_direction must be 3 finite numbers, got {direction}")
+    if abs(np.linalg.norm(direction) - 1.0) > QUATERNION_TOLERANCE or abs(direction[2]) > 1e-3:
+        raise invalid(
+            "validation", f"sweep_direction must be a horizontal unit vector, got {direction}"
+        )
+    start = request.domino_pose
+    touching = {
+        i for i, other in enumerate(request.standing) if dominoes_overlap(start, other, 0.0)
+    }
+    steps = max(1, math.ceil(distance / SWEEP_CHECK_STEP))
+    for travel in np.linspace(0.0, distance, steps + 1)[1:]:
+        moved = RigidTransform(start.rotation(), start.translation() + travel * direction)
+        for i, other in enumerate(request.standing):
+            if i not in touching and dominoes_overlap(moved, other, OVERLAP_TOLERANCE):
+                x, y = other.translation()[:2]
+                raise PlanningError(
+                    ErrorCode.PLACE_IN_COLLISION,
+                    "validation",
+                    f"sweeping domino_pose {travel * 1000:.0f} mm along "
+                    f"({direction[0]:.2f}, {direction[1]:.2f}) pushes it into "
+                    f"standing_dominoes[{i}] at ({x:.3f}, {y:.3f}) m",
+                )
 
 
 def check_workspace(pose: RigidTransform, what: str, settings: PlannerSettings) -> None:
@@ -169,8 +209,7 @@ def check_workspace(pose: RigidTransform, what: str, settings: PlannerSettings) 
 
 
 def box_corners(pose: RigidTransform) -> np.ndarray:
-    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
-    return (pose @ (signs * np.array(DOMINO_SIZE) / 2).T).T
+    return domino_corners(pose.GetAsMatrix4())
 
 
 def dominoes_overlap(a: RigidTransform, b: RigidTransform, tolerance: float) -> bool:

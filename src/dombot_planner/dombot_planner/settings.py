@@ -50,6 +50,7 @@ class PlannerSettings:
     strike_approach_height: float = 0.05  # m of the vertical line down to the strike pose
     push_distance: float = 0.015  # m the fingertips travel past the back face (request: 0)
     push_speed: float = 0.1  # m/s of the fingertips during the push (request: 0)
+    sweep_height: float = 0.4  # of a swept domino's vertical extent, where the tips push
     # Requests.
     default_time_budget: float = 5.0  # s when the request says 0
     workspace_reach: tuple[float, float] = (0.25, 0.85)  # m from the arm base axis
@@ -84,7 +85,8 @@ class PlannerSettings:
             raise ValueError(
                 f"steeper_grasp_turn must be 0 to π/2 rad, got {self.steeper_grasp_turn}"
             )
-        if self.strike_height > 1.0:
-            raise ValueError(f"strike_height is a fraction of the height, got {self.strike_height}")
+        for name in ("strike_height", "sweep_height"):
+            if getattr(self, name) > 1.0:
+                raise ValueError(f"{name} is a fraction of the height, got {getattr(self, name)}")
         if self.kto_control_points < 4:
             raise ValueError("kto_control_points must be at least 4 (cubic B-spline)")

@@ -1,4 +1,4 @@
-"""Strike planning (/plan_strike): the move that knocks a run down.
+"""Strike planning (/plan_strike): the move that knocks a run down, and sweeps.
 
 The closed fingers are one blunt pusher (two 16 × 8 mm pads side by side, 60 mm long),
 pointing down. Plan of a request:
@@ -20,6 +20,11 @@ pointing down. Plan of a request:
 
 Segments: ``close_gripper`` (only if the start may have the fingers open), ``approach``,
 ``push``, ``retreat``.
+
+A *sweep* is the same move for a domino in any pose, pushed along a horizontal direction
+the request gives (``StrikeRequest.sweep``), its fingertips at ``sweep_height`` of the
+domino's vertical extent (low, so a flat domino slides rather than the pads riding over
+it): the bring-up clears fallen dominoes out of the run's way so when no grasp reaches them.
 """
 
 from __future__ import annotations
@@ -33,7 +38,6 @@ import numpy as np
 from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 
-from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import gripper_geometry
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.ik import PoseIK
@@ -48,7 +52,7 @@ from dombot_planner.motion import (
     reasons,
 )
 from dombot_planner.request import StrikeRequest, box_corners, check_strike_request
-from dombot_planner.scene import PADS, STANDING, TARGET, Scene
+from dombot_planner.scene import PADS, STANDING, TABLE, TARGET, Scene
 
 CLOSED = 0.0  # m: the pads touch
 CLOSED_TOLERANCE = 0.001  # m: a start opening up to this needs no close command
@@ -74,9 +78,12 @@ def pusher_corners() -> np.ndarray:
     )
 
 
-def push_direction(domino_pose: RigidTransform) -> np.ndarray:
-    """Horizontal unit vector of the domino's body z: where it topples."""
-    along = domino_pose.rotation().matrix()[:, 2] * [1.0, 1.0, 0.0]
+def push_direction(request: StrikeRequest) -> np.ndarray:
+    """Horizontal unit vector of the push: a sweep's, else the domino's body z (where it
+    topples)."""
+    if request.sweep is not None:
+        return np.asarray(request.sweep, dtype=float)
+    along = request.domino_pose.rotation().matrix()[:, 2] * [1.0, 1.0, 0.0]
     return along / np.linalg.norm(along)
 
 
@@ -104,17 +111,21 @@ def pusher_rotations(direction: np.ndarray) -> list[RotationMatrix]:
 
 
 def strike_pose(
-    domino_pose: RigidTransform, rotation: RotationMatrix, height: float, standoff: float
+    domino_pose: RigidTransform,
+    rotation: RotationMatrix,
+    direction: np.ndarray,
+    height: float,
+    standoff: float,
 ) -> RigidTransform:
-    """TCP pose with the fingertips at ``height`` × the domino's height above its lowest
-    corner and the pads ``standoff`` behind its back face."""
-    direction = push_direction(domino_pose)
+    """TCP pose with the fingertips at ``height`` × the domino's vertical extent above its
+    lowest corner and the pads ``standoff`` behind its hindmost corner along ``direction``."""
     corners = (rotation.matrix() @ pusher_corners().T).T
+    box = box_corners(domino_pose)
     centre = domino_pose.translation()
-    back = centre - DOMINO_SIZE[2] / 2 * direction
-    base = box_corners(domino_pose)[:, 2].min()
-    position = back - (standoff + corners @ direction).max() * direction
-    position[2] = base + height * DOMINO_SIZE[0] - corners[:, 2].min()
+    back = (box @ direction).min() - centre @ direction
+    position = centre + (back - standoff - (corners @ direction).max()) * direction
+    base, top = box[:, 2].min(), box[:, 2].max()
+    position[2] = base + height * (top - base) - corners[:, 2].min()
     return RigidTransform(rotation, position)
 
 
@@ -173,15 +184,18 @@ class StrikePlanning(RequestMotions):
         super().__init__(planner, request.start, deadline)
         self.request = request
         s = self.settings
-        self.direction = push_direction(request.domino_pose)
+        self.direction = push_direction(request)
+        self.height = s.strike_height if request.sweep is None else s.sweep_height
         self.push_length = s.strike_standoff + (request.push_distance or s.push_distance)
         self.push_speed = request.push_speed or s.push_speed
         shadow, tcp = planner.plants.get(CLOSED), planner.scenario.tcp_frame
         self.run = Scene(shadow, tcp, request.standing, target=request.domino_pose)
         self.after = Scene(shadow, tcp, request.standing)  # the struck domino has gone
-        pads_near_run = {(PADS, STANDING): s.fine_obstacle_clearance}
+        # the pads may come as near the table as on a placement: a sweep pushes low
+        low_pads = {(PADS, TABLE): s.pad_table_clearance}
+        pads_near_run = {**low_pads, (PADS, STANDING): s.fine_obstacle_clearance}
         self.rules = {
-            "descent": planner.coarse_rules(),
+            "descent": planner.relaxed_rules(low_pads),
             "push": planner.relaxed_rules({**pads_near_run, (PADS, TARGET): -math.inf}),
             "retreat": planner.relaxed_rules(pads_near_run),
             "top": planner.line_end_rules(),
@@ -210,7 +224,7 @@ class StrikePlanning(RequestMotions):
         checks = [(self.run, self.rules["descent"])]
         for rotation in rotations:
             pose = strike_pose(
-                self.request.domino_pose, rotation, s.strike_height, s.strike_standoff
+                self.request.domino_pose, rotation, self.direction, self.height, s.strike_standoff
             )
             ik = PoseIK(self.run, rotation)
             seeds = self.seeds([self.start])
