@@ -8,8 +8,9 @@ base) is built in order. Each attempt: perceive with both pile cameras
 an attempt at this slot already failed (those perception scored as leaving the fingers
 room first, then the others with the most room; flat before leaning); pass the other
 detections within 25 cm as the pile (``PickPlaceRequest.pile``), the dominoes already
-placed as standing and no grasp (the planner chooses; ``--perception-grasp`` passes
-perception's as the preferred one); plan from the simulated arm's joints. A detection
+placed as standing and perception's grasp as the preferred one, as the bring-up does
+(``--no-perception-grasp``: none, the planner chooses); plan from the simulated arm's
+joints. A detection
 the planner refuses is recorded (request included, to plan it again) and, up to
 ``--candidates`` per attempt, the next one is planned (the bring-up offers 16 with their
 pile: ``--candidates 16``; its last resort, planning without the pile, is
@@ -471,7 +472,12 @@ def main() -> None:
     )
     parser.add_argument("--budget", type=float, default=5.0, help="planning budget [s]")
     parser.add_argument("--ignore-pile", action="store_true", help="plan without the pile")
-    parser.add_argument("--perception-grasp", action="store_true", help="prefer perception's grasp")
+    parser.add_argument(
+        "--perception-grasp",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="prefer perception's grasp, as the bring-up does (default)",
+    )
     parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
     args = parser.parse_args()
     load_before = os.getloadavg()

@@ -598,3 +598,34 @@ def test_debris_a_grasp_reaches_or_away_from_the_slot_is_not_swept() -> None:
     run.state.unpickable.clear()
     assert not run._sweep_debris(2, failed=[])  # not refused: picked up, not swept
     assert run.client.sweeps == []
+
+
+class GraspRecordingClient(RefusingClient):
+    """One flat pile domino with perception's grasp beside it; records plan requests."""
+
+    GRASP = Pose(position=Point(x=0.54, y=-0.3, z=0.01), orientation=Quaternion(w=1.0))
+
+    def __init__(self) -> None:
+        super().__init__({0.55: PlanPlace.Response.GRASP_UNREACHABLE, 0.45: 0})
+        self.requests: list[PlanPlace.Request] = []
+
+    def detect(self) -> DetectDominoes.Response:
+        answer = super().detect()
+        for detection in answer.detections.detections:
+            detection.grasp_pose = self.GRASP
+        return answer
+
+    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
+        self.requests.append(request)
+        return super().plan_place(request, timeout)
+
+
+def test_perceptions_grasp_is_offered_to_the_planner_first_a_fallen_dominos_none() -> None:
+    """Perception cleared its grasp against every point the cameras saw; the planner
+    knows only the detected pile (it falls back to its own grasps)."""
+    run = job()
+    run.client = GraspRecordingClient()
+    pile = next(c for c in run._candidates([]) if c.run_index is None)
+    run._plan(0, pile, with_pile=True)
+    run._plan(0, Candidate(lying(0.45, 0.05), 1), with_pile=True)
+    assert [r.grasp_pose for r in run.client.requests] == [GraspRecordingClient.GRASP, Pose()]
