@@ -272,6 +272,26 @@ def test_a_domino_turned_in_the_hand_is_placed_again_from_where_it_is_held(
     assert math.degrees(turn.ToAngleAxis().angle()) <= 10.0
 
 
+def test_a_held_domino_whose_place_is_out_of_reach_says_the_place_is(planner, planned) -> None:
+    """S-curve seed 4: a held domino's re-place was refused as GRASP_UNREACHABLE "for any
+    of 0 grasps"; it is held already, the place is what failed."""
+    req, plan, _ = planned
+    down = plan.segments[2].pieces[-1]
+    at_release = down.sample(np.array([down.duration]))[0][0]
+    measured = checker_for(req).tcp_pose(at_release) @ plan.held_in_tcp
+    held = dataclasses.replace(
+        req,
+        domino_pose=measured,
+        start=at_release,
+        holding=True,
+        place_pose=upright_pose(0.33, 0.0, math.pi / 2),
+        standing=(),
+    )
+    error = failure(planner, held)
+    assert error.code == ErrorCode.PLACE_UNREACHABLE, error
+    assert "place poses" in error.message
+
+
 def test_radial_domino_near_the_base_is_turned_first(planner) -> None:
     """No tilted grasp reaches it (elbow limit); the plan turns it with the top grasp."""
     bearing = math.atan2(-0.30, 0.55)

@@ -391,6 +391,7 @@ class RequestPlanning(RequestMotions):
         request = self.request
         grasp = self.approach.tcp_pose(request.start)
         held = domino_in_tcp(grasp, request.domino_pose)
+        self.search.picks_found = 1  # held already: a failure is the place's, not a grasp's
         transfer = self._scene("closed", held_in_tcp=held)
         self.check_start(transfer, held_perceived=True)
         escape = self.escape(transfer)
