@@ -36,7 +36,7 @@ from pydrake.math import RigidTransform
 
 from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.layouts import DOMINO_WIDTH, DominoPlacement
-from dombot_description import DOMINO_SIZE, domino_corners
+from dombot_description import DOMINO_SIZE, domino_corners, tilt_from_vertical
 from dombot_description.grasp import (
     OrientedBox,
     flat_pose,
@@ -96,11 +96,6 @@ def make_runs(scenario: Scenario, count: int, seed: int) -> list[Run]:
     return runs
 
 
-def tilt(pose: np.ndarray) -> float:
-    """Angle [rad] between a domino's length axis and the vertical."""
-    return float(np.arccos(min(1.0, abs(pose[2, 0]))))
-
-
 def execute(world: CellWorld, run: Run, planner: StrikePlanner, request: StrikeRequest) -> dict:
     """Plan from the simulated arm, run the segments, wait TOPPLE_WAIT s, measure."""
     poses = run.poses()
@@ -121,11 +116,14 @@ def execute(world: CellWorld, run: Run, planner: StrikePlanner, request: StrikeR
             moved = max(
                 np.linalg.norm(a[:3, 3] - b[:3, 3]) for a, b in zip(now, before, strict=True)
             )
-            tilted = max(abs(tilt(a) - tilt(b)) for a, b in zip(now, before, strict=True))
+            tilted = max(
+                abs(tilt_from_vertical(a) - tilt_from_vertical(b))
+                for a, b in zip(now, before, strict=True)
+            )
         track(world, segment)
         gripper_event(world, segment, plan_force(plan, segment.label))
     world.advance(TOPPLE_WAIT)
-    tilts = [math.degrees(tilt(d.X_WD)) for d in world.domino_truth()[: run.count]]
+    tilts = [math.degrees(tilt_from_vertical(d.X_WD)) for d in world.domino_truth()[: run.count]]
     return {
         "pusher_lean_deg": pusher_lean(plan),
         "moved_before_push_mm": moved * 1000,
@@ -172,15 +170,18 @@ def sweep_case(world: CellWorld, run: Run, planner: StrikePlanner) -> dict:
     after = [d.X_WD for d in world.domino_truth()[:3]]
     moved = [float(np.linalg.norm(a[:3, 3] - b[:3, 3])) for a, b in zip(after, truth, strict=True)]
     # the swept domino's nearest corner to the run's line, beyond its side (>0: clear)
-    clear = np.min(np.abs((domino_corners(after[0]) - slot) @ across)) - DOMINO_WIDTH / 2
-    crossed = np.sign((domino_corners(after[0]) - slot) @ across)
+    offsets = (domino_corners(after[0]) - slot) @ across
+    clear = np.min(np.abs(offsets)) - DOMINO_WIDTH / 2
+    crossed = np.sign(offsets)
     return {
         "run": run.index,
         "planned": True,
         "push_mm": round(distance * 1000, 1),
         "beyond_side_mm": round(float(clear) * 1000 if len(set(crossed)) == 1 else -1.0, 1),
         "neighbours_moved_mm": round(max(moved[1:]) * 1000, 2),
-        "neighbours_tilt_deg": round(max(math.degrees(tilt(a)) for a in after[1:]), 2),
+        "neighbours_tilt_deg": round(
+            math.degrees(max(tilt_from_vertical(a) for a in after[1:])), 2
+        ),
         "wall_s": round(time.perf_counter() - began, 1),
     }
 

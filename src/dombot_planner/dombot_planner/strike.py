@@ -24,7 +24,8 @@ Segments: ``close_gripper`` (only if the start may have the fingers open), ``app
 A *sweep* is the same move for a domino in any pose, pushed along a horizontal direction
 the request gives (``StrikeRequest.sweep``), its fingertips at ``sweep_height`` of the
 domino's vertical extent (low, so a flat domino slides rather than the pads riding over
-it): the bring-up clears fallen dominoes out of the run's way so when no grasp reaches them.
+it): the bring-up clears fallen dominoes out of the run's way when no grasp reaches
+them.
 """
 
 from __future__ import annotations
