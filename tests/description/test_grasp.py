@@ -221,6 +221,24 @@ def test_oriented_box_signed_distance() -> None:
     assert pad.signed_distance(points) == pytest.approx([-pad.size[1] / 2, 0.01])
 
 
+def test_pad_paths_cover_the_approach_and_the_closing_stroke() -> None:
+    grasp = pick_grasps(flat_pose(0.5, -0.3, 0.4))[0]
+    paths = grasp.pad_paths(0.05)
+    for open_pad, closed_pad in zip(
+        grasp.pad_boxes(grasp.pregrasp_opening), grasp.pad_boxes(), strict=True
+    ):
+        stroke = closed_pad.pose.translation() - open_pad.pose.translation()
+        inward = stroke / np.linalg.norm(stroke)
+        above = open_pad.pose.translation() - grasp.approach * 0.03
+        # in the gap between the open pad's inner face and the domino's long face
+        gap = open_pad.pose.translation() + inward * (open_pad.size[1] / 2 + PREGRASP_CLEARANCE / 2)
+        assert open_pad.signed_distance(gap[None])[0] == pytest.approx(PREGRASP_CLEARANCE / 2)
+        for point in (above, gap, closed_pad.pose.translation()):
+            assert min(path.signed_distance(point[None])[0] for path in paths) < 0.0
+    beside = grasp.pose.translation() + grasp.pose.rotation().matrix()[:, 1] * 0.05
+    assert min(path.signed_distance(beside[None])[0] for path in paths) > 0.0
+
+
 def test_upright_pose_is_the_bringup_layout_convention() -> None:
     placement = line((0.5, 0.1), 0.8, count=2)[1]
     w, x, y, z = placement.quaternion_wxyz()

@@ -258,6 +258,23 @@ def test_a_neighbour_beside_the_long_face_blocks_the_fingers() -> None:
     assert ranked[1].score < 0.5 * ranked[0].score
 
 
+def test_a_domino_tucked_in_the_fingers_gap_blocks_their_close() -> None:
+    """Seen points 4 mm beside a long face (a domino on its edge, undetected): clear of
+    the open pads, but in their stroke as they close (arc seed 6 missed so, twice)."""
+    pose = flat(*PILE_CENTRE, yaw=0.3)
+    x, z = np.meshgrid(np.arange(-0.022, 0.0221, 0.001), np.arange(-0.003, 0.0031, 0.001))
+    gap = np.stack([x.ravel(), np.full(x.size, HALF_SIZE[1] + 0.004), z.ravel()], axis=1)
+    tucked = gap @ pose[:3, :3].T + pose[:3, 3]
+    config = GraspScoringConfig()
+    (detection,) = score_detections(
+        [_detection(pose)], np.vstack([visible_surface(pose, CAMERA)[0], tucked]), config
+    )
+    assert detection.clearance < 0.0
+    assert detection.score == 0.0 and not predicted_success(detection, config)
+    (alone,) = score_detections([_detection(pose)], visible_surface(pose, CAMERA)[0], config)
+    assert alone.score > 0.5 and predicted_success(alone, config)
+
+
 def test_flatness_alone_would_pick_the_blocked_domino() -> None:
     """The paper's rule ranks by flatness only; a blocked flat domino must lose to a
     slightly tilted free one under our score."""

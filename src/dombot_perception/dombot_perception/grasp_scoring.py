@@ -6,9 +6,10 @@ domino, each candidate grasp is checked against everything the cameras saw, and
 the domino's score combines:
 
 * flatness: how parallel its largest face is to the table (the paper's only term);
-* clearance: the free space around the finger pads at the pre-grasp opening, swept
-  back along the approach, against every other seen point and the table: the
-  fingers must fit beside the domino's long faces without touching a neighbour;
+* clearance: the free space around the finger pads' path (open, swept back along the
+  approach, then closing onto the domino) against every other seen point and the
+  table: the fingers must fit beside the domino's long faces and close on it without
+  touching a neighbour; below ``min_clearance`` (a predicted collision) the term is 0;
 * uncovered: no other domino lies on top of it (points above its top face);
 * height: higher in the pile is better (nothing under it can pin it, and picking it
   does not disturb the rest); 0.5 for the lowest, 1 for the highest, so it only ranks;
@@ -84,7 +85,7 @@ def score_detections(
         covered = _points_on_top(detection.X_WD, obstacles, config.cover_height)
         terms = {
             "flatness": abs(detection.X_WD[2, 2]),
-            "clearance": float(np.clip(choice.clearance / config.good_clearance, 0.0, 1.0)),
+            "clearance": clearance_term(choice.clearance, config),
             "uncovered": float(np.clip(1.0 - covered / config.max_cover_points, 0.0, 1.0)),
             "height": 0.5 + 0.5 * float((top - tops.min()) / span) if span > 1e-6 else 1.0,
             "reach": _reach_term(choice.grasp, config),
@@ -95,6 +96,14 @@ def score_detections(
         detection.score_terms = terms
         detection.score = weighted_geometric_mean(terms, config.weights)
     return sorted(detections, key=lambda d: -d.score)
+
+
+def clearance_term(clearance: float, config: GraspScoringConfig) -> float:
+    """0 below ``min_clearance`` (a predicted collision leaves the domino unscored, offered
+    after those with room), else rising to 1 at ``good_clearance``."""
+    if clearance < config.min_clearance:
+        return 0.0
+    return float(np.clip(clearance / config.good_clearance, 0.0, 1.0))
 
 
 def predicted_success(detection: Detection, config: GraspScoringConfig) -> bool:
@@ -143,18 +152,13 @@ def best_grasp(
 
 
 def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: float) -> float:
-    """Smallest distance [m] from the open pads, swept back along the approach, to any
-    obstacle point; ``FREE_SPACE`` when nothing is nearer."""
-    clearance = FREE_SPACE
-    for box in grasp.pad_boxes(grasp.pregrasp_opening):
-        if obstacles.shape[0] == 0:
-            break
-        rotation = box.pose.rotation().matrix()  # pad z is the approach direction
-        center = box.pose.translation() - rotation[:, 2] * approach_distance / 2.0
-        half = box.size / 2.0 + np.array([0.0, 0.0, approach_distance / 2.0])
-        local = (obstacles - center) @ rotation
-        clearance = min(clearance, float(box_signed_distance(local, half).min()))
-    return clearance
+    """Smallest distance [m] from the pads' path (``Grasp.pad_paths``: down the approach,
+    then closing onto the domino) to any obstacle point; ``FREE_SPACE`` when nothing is
+    nearer."""
+    if obstacles.shape[0] == 0:
+        return FREE_SPACE
+    paths = grasp.pad_paths(approach_distance)
+    return min(FREE_SPACE, *(float(path.signed_distance(obstacles).min()) for path in paths))
 
 
 def pads_above_table(grasp: Grasp, min_height: float) -> bool:
