@@ -311,7 +311,7 @@ def test_a_run_domino_whose_pick_failed_stays_an_obstacle_where_it_lies() -> Non
     run = job()
     run._remember_fallen(2, STANDING, lying(0.45, 0.060), math.radians(2.0))
     run.client = PlanningCheckingClient([FALLEN], [0.0], [math.radians(80.0)])
-    run._execute = lambda segments, **_: (False, "approach_grasp: grasp on an edge")
+    run._execute = lambda segments, *_, **__: (False, "approach_grasp: grasp on an edge")
     assert run._attempt(2, [])[:2] == (False, "approach_grasp: grasp on an edge")
     assert 2 in run.state.fallen  # still there, not offered again:
     assert [c.source for c in run._candidates([])] == []
@@ -327,7 +327,7 @@ def test_an_upright_run_domino_whose_pick_up_again_missed_is_kept_if_still_close
     run.state.standing = {0: run.targets[0], 1: run.targets[1]}
     run._remember_fallen(2, STANDING, lying(0.45 + 0.0089, 0.060), math.radians(2.0))
     run.client = PlanningCheckingClient([STANDING] * 3, [0.001, 0.001, 0.009], [0.01] * 3)
-    run._execute = lambda segments, **_: (False, "approach_grasp: grasp missed")
+    run._execute = lambda segments, *_, **__: (False, "approach_grasp: grasp missed")
     success, why, spot, moved = run._attempt(2, [])
     assert success and why.startswith("standing") and spot is None and moved
     assert sorted(run.state.standing) == [0, 1, 2] and not run.state.fallen
@@ -336,7 +336,7 @@ def test_an_upright_run_domino_whose_pick_up_again_missed_is_kept_if_still_close
     run = job()
     run._remember_fallen(2, STANDING, lying(0.45 + 0.013, 0.060), math.radians(2.0))
     run.client = PlanningCheckingClient([STANDING], [0.013], [0.01])
-    run._execute = lambda segments, **_: (False, "approach_grasp: grasp missed")
+    run._execute = lambda segments, *_, **__: (False, "approach_grasp: grasp missed")
     assert run._attempt(2, [])[:2] == (False, "approach_grasp: grasp missed")
     assert sorted(run.state.fallen) == [2] and 2 not in run.state.standing
 
@@ -454,8 +454,9 @@ def test_a_failed_pick_names_the_simulator_domino_it_was_after() -> None:
 
 
 class HandCheckingClient:
-    """Perception sees the held domino ``off`` metres beside its release pose (in x) with
-    ``status``; the held plan opens the fingers to 31 mm; gripper commands are recorded."""
+    """Perception sees the held domino ``off`` metres beside where it was asked to look
+    (in x) with ``status``; the held plan opens the fingers to 31 mm; where perception was
+    asked to look and the gripper commands are recorded."""
 
     sim_time = 0.0
 
@@ -463,6 +464,7 @@ class HandCheckingClient:
         self.status, self.off, self.tilt = status, off, tilt
         self.held_requests: list[PlanPlace.Request] = []
         self.openings: list[float] = []
+        self.looked_at: list[Pose] = []
 
     def wait_for_sim_time(self, seconds: float) -> None:
         pass
@@ -470,6 +472,7 @@ class HandCheckingClient:
     def check_placement(self, expected: list[Pose], in_hand: bool = False):
         assert in_hand
         pose = expected[0]
+        self.looked_at.append(pose)
         measured = Pose(
             position=Point(x=pose.position.x + self.off, y=pose.position.y, z=pose.position.z),
             orientation=pose.orientation,
@@ -485,7 +488,8 @@ class HandCheckingClient:
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
         self.held_requests.append(request)
         segments = [
-            TrajectorySegment(label="transfer", gripper_after=OPEN, gripper_position=0.031),
+            TrajectorySegment(label="transfer"),
+            TrajectorySegment(label="place", gripper_after=OPEN, gripper_position=0.031),
             TrajectorySegment(label="retreat"),
         ]
         return PlanPlace.Response(success=True, segments=segments)
@@ -504,21 +508,30 @@ class HandCheckingClient:
         (STANDING, 0.009, math.radians(8.0), False),
     ],
 )
-def test_a_domino_found_off_in_the_hand_is_placed_again_before_the_fingers_let_go(
+def test_a_domino_found_off_in_the_hand_above_its_slot_is_carried_again_from_there(
     status: int, off: float, tilt: float, placed_again: bool
 ) -> None:
     """Both off placements seen with the motion log had turned in the hand on the way:
-    seen 3 mm off before letting go, it is carried again from where it is held (once); 1 mm
-    off, or not seen, it is let go as planned; so is one turned 8° (a correction of such
-    a hold knocked two standing dominoes over). Only the fingers at the slot ask."""
+    seen 3 mm off where "transfer" ends above its slot, it is carried again from where it
+    is held (once), its descent included; 1 mm off, or not seen, it is placed as planned;
+    so is one turned 8° (a correction of such a hold knocked two standing dominoes over).
+    Only the domino for the slot is looked at, where the plan says it is held."""
     run = job()
     run.client = HandCheckingClient(status, off, tilt)
     planned = [
         TrajectorySegment(label="open_gripper", gripper_after=OPEN, gripper_position=0.04),
-        TrajectorySegment(label="transfer", gripper_after=OPEN, gripper_position=0.034),
+        TrajectorySegment(label="regrasp_transfer"),
+        TrajectorySegment(label="transfer"),
+        TrajectorySegment(label="place", gripper_after=OPEN, gripper_position=0.034),
         TrajectorySegment(label="retreat"),
     ]
-    assert run._execute(planned, place_index=1) == (True, "")
+    release = run.releases[1]
+    above = Pose(
+        position=Point(x=release.position.x, y=release.position.y, z=release.position.z + 0.07),
+        orientation=release.orientation,
+    )
+    assert run._execute(planned, (1, above)) == (True, "")
+    assert run.client.looked_at == [above]
     held = run.client.held_requests
     assert run.client.openings == [0.04, 0.031 if placed_again else 0.034]  # let go once
     assert len(held) == placed_again

@@ -129,8 +129,9 @@ def hold(world, render_build_area, render_every_camera):
     views of camera_2 (``every_camera``: of all cameras) and the domino at
     ``target`` held at the canonical place grasp with the gripper leaning over the
     target's ``lean``·z side, turned by ``turn`` rad about the pinch axis and moved by
-    ``shift`` (domino frame) in the hand, its lowest corner 0.2 mm above the table; the
-    arm at an IK solution for it, the fingers closed; ``neighbours`` standing too."""
+    ``shift`` (domino frame) in the hand, its lowest corner 0.2 mm above the table (and
+    ``height`` more); the arm at an IK solution for it, the fingers closed;
+    ``neighbours`` standing too."""
     shadow = build_shadow_plant(world.scenario, CLOSED)
     plant = shadow.plant
     tcp_frame = plant.GetFrameByName(world.scenario.tcp_frame)
@@ -148,7 +149,15 @@ def hold(world, render_build_area, render_every_camera):
         assert result.is_success(), "no arm configuration holds the domino there"
         return result.GetSolution(ik.q())
 
-    def held(target, turn=0.0, shift=(0.0, 0.0, 0.0), lean=1, neighbours=(), every_camera=False):
+    def held(
+        target,
+        turn=0.0,
+        shift=(0.0, 0.0, 0.0),
+        lean=1,
+        neighbours=(),
+        every_camera=False,
+        height=0.0,
+    ):
         place = RigidTransform(target)
         tcp = place_grasps(place, canonical_grasp().inverse(), lean * target[:3, 2])[0]
         in_tcp = tcp.inverse() @ place
@@ -156,7 +165,8 @@ def hold(world, render_build_area, render_every_camera):
         turned = RigidTransform(pinch) @ RigidTransform(RotationMatrix.MakeYRotation(turn))
         domino = tcp @ in_tcp @ turned @ RigidTransform(-pinch) @ RigidTransform(shift)
         corners = CORNERS * [HALF_LENGTH, 0.012, HALF_THICKNESS] @ domino.rotation().matrix().T
-        lift = RigidTransform([0.0, 0.0, 0.0002 - domino.translation()[2] - corners[:, 2].min()])
+        lowest = domino.translation()[2] + corners[:, 2].min()
+        lift = RigidTransform([0.0, 0.0, 0.0002 + height - lowest])
         world.set_robot_positions(arm_at(lift @ tcp), CLOSED)
         truth = (lift @ domino).GetAsMatrix4()
         poses = {0: truth} | {i + 1: pose for i, pose in enumerate(neighbours)}
@@ -201,6 +211,23 @@ def test_a_domino_held_by_the_gripper_is_measured_below_the_pads(
     # for comparison only: the normal fit takes in the pads (measured 0.6-0.7° off here)
     [normal] = check_placements(run_poses[2:3], views, pipeline, PlacementConfig())
     print("normal mode:", normal.status, foot_and_tilt_errors(normal.measured, truth))
+
+
+@pytest.mark.parametrize("turn", [0.0, 6.0])
+def test_a_domino_held_above_its_slot_is_measured_there(run_poses, pipeline, hold, turn) -> None:
+    """Where the bring-up looks: 70 mm straight above the slot (the planner's
+    place_approach_distance), over the standing neighbours, above the pile's 70 mm
+    ceiling of the work region."""
+    views, truth = hold(
+        run_poses[2], np.radians(turn), (0.0, 0.0, 0.003), -1, [run_poses[1]], height=0.07
+    )
+    above = run_poses[2].copy()
+    above[2, 3] += 0.07
+    [held] = check_placements([above], views, pipeline, PlacementConfig(in_hand=True))
+    assert held.status == STANDING
+    foot, tilt = foot_and_tilt_errors(held.measured, truth)
+    assert foot < FOOT_TOLERANCE and tilt < TILT_TOLERANCE, (foot, np.degrees(tilt))
+    assert held.measured[2, 3] == pytest.approx(truth[2, 3], abs=0.002)
 
 
 def test_a_domino_hidden_by_the_gripper_leaning_towards_the_camera_is_not_seen(

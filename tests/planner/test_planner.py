@@ -85,7 +85,8 @@ def test_plan_has_the_gripper_events_in_order(planned) -> None:
     assert events == [
         ("open_gripper", GRIPPER_OPEN),
         ("approach_grasp", GRIPPER_CLOSE),
-        ("transfer", GRIPPER_OPEN),
+        ("transfer", GRIPPER_NONE),
+        ("place", GRIPPER_OPEN),
         ("retreat", GRIPPER_NONE),
     ]
     closing = plan.segments[1]
@@ -238,31 +239,54 @@ def test_start_where_a_grasp_missed_is_left_straight_up_first(planner, planned) 
             assert result.min_clearance("coarse", moving, obstacle) >= SETTINGS.coarse_clearance
 
 
+def end_of(segment) -> np.ndarray:
+    """Arm joints where ``segment`` ends."""
+    last = segment.pieces[-1]
+    return last.sample(np.array([last.duration]))[0][0]
+
+
+def test_transfer_ends_straight_above_the_release_holding_the_domino_as_reported(
+    planned,
+) -> None:
+    """The hold is looked at where "transfer" ends: the response's held_above_place is
+    the domino there, place_approach_distance straight above where it is let go."""
+    req, plan, _ = planned
+    checker = checker_for(req)
+    above = checker.tcp_pose(end_of(plan.segments[2])) @ plan.held_in_tcp
+    released = checker.tcp_pose(end_of(plan.segments[3])) @ plan.held_in_tcp
+    assert above.IsNearlyEqualTo(plan.held_above_place, 1e-5)  # IK to ~4e-6
+    rise = above.translation() - released.translation()
+    assert rise == pytest.approx([0.0, 0.0, SETTINGS.place_approach_distance], abs=1e-4)
+    assert [piece.label for piece in plan.segments[3].pieces] == ["descend_to_place"]
+
+
+@pytest.mark.parametrize("where", ["above", "release"])
 def test_a_domino_turned_in_the_hand_is_placed_again_from_where_it_is_held(
-    planner, planned
+    planner, planned, where: str
 ) -> None:
     """The fingers have not let go; the domino was measured turned 6° about the fingers'
-    closing axis and 3 mm off: the held plan lifts it straight up, carries it to the
-    place and opens there, so that the domino as now held stands on its place pose."""
+    closing axis and 3 mm off, above its place (where the bring-up looks) or standing at
+    it: the held plan carries it to the place (lifting it straight off the table first
+    when it stood on it) and opens there, so that the domino as now held stands on its
+    place pose."""
     req, plan, _ = planned
-    down = plan.segments[2].pieces[-1]
-    at_release = down.sample(np.array([down.duration]))[0][0]
+    start = end_of(plan.segments[2 if where == "above" else 3])
     checker = checker_for(req)
-    tcp = checker.tcp_pose(at_release)
+    tcp = checker.tcp_pose(start)
     turned = RigidTransform(RotationMatrix.MakeYRotation(math.radians(6.0)), [0.0, 0.0, 0.003])
     held_now = plan.held_in_tcp @ turned
     measured = tcp @ held_now
-    held = dataclasses.replace(req, domino_pose=measured, start=at_release, holding=True)
+    held = dataclasses.replace(req, domino_pose=measured, start=start, holding=True)
     again = planner.plan(held)
     assert [(s.label, s.gripper_after) for s in again.segments] == [
-        ("transfer", GRIPPER_OPEN),
+        ("transfer", GRIPPER_NONE),
+        ("place", GRIPPER_OPEN),
         ("retreat", GRIPPER_NONE),
     ]
-    assert again.segments[0].pieces[0].label == "escape"  # the domino stood on the table
+    escaped = again.segments[0].pieces[0].label == "escape"
+    assert escaped == (where == "release")  # the domino stood on the table
     assert again.held_in_tcp.IsNearlyEqualTo(held_now, 1e-9)
-    carry = again.segments[0].pieces[-1]
-    end = carry.sample(np.array([carry.duration]))[0][0]
-    placed = checker.tcp_pose(end) @ held_now
+    placed = checker.tcp_pose(end_of(again.segments[1])) @ held_now
     release = RigidTransform(SETTINGS.release_height * np.array([0, 0, 1.0])) @ req.place_pose
     assert np.linalg.norm(placed.translation() - release.translation()) <= 1e-3
     upright = placed.rotation().matrix()[:, 0] @ release.rotation().matrix()[:, 0]
@@ -276,8 +300,7 @@ def test_a_held_domino_whose_place_is_out_of_reach_says_the_place_is(planner, pl
     """S-curve seed 4: a held domino's re-place was refused as GRASP_UNREACHABLE "for any
     of 0 grasps"; it is held already, the place is what failed."""
     req, plan, _ = planned
-    down = plan.segments[2].pieces[-1]
-    at_release = down.sample(np.array([down.duration]))[0][0]
+    at_release = end_of(plan.segments[3])
     measured = checker_for(req).tcp_pose(at_release) @ plan.held_in_tcp
     held = dataclasses.replace(
         req,

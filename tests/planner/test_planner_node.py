@@ -102,14 +102,22 @@ def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> N
         "open_gripper",
         "approach_grasp",
         "transfer",
+        "place",
         "retreat",
     ]
     assert [s.gripper_after for s in response.segments] == [
         TrajectorySegment.GRIPPER_OPEN,
         TrajectorySegment.GRIPPER_CLOSE,
+        TrajectorySegment.GRIPPER_NONE,
         TrajectorySegment.GRIPPER_OPEN,
         TrajectorySegment.GRIPPER_NONE,
     ]
+    # the held domino above its place, upright, where the bring-up looks at the hold
+    above, place = response.held_above_place, plan_request().place_pose
+    assert (above.position.x, above.position.y) == pytest.approx(
+        (place.position.x, place.position.y), abs=1e-3
+    )
+    assert above.position.z == pytest.approx(place.position.z + 0.07, abs=1e-3)
     approach = response.segments[1].trajectory
     assert list(approach.joint_names) == list(SCENARIO.arm_joints)
     first = approach.points[0]

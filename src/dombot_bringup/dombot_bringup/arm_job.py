@@ -5,7 +5,8 @@ then for each domino of the layout, in run order:
 
 perceive the pile → choose the best graspable detection → ``/plan_place`` with the
 dominoes already standing as obstacles → execute the segments (trajectories and
-gripper events) → check the grasp by the finger opening → place → check the placement
+gripper events) → check the grasp by the finger opening → carry it above its slot and
+look at the hold (carried again if it turned in the hand) → place → check the placement
 with perception (camera_2 watches the build area) → on failure retry with the next
 candidate; a domino that fell is picked up again from where perception found it.
 
@@ -57,7 +58,8 @@ IN_HAND_WORDS = {
     CheckPlacement.Response.MISSING: "nothing seen below the pads (dropped?)",
     CheckPlacement.Response.NOT_SEEN: "not seen well enough (hidden, or seen edge-on)",
 }
-PLACE_SEGMENT = "transfer"  # opens the fingers at the slot (a regrasp's own is prefixed)
+# ends straight above the slot, where the hold is looked at (a regrasp's own is prefixed)
+HOLD_CHECK_SEGMENT = "transfer"
 NEEDED_SERVICES = (
     "/sim/reset",
     "/perception/detect",
@@ -100,16 +102,18 @@ class ArmJobSettings:
     # ~0.45 mm from the grasp, the rest as the pads let go. The arm releases them this much
     # ahead (the check still measures from the target).
     place_lead: float = 0.00075  # m
-    # Before the fingers let go, perception looks at the held domino: one whose foot is
-    # this far from its release pose, or that leans this much, turned or slid in the hand
-    # on the way (the off placements seen with sim_node's motion log did: 2.1 mm / 5.4° in
-    # the hand, 3.4 mm off once let go) and is placed again from where it is held, once.
+    # Straight above its slot, before the descent, perception looks at the held domino:
+    # one whose foot is this far from where it should be held there, or that leans this
+    # much, turned or slid in the hand on the way (the off placements seen with sim_node's
+    # motion log did: 2.1 mm / 5.4° in the hand, 3.4 mm off once let go) and is carried
+    # again from there, once. (Looked at on its slot, a correction carried it out from
+    # between its standing neighbours: twice it left the fingers and knocked them over.)
     # 0: no check (it costs a camera frame and the fits, ~1 s simulated per domino).
     # With nothing wrong the foot reads ~1 mm off (rendered holds; median 1.35 mm over the
     # benchmark's readings), the tilt within 0.2°.
     in_hand_tolerance: float = 0.002  # m
     in_hand_tilt_tolerance: float = math.radians(1.5)
-    # ... but one turned further than this is let go as planned: the one correction of a
+    # ... but one turned further than this is placed as it is: the one correction of a
     # domino turned 8.3° in the hand (S-curve seed 4) knocked it out of the hand and two
     # standing neighbours over, while the benchmark's 24 others, up to 2.9°, all placed
     # within 1.2 mm; let go so turned, one placed 6.5 mm off, standing (the session before).
@@ -345,7 +349,7 @@ class ArmJob:
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
             truth_name, seen_off = self._nearest_truth(candidate.pose)
             self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
-            executed, why = self._execute(plan.segments, place_index=index)
+            executed, why = self._execute(plan.segments, (index, plan.held_above_place))
             if not executed:  # blocked or missed: unless it moved, the same would happen again
                 if seen_off is not None:  # the name finds it in sim_node's "during the" lines
                     log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
@@ -512,15 +516,16 @@ class ArmJob:
     def _execute(
         self,
         segments: Sequence[TrajectorySegment],
+        slot: tuple[int, Pose] | None = None,
         holds_domino: bool = True,
-        place_index: int | None = None,
     ) -> tuple[bool, str]:
         """Run the segments and their gripper events.
 
         A close that should hold a domino is checked by where the fingers stopped (the
         strike closes them on nothing). When a grasp fails, the arm backs out the way it
-        came before anything else is tried. Before the fingers let go of the domino for
-        slot ``place_index``, it is looked at in the hand (``_placed_again``).
+        came before anything else is tried. ``slot``: the index of the slot the domino
+        goes to and where it should be held when "transfer" ends above it; it is looked
+        at in the hand there (``_carried_again``).
         """
         for segment in segments:
             points = segment.trajectory.points
@@ -545,39 +550,40 @@ class ArmJob:
                         f"{closed.position * 1e3:.1f} mm, domino {DOMINO_SIZE[1] * 1e3:.0f} mm)"
                     )
             elif segment.gripper_after == TrajectorySegment.GRIPPER_OPEN:
-                if place_index is not None and segment.label == PLACE_SEGMENT:
-                    again = self._placed_again(place_index)
-                    if again is not None:
-                        return self._execute(again)
                 self.client.gripper(segment.gripper_position, 0.0)
+            if slot is not None and segment.label == HOLD_CHECK_SEGMENT:
+                again = self._carried_again(*slot)
+                if again is not None:
+                    return self._execute(again)
         return True, ""
 
-    def _placed_again(self, index: int) -> list[TrajectorySegment] | None:
-        """The held domino about to be let go at slot ``index``, seen by perception: when
-        it turned or slid in the hand on the way (``in_hand_tolerance``), a plan from
-        where it is held to its release pose (the fingers open there, then the retreat).
-        None: let go as planned (within the tolerance, turned beyond
-        ``in_hand_max_turn``, not seen well, or no plan)."""
+    def _carried_again(self, index: int, held_above: Pose) -> list[TrajectorySegment] | None:
+        """The held domino straight above slot ``index`` (planned to be held at
+        ``held_above``), seen by perception: when it turned or slid in the hand on the way
+        (``in_hand_tolerance``), a plan from where it is held to its release pose (down
+        onto it from above, the fingers open there, then the retreat). None: placed as
+        planned (within the tolerance, turned beyond ``in_hand_max_turn``, not seen well,
+        or no plan)."""
         settings = self.settings
         if settings.in_hand_tolerance <= 0.0:
             return None
         self._wait_for_fresh_frames()
         release, n = self.releases[index], len(self.layout)
-        answer = self.client.check_placement([release], in_hand=True)
+        answer = self.client.check_placement([held_above], in_hand=True)
         if not (answer.success and answer.status[0] == CheckPlacement.Response.STANDING):
             status = IN_HAND_WORDS.get(answer.status[0], "?") if answer.success else answer.message
-            log(f"domino {index + 1}/{n} in the hand: {status}; letting go")
+            log(f"domino {index + 1}/{n} in the hand: {status}; placing it")
             return None
         measured, tilt = answer.measured[0], answer.tilt[0]
-        off = foot_distance(measured, release)
+        off = foot_distance(measured, held_above)
         seen = f"foot {off * 1e3:.1f} mm off, leaning {math.degrees(tilt):.1f}°"
         if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
-            log(f"domino {index + 1}/{n} in the hand: {seen}; letting go")
+            log(f"domino {index + 1}/{n} in the hand: {seen}; placing it")
             return None
         if tilt > settings.in_hand_max_turn:
             log(
                 f"domino {index + 1}/{n} in the hand: {seen}; "
-                "turned too far to carry it again, letting go"
+                "turned too far to carry it again, placing it as it is"
             )
             return None
         self.report.dominoes[index].corrected_in_hand.append(seen)
@@ -593,11 +599,11 @@ class ArmJob:
         )
         if not plan.success:
             log(
-                f"domino {index + 1}/{n} in the hand: {seen}; placing it again refused, "
-                f"letting go ({plan.message.split(' (')[0]})"
+                f"domino {index + 1}/{n} in the hand: {seen}; carrying it again refused, "
+                f"placing it as it is ({plan.message.split(' (')[0]})"
             )
             return None
-        log(f"domino {index + 1}/{n} in the hand: {seen}; placing it again from where it is held")
+        log(f"domino {index + 1}/{n} in the hand: {seen}; carrying it again from where it is held")
         return list(plan.segments)
 
     def _grasp_problem(self, opening: float) -> str:

@@ -12,14 +12,14 @@ MISSING when the cameras see almost nothing above the table there, FALLEN otherw
 unless something in front hides most of the place from every camera (the arm, just
 after placing a domino nearby): then NOT_SEEN, no evidence either way.
 
-In hand (``PlacementConfig.in_hand``) the domino is checked before the fingers let go: the
-pads pinch its top (their lower edges ~29-31 mm above the table at the place grasp) and
-the gripper leans over it, so only its points lower than ``in_hand_fit_height`` above the
-expected foot are fitted and the fit must cover ``min_height_seen`` of that part only,
-in each camera's points alone (``_held``). What the caller needs from it, the foot's
-horizontal position and the tilt, does not depend on the hidden top. A place not fitted
-that way is NOT_SEEN (no evidence): the pipeline's detections cannot tell a held domino
-from the pads around it.
+In hand (``PlacementConfig.in_hand``) the domino is checked before the fingers let go,
+anywhere up to above its slot: the pads pinch its top (their lower edges ~29-31 mm above
+its foot at the place grasp) and the gripper leans over it, so only its points lower than
+``in_hand_fit_height`` above the expected foot are fitted and the fit must cover
+``min_height_seen`` of that part only, in each camera's points alone (``_held``). What
+the caller needs from it, the foot's horizontal position and the tilt, does not depend on
+the hidden top. A place not fitted that way is NOT_SEEN (no evidence): the pipeline's
+detections cannot tell a held domino from the pads around it.
 """
 
 from __future__ import annotations
@@ -86,6 +86,10 @@ def check_placements(
         return []
     region = _run_region(expected, pipeline.config.region, config)
     if config.in_hand:
+        # held above its slot (the bring-up looks before the descent): the work region's
+        # ceiling (the pile's height) would cut the part below the pads off
+        ceiling = max(_foot_height(pose) for pose in expected) + config.in_hand_fit_height
+        region = replace(region, max_height=max(region.max_height, ceiling + config.fit_margin))
         return [
             _held(pose, views, region, pipeline.config.depth_range, config) for pose in expected
         ]

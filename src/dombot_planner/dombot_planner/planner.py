@@ -84,8 +84,14 @@ class PickPlacePlan(Plan):
     grasp_pose: RigidTransform  # TCP when the gripper closes
     release_pose: RigidTransform  # TCP when it opens
     held_in_tcp: RigidTransform  # the domino in the TCP frame while held
+    place_approach: float  # m straight down from where "transfer" ends to the release pose
     regrasped: bool = False  # the domino was turned in place first (two picks)
     nudged: bool = False  # the pads reach into a pile domino's box (up to pile_nudge)
+
+    @property
+    def held_above_place(self) -> RigidTransform:
+        """The held domino where "transfer" ends, straight above where it is let go."""
+        return RigidTransform(self.place_approach * UP) @ self.release_pose @ self.held_in_tcp
 
 
 def steeper_grasps(domino_pose: RigidTransform, limit: float) -> list[RigidTransform]:
@@ -291,6 +297,7 @@ class PickPlacePlanner(ArmPlanner):
             grasp_pose=second.grasp_pose,
             release_pose=second.release_pose,
             held_in_tcp=second.held_in_tcp,
+            place_approach=second.place_approach,
             kto_attempts={
                 **{f"regrasp_{k}": v for k, v in first.kto_attempts.items()},
                 **second.kto_attempts,
@@ -410,19 +417,16 @@ class RequestPlanning(RequestMotions):
                 continue
             self.deadline.check("retiming")
             leave = [] if escape is None else [self.timed_line("escape", escape, transfer)]
-            carry = [
-                *leave,
-                to_place,
-                self.timed_line("descend_to_place", place.line[::-1], transfer),
-            ]
             return PickPlacePlan(
                 [
-                    self._place_segment(carry),
+                    self._transfer_segment([*leave, to_place]),
+                    self._place_segment(place, transfer),
                     self._retreat_segment(place),
                 ],
                 grasp_pose=grasp,
                 release_pose=place.tcp_pose,
                 held_in_tcp=held,
+                place_approach=self.settings.place_approach_distance,
                 kto_attempts=attempts,
             )
         raise connect_error or self.search.error()
@@ -536,7 +540,6 @@ class RequestPlanning(RequestMotions):
             "escape": [] if escape is None else [self.timed_line("escape", escape, self.approach)],
             "down_to_grasp": self.timed_line("descend_to_grasp", pick.line[::-1], self.approach),
             "lift": self.timed_line("lift", pick.line, transfer),
-            "down_to_place": self.timed_line("descend_to_place", place.line[::-1], transfer),
         }
         segments = [
             Segment(
@@ -555,7 +558,8 @@ class RequestPlanning(RequestMotions):
                 0.0,
                 force,
             ),
-            self._place_segment([pieces["lift"], to_place, pieces["down_to_place"]]),
+            self._transfer_segment([pieces["lift"], to_place]),
+            self._place_segment(place, transfer),
             self._retreat_segment(place),
         ]
         held_in_tcp = domino_in_tcp(pick.tcp_pose, self.request.domino_pose)
@@ -564,13 +568,20 @@ class RequestPlanning(RequestMotions):
             grasp_pose=pick.tcp_pose,
             release_pose=place.tcp_pose,
             held_in_tcp=held_in_tcp,
+            place_approach=self.settings.place_approach_distance,
             kto_attempts=attempts,
         )
 
-    def _place_segment(self, pieces: list[TimedPath]) -> Segment:
-        """Carrying the held domino down to its place, the fingers opening there."""
+    def _transfer_segment(self, pieces: list[TimedPath]) -> Segment:
+        """Carrying the held domino to above its place, clear of the run: the hold can be
+        looked at there, and a domino turned in the hand carried again from there."""
+        return Segment("transfer", pieces, self.openings["closed"])
+
+    def _place_segment(self, place: End, transfer: Scene) -> Segment:
+        """Straight down onto the place, the fingers opening there."""
         openings = self.openings
-        return Segment("transfer", pieces, openings["closed"], GRIPPER_OPEN, openings["release"])
+        down = self.timed_line("descend_to_place", place.line[::-1], transfer)
+        return Segment("place", [down], openings["closed"], GRIPPER_OPEN, openings["release"])
 
     def _retreat_segment(self, place: End) -> Segment:
         line = self.timed_line("retreat", place.line, self.retreat)

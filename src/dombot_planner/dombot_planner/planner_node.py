@@ -30,6 +30,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from dombot_description.pose_messages import pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
 from dombot_msgs.srv import PlanPlace, PlanStrike
@@ -291,6 +292,8 @@ class PlannerNode(Node):
                     gripper_max_effort=float(segment.gripper_effort),
                 )
             )
+        if isinstance(plan, PickPlacePlan):
+            response.held_above_place = pose_message(plan.held_above_place.GetAsMatrix4())
         response.success = True
         response.error_code = int(ErrorCode.SUCCESS)
         response.message = "planned" + (f" ({remark})" if remark else "")
