@@ -146,6 +146,10 @@ def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> N
         ),
         ({"time_budget": -2.0}, PlanPlace.Response.INVALID_REQUEST),
         (
+            {"pile_points": [Point(x=0.6, y=-0.28, z=0.01), Point(x=math.inf)]},
+            PlanPlace.Response.INVALID_REQUEST,
+        ),
+        (
             {"place_pose": pose_message(upright_pose(1.5, 0.0, 0.0))},
             PlanPlace.Response.OUTSIDE_WORKSPACE,
         ),
@@ -166,6 +170,7 @@ def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> N
         "nan",
         "non_unit_quaternion",
         "negative_budget",
+        "infinite_pile_point",
         "outside_workspace",
         "place_on_a_standing_domino",
         "start_state_lacks_joints",

@@ -47,6 +47,7 @@ NodeCommand = Callable[[str, str, dict], list[str]]
 BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
 DETECT_TRIES = 4
+POINTS_RADIUS = 0.12  # m: seen points farther from a pick than this cannot meet the pads
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 # Refusals about the domino, not the slot: remembered for the run. A search that used up
 # its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
@@ -150,6 +151,8 @@ class Candidate:
     # Perception's grasp, clear of every point the cameras saw (undetected dominoes too);
     # None for a fallen run domino: the planner chooses.
     grasp: Pose | None = None
+    # seen points near it on no detected domino: the planner keeps the pads' path clear
+    points: list[Point] = field(default_factory=list)
 
     def spot(self) -> np.ndarray:
         return spot_of(self.pose)
@@ -438,6 +441,7 @@ class ArmJob:
                 # perception had within 1.2 mm of the truth
                 grasp_pose=candidate.grasp or Pose(),
                 pile_dominoes=candidate.neighbours if with_pile else [],
+                pile_points=candidate.points if with_pile else [],
                 grasp_width=0.0,
                 place_pose=self.releases[index],
                 standing_dominoes=[
@@ -478,7 +482,7 @@ class ArmJob:
             for index, pose in sorted(self.state.fallen.items())
             if not near_any(spot_of(pose), avoid)
         ]
-        detections = self._detect()
+        detections, unexplained = self._detect()
         return fallen + [
             Candidate(
                 detection.pose,
@@ -488,24 +492,26 @@ class ArmJob:
                 scored=detection.score > 0.0,
                 clearance=detection.clearance,
                 grasp=detection.grasp_pose,
+                points=points_near(detection.pose, unexplained),
             )
             for detection in detections
             if detection.posture in PICKABLE_POSTURES
             and not near_any(spot_of(detection.pose), avoid)
         ]
 
-    def _detect(self) -> list[DominoDetection]:
-        """Perception's detections in fresh frames. A failure or an empty pile (e.g. the
-        cameras' first frames after the reset not yet through) is asked again a few camera
-        periods on; an empty answer after that is taken as the pile's end."""
+    def _detect(self) -> tuple[list[DominoDetection], list[Point]]:
+        """Perception's detections in fresh frames, and the points seen on none of them.
+        A failure or an empty pile (e.g. the cameras' first frames after the reset not yet
+        through) is asked again a few camera periods on; an empty answer after that is
+        taken as the pile's end."""
         for _ in range(DETECT_TRIES):
             self._wait_for_fresh_frames()
             answer = self.client.detect()
             if answer.success and answer.detections.detections:
-                return list(answer.detections.detections)
+                return list(answer.detections.detections), list(answer.unexplained_points)
             log(f"perception: {answer.message}; asking again")
         if answer.success:
-            return []
+            return [], []
         raise CallFailedError(f"perception: {answer.message}")
 
     def _forget_refusals_near(self, spot: np.ndarray) -> None:
@@ -807,6 +813,13 @@ def foot_distance(measured: Pose, expected: Pose) -> float:
         axis = matrix[:3, 0] * (1.0 if matrix[2, 0] <= 0.0 else -1.0)  # pointing down
         feet.append(matrix[:2, 3] + axis[:2] * DOMINO_LENGTH / 2.0)
     return float(np.linalg.norm(feet[0] - feet[1]))
+
+
+def points_near(pose: Pose, points: Sequence[Point]) -> list[Point]:
+    """The ``points`` within POINTS_RADIUS of ``pose`` horizontally: all the pads can meet."""
+    xy = np.array([(p.x, p.y) for p in points]).reshape(-1, 2)
+    near = np.hypot(*(xy - spot_of(pose)).T) < POINTS_RADIUS
+    return [points[i] for i in np.flatnonzero(near)]
 
 
 def near(spot: np.ndarray, other: np.ndarray, radius: float) -> bool:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import PoseArray, Vector3
+from geometry_msgs.msg import Point, PoseArray, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.exceptions import ParameterUninitializedException
@@ -338,6 +338,10 @@ class PerceptionNode(Node):
         response.success = result is not None
         response.message = message
         response.detections = self._detection_array(result.detections if result else [])
+        if result is not None:
+            response.unexplained_points = [
+                Point(x=x, y=y, z=z) for x, y, z in result.unexplained.tolist()
+            ]
         return response
 
     def _on_check_placement(

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
@@ -39,6 +39,9 @@ class PickPlaceRequest:
     grasp_width: float = 0.0  # finger opening closed on the domino [m]; 0: its width
     standing: tuple[RigidTransform, ...] = ()  # dominoes already placed
     pile: tuple[RigidTransform, ...] = ()  # other dominoes seen near the one to pick
+    # seen points near it on no domino of ``pile`` (N×3, world): what perception saw but
+    # could not fit a domino to
+    pile_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     time_budget: float = 0.0  # s; 0: the planner's default
     # The domino is in the hand already, at domino_pose (measured there), held where the
     # start puts the TCP: plan only the carry to place_pose and the retreat.
@@ -131,6 +134,9 @@ def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
         )
     for what, pose in (("domino_pose", request.domino_pose), ("place_pose", request.place_pose)):
         check_workspace(pose, what, settings)
+    points = request.pile_points
+    if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
+        raise invalid("validation", "pile_points must be finite 3-D points")
     if request.grasp_pose is not None and not request.holding:
         reach = np.linalg.norm(request.grasp_pose.translation() - request.domino_pose.translation())
         if reach > GRASP_REACH:

@@ -30,6 +30,9 @@ class PlannerSettings:
     pile_clearance: float = 0.003
     pile_nudge: float = 0.004
     pile_arm_clearance: float = 0.006
+    # Seen points on no detected domino (PlanPlace's pile_points: one on its edge, or mostly
+    # hidden): the pads' path, down the approach and closing, keeps this far from them.
+    pile_point_clearance: float = 0.0015
     self_clearance: float = 0.001  # robot against itself, everywhere
     # Kinematic trajectory optimization.
     kto_control_points: int = 10
