@@ -648,12 +648,13 @@ def test_perceptions_grasp_is_offered_to_the_planner_first_a_fallen_dominos_none
 
 def test_points_seen_on_no_detected_domino_near_a_pick_go_to_the_planner_with_its_pile() -> None:
     """A domino perception saw but did not detect (on its edge beside the picked one: arc
-    seed 6) is only points; the planner keeps the pads' path clear of those near the pick.
-    Planned ignoring its pile, the pads may push it."""
+    seed 6) is only points; the planner keeps the pads' path clear of those near the pick,
+    also when it plans ignoring the pile's detected dominoes (the last resort)."""
     run = job()
     run.client = GraspRecordingClient()
     pile = next(c for c in run._candidates([]) if c.run_index is None)
     run._plan(0, pile, with_pile=True)
     run._plan(0, pile, with_pile=False)
-    assert [(p.x, p.y) for p in run.client.requests[0].pile_points] == [(0.57, -0.3)]
-    assert run.client.requests[1].pile_points == []
+    for request in run.client.requests:
+        assert [(p.x, p.y) for p in request.pile_points] == [(0.57, -0.3)]
+    assert run.client.requests[1].pile_dominoes == []
