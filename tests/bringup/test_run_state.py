@@ -3,12 +3,16 @@ picked up again and what the fingers must avoid around them."""
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from geometry_msgs.msg import Point, Pose, Quaternion
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectoryPoint
 
 from dombot_bringup import layouts
 from dombot_bringup.arm_job import (
@@ -18,6 +22,8 @@ from dombot_bringup.arm_job import (
     ArmJob,
     ArmJobSettings,
     Candidate,
+    duration,
+    nearest_truth,
     neighbours_of,
     placement_pose,
     spot_of,
@@ -30,12 +36,14 @@ from dombot_bringup.run_report import (
     plot_run,
     target_of,
 )
+from dombot_description.pose_messages import pose_matrix
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike
 
 FALLEN, STANDING = CheckPlacement.Response.FALLEN, CheckPlacement.Response.STANDING
 MISSING, NOT_SEEN = CheckPlacement.Response.MISSING, CheckPlacement.Response.NOT_SEEN
 OPEN = TrajectorySegment.GRIPPER_OPEN
+CLOSE = TrajectorySegment.GRIPPER_CLOSE
 BLUE_ON_WHITE = 0.5 + 0.5 * np.array([0x1F, 0x77, 0xB4]) / 255  # tab:blue, alpha 0.5
 
 
@@ -449,7 +457,7 @@ def test_a_failed_pick_names_the_simulator_domino_it_was_after() -> None:
     """The name finds that domino in sim_node's log of what moved during each goal."""
     run = job()
     run.client = TruthClient()
-    name, off_mm = run._nearest_truth(lying(0.55, -0.30))
+    name, off_mm = nearest_truth(run._truth(), lying(0.55, -0.30))
     assert name == "domino_7" and off_mm == pytest.approx(0.7)
 
 
@@ -658,3 +666,42 @@ def test_points_seen_on_no_detected_domino_near_a_pick_go_to_the_planner_with_it
     for request in run.client.requests:
         assert [(p.x, p.y) for p in request.pile_points] == [(0.57, -0.3)]
     assert run.client.requests[1].pile_dominoes == []
+
+
+class JointStateClient:
+    def joint_state(self) -> JointState:
+        return JointState(name=["iiwa_joint_1"], position=[0.3])
+
+
+def test_a_recorded_pick_holds_what_it_was_planned_from_and_the_truth(tmp_path: Path) -> None:
+    """--record-picks: each executed pick's offer, plan and the simulator's truth, with what
+    became of it, for benchmarks/replay_pick.py to replay offline."""
+    run = job()
+    run.settings = ArmJobSettings(record_picks=tmp_path / "picks")
+    run.client = JointStateClient()
+    candidate = Candidate(
+        lying(0.55, -0.3), neighbours=[lying(0.58, -0.3)], points=[Point(x=0.57, y=-0.3, z=0.01)]
+    )
+    approach = TrajectorySegment(label="approach_grasp", gripper_after=CLOSE)
+    approach.trajectory.joint_names = ["iiwa_joint_1"]
+    approach.trajectory.points = [
+        JointTrajectoryPoint(positions=[0.3], velocities=[0.0]),
+        JointTrajectoryPoint(positions=[0.5], velocities=[0.0], time_from_start=duration(1.5)),
+    ]
+    plan = PlanPlace.Response(success=True, message="planned", segments=[approach])
+    truth = [("domino_7", pose_matrix(lying(0.5507, -0.30)))]
+    for failure in ("approach_grasp: grasp missed", ""):
+        run._write_pick_record(run._pick_record(1, candidate, True, plan, truth), failure)
+    first, second = sorted((tmp_path / "picks").glob("*.json"))
+    assert first.name == "pick000_slot2.json" and second.name == "pick001_slot2.json"
+    record = json.loads(first.read_text())
+    assert record["failure"] == "approach_grasp: grasp missed"
+    assert json.loads(second.read_text())["failure"] == ""
+    assert record["pile_points"] == [[0.57, -0.3, 0.01]] and len(record["pile_dominoes"]) == 1
+    assert record["start"] == {"names": ["iiwa_joint_1"], "positions": [0.3]}
+    [segment] = record["segments"]
+    assert segment["times"] == [0.0, 1.5] and segment["positions"] == [[0.3], [0.5]]
+    assert segment["gripper_after"] == CLOSE
+    assert np.allclose(record["truth"]["domino_7"], truth[0][1])
+    without = job()  # not asked for: nothing recorded
+    assert without._pick_record(1, candidate, True, plan, truth) is None

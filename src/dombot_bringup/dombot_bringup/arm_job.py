@@ -19,6 +19,7 @@ checks that every domino fell. The simulator's ground truth goes into the report
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import time
@@ -136,6 +137,9 @@ class ArmJobSettings:
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
     meshcat: bool = False
+    # a folder for each executed pick's record: what was offered and planned, and the
+    # simulator's truth then (benchmarks/replay_pick.py replays it); None: not recorded
+    record_picks: Path | None = None
 
 
 @dataclass
@@ -350,9 +354,12 @@ class ArmJob:
                 f"({candidate.posture_name}) at {spot.round(3).tolist()}, {plan.message}{pile}"
             )
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
-            truth_name, seen_off = self._nearest_truth(candidate.pose)
+            truth = self._truth()
+            truth_name, seen_off = nearest_truth(truth, candidate.pose)
             self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
+            record = self._pick_record(index, candidate, with_pile, plan, truth)
             executed, why = self._execute(plan.segments, (index, plan.held_above_place))
+            self._write_pick_record(record, why)
             if not executed:  # blocked or missed: unless it moved, the same would happen again
                 if seen_off is not None:  # the name finds it in sim_node's "during the" lines
                     log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
@@ -744,15 +751,42 @@ class ArmJob:
         truth = self.client.ground_truth(newer_than=self.client.sim_time - 0.01)
         return [(d.name, pose_matrix(d.pose)) for d in truth.dominoes]
 
-    def _nearest_truth(self, pose: Pose) -> tuple[str, float | None]:
-        """The simulator's domino whose centre is nearest ``pose``'s, and how far [mm]."""
-        truth = self._truth()
-        if not truth:
-            return "", None
-        centres = np.array([matrix[:3, 3] for _, matrix in truth])
-        distances = np.linalg.norm(centres - pose_matrix(pose)[:3, 3], axis=1)
-        nearest = int(np.argmin(distances))
-        return truth[nearest][0], float(distances[nearest] * 1e3)
+    def _pick_record(
+        self,
+        index: int,
+        candidate: Candidate,
+        with_pile: bool,
+        plan: PlanPlace.Response,
+        truth: list[tuple[str, np.ndarray]],
+    ) -> dict | None:
+        """What a pick was planned from and the simulator's truth at the time, to replay it
+        offline (``settings.record_picks``); None when not recorded."""
+        if self.settings.record_picks is None:
+            return None
+        joints, grasp = self.client.joint_state(), candidate.grasp
+        return {
+            "slot": index + 1,
+            "attempt": self.report.dominoes[index].attempts,
+            "source": candidate.source,
+            "domino_pose": pose_matrix(candidate.pose).tolist(),
+            "grasp_pose": None if grasp is None else pose_matrix(grasp).tolist(),
+            "with_pile": with_pile,
+            "pile_dominoes": [pose_matrix(p).tolist() for p in candidate.neighbours],
+            "pile_points": [[p.x, p.y, p.z] for p in candidate.points],
+            "plan": plan.message,
+            "start": {"names": list(joints.name), "positions": list(joints.position)},
+            "segments": [segment_record(s) for s in plan.segments],
+            "truth": {name: matrix.tolist() for name, matrix in truth},
+        }
+
+    def _write_pick_record(self, record: dict | None, failure: str) -> None:
+        if record is None:
+            return
+        folder = self.settings.record_picks
+        folder.mkdir(parents=True, exist_ok=True)
+        record["failure"] = failure  # "": carried to the slot
+        path = folder / f"pick{len(list(folder.glob('pick*.json'))):03d}_slot{record['slot']}.json"
+        path.write_text(json.dumps(record))
 
     def _record_truth(self, before_strike: bool) -> None:
         """Ground truth for the report: the simulator domino nearest each target."""
@@ -799,6 +833,31 @@ POSTURE_NAMES = {
     DominoDetection.POSTURE_UPRIGHT: "upright",
     DominoDetection.POSTURE_TILTED: "leaning",
 }
+
+
+def nearest_truth(truth: list[tuple[str, np.ndarray]], pose: Pose) -> tuple[str, float | None]:
+    """The simulator's domino whose centre is nearest ``pose``'s, and how far [mm]."""
+    if not truth:
+        return "", None
+    centres = np.array([matrix[:3, 3] for _, matrix in truth])
+    distances = np.linalg.norm(centres - pose_matrix(pose)[:3, 3], axis=1)
+    nearest = int(np.argmin(distances))
+    return truth[nearest][0], float(distances[nearest] * 1e3)
+
+
+def segment_record(segment: TrajectorySegment) -> dict:
+    """A planned segment as plain numbers (times in s from its start)."""
+    points = segment.trajectory.points
+    return {
+        "label": segment.label,
+        "joint_names": list(segment.trajectory.joint_names),
+        "times": [seconds(p) for p in points],
+        "positions": [list(p.positions) for p in points],
+        "velocities": [list(p.velocities) for p in points],
+        "gripper_after": int(segment.gripper_after),
+        "gripper_position": segment.gripper_position,
+        "gripper_max_effort": segment.gripper_max_effort,
+    }
 
 
 def spot_of(pose: Pose) -> np.ndarray:

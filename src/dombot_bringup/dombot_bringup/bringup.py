@@ -97,8 +97,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "--in-hand-tolerance",
         type=float,
         default=2.0,
-        help="[mm] before letting go, a held domino whose foot is this far off (or leaning "
-        "1.5°) is placed again from where it is held (2; 0: no check)",
+        help="[mm] straight above its slot, a held domino whose foot is this far off (or "
+        "leaning 1.5°) is carried again from where it is held (2; 0: no check)",
+    )
+    run.add_argument(
+        "--record-picks",
+        action="store_true",
+        help="write each pick's offer, plan and the simulator's truth to OUT/picks/ "
+        "(replay one: benchmarks/replay_pick.py)",
     )
     cell = parser.add_argument_group("arm job: the cell")
     cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
@@ -170,6 +176,7 @@ def run_arm(args: argparse.Namespace) -> int:
         in_hand_tolerance=args.in_hand_tolerance * 1e-3,
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
+        record_picks=args.out / "picks" if args.record_picks else None,
     )
     return run_arm_job(args.out, placements, args.layout, settings, node_command)
 

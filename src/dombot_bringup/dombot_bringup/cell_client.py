@@ -109,6 +109,11 @@ class CellClient:
         with self._lock:
             self._truth = message
 
+    def joint_state(self) -> JointState:
+        """The latest /joint_states (arm and fingers)."""
+        with self._lock:
+            return self._joint_state or JointState()
+
     @property
     def sim_time(self) -> float:
         """Simulated seconds, from the latest joint state."""

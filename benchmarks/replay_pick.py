@@ -1,0 +1,164 @@
+"""Replay a pick the bring-up recorded (``bringup --record-picks``), offline, from the truth.
+
+Why a grasp missed is rarely in the logs: perception had the domino within a millimetre,
+the arm tracked its plan, and the fingers closed on nothing. The record holds what the
+pick was planned from (the offer, its pile, the points seen on no detected domino, the
+plan's segments) and the simulator's truth at the time, so this script can say:
+
+* where the pads' path (open pads down the approach, then each pad's stroke closing on
+  the domino: ``Grasp.pad_paths``) comes within ``--near`` of a true domino, and whether
+  perception had detected that domino (a pile domino of the offer) or not;
+* with ``--physics``, what happens when the recorded approach and close run in a fresh
+  ``CellWorld`` holding the true dominoes: where the fingers stop and what moved.
+
+Prints one JSON object. In ``./dombot shell``: ``python benchmarks/replay_pick.py RECORD
+[--physics]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import Grasp, pregrasp_opening
+from dombot_planner.settings import PlannerSettings
+from dombot_sim.trajectory import build_trajectory
+from dombot_sim.world import CellWorld, WorldConfig
+
+CLOSE = 2  # dombot_msgs/TrajectorySegment.GRIPPER_CLOSE
+OPEN = 1
+SURFACE_STEP = 0.001  # m between the sampled points of a true domino's faces
+DETECTED_WITHIN = 0.005  # m: a pile domino this close to a true one is its detection
+MOVED = 0.0005  # m: a domino that moved more than this during the close is listed
+GRIPPER_SETTLE = 1.5  # s simulated for the fingers to close or stall
+TRACKING_SETTLE = 0.3  # s simulated after each trajectory
+
+
+def box_surface(pose: np.ndarray, step: float = SURFACE_STEP) -> np.ndarray:
+    """Points on the six faces of a domino at ``pose`` (4x4), world frame."""
+    half, faces = np.asarray(DOMINO_SIZE) / 2.0, []
+    for axis in range(3):
+        others = [a for a in range(3) if a != axis]
+        grids = [np.arange(-half[a], half[a] + 1e-9, step) for a in others]
+        u, v = (g.ravel() for g in np.meshgrid(*grids, indexing="ij"))
+        for sign in (-1.0, 1.0):
+            local = np.zeros((u.size, 3))
+            local[:, others[0]], local[:, others[1]], local[:, axis] = u, v, sign * half[axis]
+            faces.append(local)
+    return np.concatenate(faces) @ pose[:3, :3].T + pose[:3, 3]
+
+
+def truth_of(record: dict) -> dict[int, np.ndarray]:
+    """The simulator's dominoes by index (names are ``domino_<index>``)."""
+    return {int(name.rsplit("_", 1)[1]): np.array(m) for name, m in record["truth"].items()}
+
+
+def nearest(truth: dict[int, np.ndarray], pose: np.ndarray) -> tuple[int, float]:
+    index = min(truth, key=lambda i: np.linalg.norm(truth[i][:3, 3] - pose[:3, 3]))
+    return index, float(np.linalg.norm(truth[index][:3, 3] - pose[:3, 3]))
+
+
+def grasp_of(world: CellWorld, record: dict) -> Grasp:
+    """The TCP where the last approach of the plan ends (after a regrasp: the second)."""
+    approach = [s for s in record["segments"] if s["label"].endswith("approach_grasp")][-1]
+    world.set_robot_positions(np.array(approach["positions"][-1]))
+    width = DOMINO_SIZE[1]
+    return Grasp(RigidTransform(world.tcp_pose()), width, pregrasp_opening(width))
+
+
+def pads_against_truth(record: dict, grasp: Grasp, near: float) -> dict:
+    """The true dominoes the pads' path comes within ``near`` of (mm, detected or not)."""
+    truth = truth_of(record)
+    target, seen_off = nearest(truth, np.array(record["domino_pose"]))
+    detected = {nearest(truth, np.array(p))[0] for p in record["pile_dominoes"]}
+    paths = grasp.pad_paths(PlannerSettings().pick_approach_distance)
+    points = np.array(record["pile_points"]).reshape(-1, 3)
+    met = []
+    for index, pose in sorted(truth.items()):
+        if index == target:
+            continue
+        surface = box_surface(pose)
+        distance = min(float(path.signed_distance(surface).min()) for path in paths)
+        if distance < near:
+            met.append(
+                {"domino": index, "mm": round(distance * 1e3, 2), "detected": index in detected}
+            )
+    return {
+        "target": target,
+        "seen_off_mm": round(seen_off * 1e3, 2),
+        "pads_path_meets": met,
+        "pile_points_in_pads_path": int(
+            sum(np.count_nonzero(path.signed_distance(points) < 0.0) for path in paths)
+        ),
+    }
+
+
+def replay_close(world: CellWorld, record: dict) -> dict:
+    """Run the recorded segments in a world holding the true dominoes, up to the first
+    close; where the fingers stopped and which dominoes moved."""
+    truth = truth_of(record)
+    world.set_domino_poses(truth)
+    start = dict(zip(record["start"]["names"], record["start"]["positions"], strict=True))
+    world.set_robot_positions(np.array([start[name] for name in world.arm_joint_names]))
+    world.settle(1.0)
+    for segment in record["segments"]:
+        if len(segment["times"]) > 1:
+            spline = build_trajectory(
+                segment["joint_names"],
+                segment["times"],
+                segment["positions"],
+                segment["velocities"],
+                world.joint_state().position[:7],
+                world.arm_limits(),
+            )
+            world.advance_to(world.follow_trajectory(spline) + TRACKING_SETTLE)
+        if segment["gripper_after"] == OPEN:
+            world.command_gripper(segment["gripper_position"], 0.0)
+            world.advance(GRIPPER_SETTLE)
+        elif segment["gripper_after"] == CLOSE:
+            before = {t.index: t.X_WD[:3, 3] for t in world.domino_truth() if t.in_use}
+            world.command_gripper(segment["gripper_position"], segment["gripper_max_effort"])
+            world.advance(GRIPPER_SETTLE)
+            moved = {
+                t.index: np.linalg.norm(t.X_WD[:3, 3] - before[t.index])
+                for t in world.domino_truth()
+                if t.in_use
+            }
+            return {
+                "fingers_stopped_mm": round(world.gripper_state().opening * 1e3, 2),
+                "moved_mm": {i: round(d * 1e3, 2) for i, d in sorted(moved.items()) if d > MOVED},
+            }
+    return {}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("record", type=Path, help="a pick record (OUT/picks/pickNNN_slotK.json)")
+    parser.add_argument("--near", type=float, default=2.0, help="[mm] list dominoes this close")
+    parser.add_argument("--physics", action="store_true", help="replay the approach and close")
+    args = parser.parse_args()
+    record = json.loads(args.record.read_text())
+    world = CellWorld(WorldConfig(cameras=False, domino_capacity=len(record["truth"])))
+    grasp = grasp_of(world, record)
+    result = {
+        "benchmark": "replay_pick",
+        "record": str(args.record),
+        "slot": record["slot"],
+        "plan": record["plan"],
+        "failure": record.get("failure"),
+        "grasp_tilt_deg": round(math.degrees(math.acos(-grasp.approach[2])), 1),
+        **pads_against_truth(record, grasp, args.near * 1e-3),
+    }
+    if args.physics:
+        result["replayed"] = replay_close(world, record)
+    print(json.dumps(result, indent=1))
+
+
+if __name__ == "__main__":
+    main()
