@@ -5,7 +5,8 @@ paced to real time as for a user; on this 2-core machine it runs below that anyw
 a 10-domino arc and a 20-domino S-curve over a set of seeds and prints one JSON object:
 placement success per domino (first attempt and after retries), runs completed, full
 topples, simulated and wall seconds per domino. Reports and pictures of every run go to
-``--out`` (default out/bench_bringup).
+``--out`` (default out/bench_bringup); with ``--record-picks`` every pick's record too
+(``<out>/<case>_seed<N>/picks/``, for benchmarks/replay_pick.py).
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ def run_logged(command: list[str], log_path: Path, name: str) -> tuple[int, str]
     return process.returncode, "".join(lines)
 
 
-def run_case(name: str, arguments: list[str], seed: int, out: Path) -> dict:
+def run_case(name: str, arguments: list[str], seed: int, out: Path, record: bool) -> dict:
     folder = out / f"{name}_seed{seed}"
     bringup = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
     command = [
@@ -81,6 +82,7 @@ def run_case(name: str, arguments: list[str], seed: int, out: Path) -> dict:
         *arguments,
         "--seed",
         str(seed),
+        *(["--record-picks"] if record else []),
     ]  # at the user's real-time factor (1): unpaced, the idle simulator floods perception
     started = time.monotonic()
     exit_code, tail = run_logged(command, out / f"{name}_seed{seed}.log", f"{name} seed {seed}")
@@ -150,6 +152,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("out/bench_bringup"))
     parser.add_argument("--cases", nargs="+", choices=sorted(CASES), default=sorted(CASES))
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS))
+    parser.add_argument("--record-picks", action="store_true", help="bringup --record-picks")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     report = {
@@ -158,7 +161,9 @@ def main() -> None:
         "cases": {},
     }
     for name in args.cases:
-        runs = [run_case(name, CASES[name], seed, args.out) for seed in args.seeds]
+        runs = [
+            run_case(name, CASES[name], seed, args.out, args.record_picks) for seed in args.seeds
+        ]
         report["cases"][name] = {"arguments": CASES[name], **aggregate(runs), "per_seed": runs}
     report["load_average_at_end"] = os.getloadavg()
     print(json.dumps(report, indent=2))
