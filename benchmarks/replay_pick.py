@@ -9,7 +9,9 @@ plan's segments) and the simulator's truth at the time, so this script can say:
   the domino: ``Grasp.pad_paths``) comes within ``--near`` of a true domino, and whether
   perception had detected that domino (a pile domino of the offer) or not;
 * with ``--physics``, what happens when the recorded approach and close run in a fresh
-  ``CellWorld`` holding the true dominoes: where the fingers stop and what moved.
+  ``CellWorld`` holding the true dominoes: where the fingers stop and what moved; with
+  ``--carry`` also the carry to above the slot: how far the domino turned and slid in
+  the hand on the way (or whether it left it).
 
 Prints one JSON object. In ``./dombot shell``: ``python benchmarks/replay_pick.py RECORD
 [--physics]``.
@@ -23,7 +25,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import Grasp, pregrasp_opening
@@ -99,10 +101,13 @@ def pads_against_truth(record: dict, grasp: Grasp, near: float) -> dict:
     }
 
 
-def replay_close(world: CellWorld, record: dict) -> dict:
-    """Run the recorded segments in a world holding the true dominoes, up to the first
-    close; where the fingers stopped and which dominoes moved."""
+def replay(world: CellWorld, record: dict, carry: bool) -> dict:
+    """Run the recorded segments in a world holding the true dominoes, up to the close
+    (``carry``: to the end of "transfer"); where the fingers stopped, which dominoes moved
+    during the close, and how the domino sat in the hand after the carry."""
     truth = truth_of(record)
+    target, _ = nearest(truth, np.array(record["domino_pose"]))
+    result: dict = {}
     world.set_domino_poses(truth)
     start = dict(zip(record["start"]["names"], record["start"]["positions"], strict=True))
     world.set_robot_positions(np.array([start[name] for name in world.arm_joint_names]))
@@ -130,11 +135,23 @@ def replay_close(world: CellWorld, record: dict) -> dict:
                 for t in world.domino_truth()
                 if t.in_use
             }
-            return {
+            result = {
                 "fingers_stopped_mm": round(world.gripper_state().opening * 1e3, 2),
                 "moved_mm": {i: round(d * 1e3, 2) for i, d in sorted(moved.items()) if d > MOVED},
             }
-    return {}
+            if not carry:
+                return result
+            held = world.domino_in_tcp(target)
+        if segment["label"] == "transfer" and "fingers_stopped_mm" in result:
+            now = world.domino_in_tcp(target)
+            turn = RotationMatrix(held[:3, :3].T @ now[:3, :3]).ToAngleAxis().angle()
+            result["carried"] = {
+                "slid_mm": round(float(np.linalg.norm(now[:3, 3] - held[:3, 3])) * 1e3, 2),
+                "turned_deg": round(math.degrees(turn), 2),
+                "fingers_mm": round(world.gripper_state().opening * 1e3, 2),
+            }
+            return result
+    return result
 
 
 def main() -> None:
@@ -142,6 +159,7 @@ def main() -> None:
     parser.add_argument("record", type=Path, help="a pick record (OUT/picks/pickNNN_slotK.json)")
     parser.add_argument("--near", type=float, default=2.0, help="[mm] list dominoes this close")
     parser.add_argument("--physics", action="store_true", help="replay the approach and close")
+    parser.add_argument("--carry", action="store_true", help="--physics on to above the slot")
     args = parser.parse_args()
     record = json.loads(args.record.read_text())
     world = CellWorld(WorldConfig(cameras=False, domino_capacity=len(record["truth"])))
@@ -155,8 +173,8 @@ def main() -> None:
         "grasp_tilt_deg": round(math.degrees(math.acos(-grasp.approach[2])), 1),
         **pads_against_truth(record, grasp, args.near * 1e-3),
     }
-    if args.physics:
-        result["replayed"] = replay_close(world, record)
+    if args.physics or args.carry:
+        result["replayed"] = replay(world, record, args.carry)
     print(json.dumps(result, indent=1))
 
 
