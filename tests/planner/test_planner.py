@@ -13,7 +13,7 @@ from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import FINGER_SWAP, flat_pose, pick_grasps, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN
+from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN, faces_away
 from dombot_planner.planner import PickPlacePlanner, steeper_grasps
 from dombot_planner.request import PickPlaceRequest, box_corners, dominoes_overlap
 from dombot_planner.settings import PlannerSettings
@@ -231,6 +231,20 @@ def test_seen_points_in_the_fingers_gap_keep_the_pads_away(planner) -> None:
     assert "pads' path meets pile points" in error.message
     own = face_points(domino, DOMINO_SIZE[1] / 2)
     assert planner.plan(request(domino_pose=domino, pile_points=own)).segments
+
+
+def test_a_pose_reached_over_the_top_from_behind_is_told_from_the_usual_branch() -> None:
+    """S-curve seed 2 (7e0fa63): a random IK seed put a pick in the branch with joint 1
+    turned away and the shoulder leaning back over the top; the moves to and from it
+    swung the TCP up to 1.2 m at 2.7 m/s and threw the held domino out of the cell. Both
+    configurations hold the TCP over the pile; only the usual one is taken."""
+    checker = checker_for(request())
+    flipped = np.array([2.73, -1.76, 1.70, -0.52, -1.64, -2.09, -1.65])
+    usual = np.array([-0.55, 0.97, 0.10, -1.27, 0.19, 0.88, -1.2])
+    for q, away in ((flipped, True), (usual, False)):
+        tcp = checker.tcp_pose(q).translation()
+        assert 0.3 < np.hypot(*tcp[:2]) < 0.8 and tcp[0] > 0.0  # in front of the base
+        assert faces_away(q, tcp) == away
 
 
 def test_start_where_a_grasp_missed_is_left_straight_up_first(planner, planned) -> None:

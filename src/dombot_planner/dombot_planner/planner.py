@@ -458,7 +458,7 @@ class RequestPlanning(RequestMotions):
                 lift_directions(grasp),
                 [self.approach, transfer],
                 self.planner.fine_rules(at_pick=True, nudge=self.nudge),
-                self.seeds([request.start]),
+                self.seeds([request.start], grasp.translation()),
                 self.search.grasp_failures,
             )
             if pick is None:
@@ -495,7 +495,7 @@ class RequestPlanning(RequestMotions):
                 [UP],
                 [transfer, self.retreat],
                 self.planner.fine_rules(at_pick=False),
-                self.seeds(seeds),
+                self.seeds(seeds, place_pose.translation()),
                 self.search.place_failures,
             )
             if place is not None:

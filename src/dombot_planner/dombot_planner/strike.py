@@ -228,9 +228,9 @@ class StrikePlanning(RequestMotions):
                 self.request.domino_pose, rotation, self.direction, self.height, s.strike_standoff
             )
             ik = PoseIK(self.run, rotation)
-            seeds = self.seeds([self.start])
-            failures = self.search.failures
             at = pose.translation()
+            seeds = self.seeds([self.start], at)
+            failures = self.search.failures
             for q in self.clear_solutions(ik, at, seeds, checks, failures, PUSHER_BLOCKED):
                 lines = self._lines_at(ik, q, pose)
                 if isinstance(lines, Lines):
