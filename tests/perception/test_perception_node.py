@@ -8,17 +8,20 @@ import time
 import numpy as np
 import pytest
 import rclpy
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseArray
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Header
 
 from dombot_description.grasp import upright_pose
 from dombot_description.pose_messages import pose_message
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.domino_model import orientation_error
+from dombot_perception.perception_node import CameraInput
 from support.perception_scenes import PILE_CENTRE, flat
 from support.ros_processes import call_service, installed_node, spin_until
 
@@ -140,6 +143,19 @@ def test_detect_service_finds_the_domino_and_topics_carry_it(cameras: Cameras) -
     latest = cameras.poses[-1]
     assert latest.header.frame_id == "world" and len(latest.poses) == 1
     assert len(cameras.detections[-1].detections) == 1
+
+
+def test_only_frames_stamped_from_not_before_on_are_paired() -> None:
+    """A request's not_before (the arm stopped then) rules out a frame from before, however
+    recently it arrived: on a loaded CPU images come after the joint states."""
+    camera = CameraInput()
+    for seconds in (4.0, 5.0):
+        stamp = Time(sec=int(seconds))
+        camera.colors.append(Image(header=Header(stamp=stamp)))
+        camera.depths.append(Image(header=Header(stamp=stamp)))
+    assert camera.latest_pair(0.01)[0].header.stamp.sec == 5
+    assert camera.latest_pair(0.01, not_before=5.0)[0].header.stamp.sec == 5
+    assert camera.latest_pair(0.01, not_before=5.5) is None
 
 
 def test_placement_check_over_dds(cameras: Cameras) -> None:

@@ -519,8 +519,7 @@ class ArmJob:
         through) is asked again a few camera periods on; an empty answer after that is
         taken as the pile's end."""
         for _ in range(DETECT_TRIES):
-            self._wait_for_fresh_frames()
-            answer = self.client.detect()
+            answer = self.client.detect(self._wait_for_fresh_frames())
             if answer.success and answer.detections.detections:
                 return list(answer.detections.detections), list(answer.unexplained_points)
             log(f"perception: {answer.message}; asking again")
@@ -587,9 +586,9 @@ class ArmJob:
         settings = self.settings
         if settings.in_hand_tolerance <= 0.0:
             return None
-        self._wait_for_fresh_frames()
+        fresh = self._wait_for_fresh_frames()
         release, n = self.releases[index], len(self.layout)
-        answer = self.client.check_placement([held_above], in_hand=True)
+        answer = self.client.check_placement([held_above], in_hand=True, not_before=fresh)
         if not (answer.success and answer.status[0] == CheckPlacement.Response.STANDING):
             status = IN_HAND_WORDS.get(answer.status[0], "?") if answer.success else answer.message
             log(f"domino {index + 1}/{n} in the hand: {status}; placing it")
@@ -648,10 +647,15 @@ class ArmJob:
                 log(f"backing out failed: {result.error_string}")
 
     # ------------------------------------------------------------------ checks
-    def _wait_for_fresh_frames(self, settle: float = 0.0) -> None:
-        """Let ``settle`` simulated seconds pass, then one camera period, so the next
-        frames perception uses were taken after the arm stopped."""
+    def _wait_for_fresh_frames(self, settle: float = 0.0) -> float:
+        """Let ``settle`` simulated seconds pass, then one camera period, so that frames
+        taken after the arm stopped exist; the simulated time from which on they show the
+        scene settled, for perception's ``not_before`` (on a loaded CPU the images arrive
+        after the joint states: a frame from before a placement once had perception call
+        the domino standing there MISSING, and the next carry swept through it)."""
+        fresh = self.client.sim_time + settle
         self.client.wait_for_sim_time(settle + 1.0 / self.settings.camera_rate + 0.05)
+        return fresh
 
     def _check(self, index: int, just_placed: bool = True) -> bool:
         """Perception looks at every domino placed so far and at slot ``index``; fallen
@@ -665,9 +669,9 @@ class ArmJob:
         one that stays within the tolerance of where it was left, and one whose pick-up
         again failed, up to keep_when_stuck. A hidden ``index`` not ``just_placed`` (e.g.
         the slot a fallen domino was swept out of) is not taken as standing."""
-        self._wait_for_fresh_frames(self.settings.settle_after_place)
+        fresh = self._wait_for_fresh_frames(self.settings.settle_after_place)
         indices = sorted(set(self.state.standing) | {index})
-        answer = self.client.check_placement([self.targets[i] for i in indices])
+        answer = self.client.check_placement([self.targets[i] for i in indices], not_before=fresh)
         if not answer.success:
             self.report.dominoes[index].check = f"placement check failed: {answer.message}"
             return False
@@ -744,8 +748,8 @@ class ArmJob:
             log(self.report.message)
             return
         self.report.struck = True
-        self._wait_for_fresh_frames(self.settings.topple_wait)
-        answer = self.client.check_placement(self.targets)
+        fresh = self._wait_for_fresh_frames(self.settings.topple_wait)
+        answer = self.client.check_placement(self.targets, not_before=fresh)
         fallen = [s != CheckPlacement.Response.STANDING for s in answer.status]
         self.report.toppled_by_perception = answer.success and all(fallen)
         log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")

@@ -10,7 +10,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 
-from builtin_interfaces.msg import Duration
+from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import Pose
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
@@ -164,13 +164,17 @@ class CellClient:
     def reset(self, count: int, seed: int) -> ResetSim.Response:
         return self.call("/sim/reset", ResetSim.Request(domino_count=count, seed=seed), 600.0)
 
-    def detect(self) -> DetectDominoes.Response:
-        return self.call("/perception/detect", DetectDominoes.Request(), 30.0)
+    def detect(self, not_before: float = 0.0) -> DetectDominoes.Response:
+        """Perception's detections in frames stamped at or after ``not_before`` [s]."""
+        request = DetectDominoes.Request(not_before=time_of(not_before))
+        return self.call("/perception/detect", request, 30.0)
 
     def check_placement(
-        self, expected: Sequence[Pose], in_hand: bool = False
+        self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
     ) -> CheckPlacement.Response:
-        request = CheckPlacement.Request(expected=list(expected), in_hand=in_hand)
+        request = CheckPlacement.Request(
+            expected=list(expected), in_hand=in_hand, not_before=time_of(not_before)
+        )
         return self.call("/perception/check_placement", request, 30.0)
 
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
@@ -218,3 +222,9 @@ class CellClient:
             self._watchdog()
             time.sleep(0.01)
         raise CallFailedError(f"no answer from {what} within {timeout:.0f} s")
+
+
+def time_of(seconds: float) -> Time:
+    """A ROS time stamp from seconds (negative: zero, i.e. unset)."""
+    nanoseconds = max(round(seconds * 1e9), 0)
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)

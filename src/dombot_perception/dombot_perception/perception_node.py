@@ -45,6 +45,11 @@ DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
 MAX_IN_HAND_TILT = math.degrees(PlacementConfig().max_tilt)  # expected poses when in_hand
 SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
 SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one stream late
+# s (wall) to wait for frames stamped after a request's not_before: on a loaded CPU the
+# images of a frame arrive well after the joint states that tell the caller its time has
+# come (a stale frame from before a placement once made a standing domino MISSING)
+FRESH_WAIT = 10.0
+STAMP_SLACK = 1e-3  # s: stamps this much before not_before still count (rounding)
 DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
 
 
@@ -57,10 +62,15 @@ class CameraInput:
     info: CameraInfo | None = None
     received: float = -math.inf
 
-    def latest_pair(self, tolerance: float) -> tuple[Image, Image] | None:
-        """The newest colour and depth images whose stamps agree within ``tolerance`` s."""
+    def latest_pair(
+        self, tolerance: float, not_before: float = -math.inf
+    ) -> tuple[Image, Image] | None:
+        """The newest colour and depth images whose stamps agree within ``tolerance`` s,
+        stamped at or after ``not_before``."""
         for color in reversed(self.colors):
             stamp = _seconds(color.header.stamp)
+            if stamp < not_before - STAMP_SLACK:
+                return None
             for depth in reversed(self.depths):
                 if abs(_seconds(depth.header.stamp) - stamp) <= tolerance:
                     return color, depth
@@ -241,8 +251,11 @@ class PerceptionNode(Node):
     def _is_stale(self, camera: CameraInput) -> bool:
         return self._seconds_now() - camera.received > float(self._param("max_frame_age"))
 
-    def _views(self, names: list[str]) -> tuple[list[CameraView], list[str]]:
-        """Usable synchronised views of ``names`` and the warnings about the others."""
+    def _views(
+        self, names: list[str], not_before: float = -math.inf
+    ) -> tuple[list[CameraView], list[str]]:
+        """Usable synchronised views of ``names`` (stamped at or after ``not_before``) and
+        the warnings about the others."""
         views, warnings = [], []
         max_age = float(self._param("max_frame_age"))
         for name in names:
@@ -257,20 +270,21 @@ class PerceptionNode(Node):
                 )
                 continue
             try:
-                views.append(self._view(name, camera))
+                views.append(self._view(name, camera, not_before))
             except ValueError as error:
                 warnings.append(f"{name}: {error}")
         return views, warnings
 
-    def _view(self, name: str, camera: CameraInput) -> CameraView:
+    def _view(self, name: str, camera: CameraInput, not_before: float) -> CameraView:
         tolerance = float(self._param("sync_tolerance"))
-        pair = camera.latest_pair(tolerance)
-        deadline = time.monotonic() + SYNC_WAIT
+        pair = camera.latest_pair(tolerance, not_before)
+        deadline = time.monotonic() + (SYNC_WAIT if math.isinf(not_before) else FRESH_WAIT)
         while pair is None and time.monotonic() < deadline:
             time.sleep(0.02)  # the input callbacks run on the executor's other thread
-            pair = camera.latest_pair(tolerance)
+            pair = camera.latest_pair(tolerance, not_before)
         if pair is None:
-            raise ValueError(f"no colour and depth images with stamps within {tolerance} s")
+            fresh = "" if math.isinf(not_before) else f", stamped after {not_before:.2f} s"
+            raise ValueError(f"no colour and depth images with stamps within {tolerance} s{fresh}")
         color, depth = pair
         view = CameraView(
             name,
@@ -334,7 +348,7 @@ class PerceptionNode(Node):
             response.message = f"unknown cameras {unknown}; configured: {self.camera_names}"
             self.get_logger().error(response.message)
             return response
-        result, message = self._detect(names)
+        result, message = self._detect(names, not_before_of(request))
         response.success = result is not None
         response.message = message
         response.detections = self._detection_array(result.detections if result else [])
@@ -360,7 +374,7 @@ class PerceptionNode(Node):
         )
         expected = [pose_matrix(pose) for pose in request.expected]
         try:
-            views, warnings = self._views(names)
+            views, warnings = self._views(names, not_before_of(request))
             placements = check_placements(expected, views, self.pipeline, config) if views else []
         except Exception as error:  # one bad frame set must never take the node down
             self.get_logger().error(f"placement check failed: {error!r}\n{traceback.format_exc()}")
@@ -412,11 +426,14 @@ class PerceptionNode(Node):
                     )
         return None
 
-    def _detect(self, names: list[str]) -> tuple[PipelineResult | None, str]:
-        """Run the pipeline on the latest frames of ``names``; publish; say what happened."""
+    def _detect(
+        self, names: list[str], not_before: float = -math.inf
+    ) -> tuple[PipelineResult | None, str]:
+        """Run the pipeline on the latest frames of ``names`` (stamped at or after
+        ``not_before``); publish; say what happened."""
         started = time.perf_counter()
         try:
-            views, warnings = self._views(names)
+            views, warnings = self._views(names, not_before)
             result = self.pipeline.run(views) if views else None
         except Exception as error:  # one bad frame set must never take the node down
             self.get_logger().error(f"perception failed: {error!r}\n{traceback.format_exc()}")
@@ -472,6 +489,11 @@ class PerceptionNode(Node):
 
 def _seconds(stamp) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def not_before_of(request) -> float:
+    """A request's not_before [s]; zero (unset): any frame, the latest."""
+    return _seconds(request.not_before) or -math.inf
 
 
 def rgb_array(message: Image) -> np.ndarray:
