@@ -50,6 +50,8 @@ ESCAPE_DISTANCE = 0.08  # m: the longest straight line out of a start close to s
 ESCAPE_TOLERANCE = 5e-4  # m an escape may come closer to anything than the start was
 PERCEIVED = (TARGET, PILE)  # obstacles known only from perception (± 2 mm)
 SEED_TURN = 0.8  # rad: random IK seeds turn joint 1 up to this far from the target
+ELBOW_UP = 0.3  # the elbow's offset from the shoulder–wrist line points at least this up
+STRAIGHT_ARM = 0.02  # m: an elbow this close to the shoulder–wrist line is left alone
 UP = np.array([0.0, 0.0, 1.0])
 
 # A clearance check: the scene and the rules it must keep there.
@@ -321,8 +323,8 @@ class RequestMotions:
             if q is None:
                 failures["no IK"] += 1
                 continue
-            if faces_away(q, position):
-                failures["arm turned away (shoulder over backwards)"] += 1
+            if elbow_not_up(ik.scene, self.planner.scenario.arm_joints, q):
+                failures["elbow not up"] += 1
                 continue
             too_close = first_violation(q, checks)
             if not too_close:
@@ -441,14 +443,24 @@ class RequestMotions:
         )
 
 
-def faces_away(q: np.ndarray, position: np.ndarray) -> bool:
-    """Whether the arm reaches ``position`` (world; the arm base at the origin) from
-    behind: joint 1 turned away from it and the shoulder (joint 2) leaning backwards over
-    the top. Moving between that branch and the usual one swings the arm overhead: the
-    TCP rose to 1.2 m at 2.7 m/s and threw a held domino out of the cell (S-curve seed 2
-    of the benchmark of 7e0fa63; 5 of its 14 picks went over the top)."""
-    azimuth = np.arctan2(position[1], position[0])
-    return bool(q[1] < 0.0 and np.cos(q[0] - azimuth) < 0.0)
+def elbow_not_up(scene: Scene, arm_joints: Sequence[str], q: np.ndarray) -> bool:
+    """Whether the arm at ``q`` holds its elbow sideways or down: its offset from the line
+    from shoulder (joint 2) to wrist (joint 6) points up less than ELBOW_UP (an arm
+    stretched nearly straight has no elbow to speak of). Moving between such a branch
+    and the usual elbow-up one swings the arm overhead: in the benchmarks of 7e0fa63 and
+    be29dc3 the TCP rose to 0.6-1.2 m at up to 2.7 m/s and threw held dominoes out of
+    the hand (the shoulder leaning back over the top, elbow offset 0.08 up; the elbow
+    turned sideways, -0.01; the usual postures 0.54-1.0)."""
+    plant, context = scene.plant, scene.plant_context
+    scene.set_positions(q)
+    shoulder, elbow, wrist = (
+        plant.GetJointByName(arm_joints[i]).child_body().EvalPoseInWorld(context).translation()
+        for i in (1, 3, 5)
+    )
+    line = (wrist - shoulder) / np.linalg.norm(wrist - shoulder)
+    offset = (elbow - shoulder) - ((elbow - shoulder) @ line) * line
+    size = float(np.linalg.norm(offset))
+    return size > STRAIGHT_ARM and offset[2] < ELBOW_UP * size
 
 
 def first_violation(q: np.ndarray, checks: Sequence[Check]) -> str:
