@@ -29,12 +29,12 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import Grasp, pregrasp_opening
+from dombot_msgs.msg import TrajectorySegment
 from dombot_planner.settings import PlannerSettings
 from dombot_sim.trajectory import build_trajectory
 from dombot_sim.world import CellWorld, WorldConfig
 
-CLOSE = 2  # dombot_msgs/TrajectorySegment.GRIPPER_CLOSE
-OPEN = 1
+CLOSE, OPEN = TrajectorySegment.GRIPPER_CLOSE, TrajectorySegment.GRIPPER_OPEN
 SURFACE_STEP = 0.001  # m between the sampled points of a true domino's faces
 DETECTED_WITHIN = 0.005  # m: a pile domino this close to a true one is its detection
 MOVED = 0.0005  # m: a domino that moved more than this during the close is listed

@@ -10,7 +10,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 
-from builtin_interfaces.msg import Duration, Time
+from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Pose
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
@@ -19,6 +19,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
+from dombot_description.pose_messages import time_message
 from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoStateArray, JointTolerance
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
@@ -166,14 +167,14 @@ class CellClient:
 
     def detect(self, not_before: float = 0.0) -> DetectDominoes.Response:
         """Perception's detections in frames stamped at or after ``not_before`` [s]."""
-        request = DetectDominoes.Request(not_before=time_of(not_before))
+        request = DetectDominoes.Request(not_before=time_message(not_before))
         return self.call("/perception/detect", request, 30.0)
 
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
     ) -> CheckPlacement.Response:
         request = CheckPlacement.Request(
-            expected=list(expected), in_hand=in_hand, not_before=time_of(not_before)
+            expected=list(expected), in_hand=in_hand, not_before=time_message(not_before)
         )
         return self.call("/perception/check_placement", request, 30.0)
 
@@ -222,9 +223,3 @@ class CellClient:
             self._watchdog()
             time.sleep(0.01)
         raise CallFailedError(f"no answer from {what} within {timeout:.0f} s")
-
-
-def time_of(seconds: float) -> Time:
-    """A ROS time stamp from seconds (negative: zero, i.e. unset)."""
-    nanoseconds = max(round(seconds * 1e9), 0)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)

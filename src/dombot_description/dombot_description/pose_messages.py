@@ -1,9 +1,11 @@
 """4x4 homogeneous transforms ↔ ``geometry_msgs/Pose``: the one conversion every node
-adapter needs between the plain modules (numpy) and their messages."""
+adapter needs between the plain modules (numpy) and their messages; and seconds as a
+``builtin_interfaces/Time``."""
 
 from __future__ import annotations
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, Quaternion
 from scipy.spatial.transform import Rotation
 
@@ -21,3 +23,9 @@ def pose_message(matrix: np.ndarray) -> Pose:
     x, y, z = (float(v) for v in matrix[:3, 3])
     qx, qy, qz, qw = (float(v) for v in Rotation.from_matrix(matrix[:3, :3]).as_quat())
     return Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+
+
+def time_message(seconds: float) -> Time:
+    """``seconds`` (e.g. simulated) as a ROS time; negative: zero, i.e. unset."""
+    nanoseconds = max(round(seconds * 1e9), 0)
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)

@@ -23,7 +23,6 @@ from typing import TypeVar
 
 import numpy as np
 import rclpy
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -36,7 +35,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from dombot_description.pose_messages import pose_message
+from dombot_description.pose_messages import pose_message, time_message
 from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
@@ -286,7 +285,7 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ publishing
     def _publish_state(self, now: float) -> None:
-        now_stamp = stamp(now)
+        now_stamp = time_message(now)
         self._clock_pub.publish(Clock(clock=now_stamp))
         sample = self.world.joint_state()
         self._joint_pub.publish(
@@ -302,7 +301,7 @@ class SimNode(Node):
     def _publish_cameras(self, frames: dict[str, CameraFrame]) -> None:
         for name, frame in frames.items():
             color_pub, depth_pub, color_info_pub, depth_info_pub = self._camera_pubs[name]
-            header = Header(stamp=stamp(frame.time), frame_id=f"{name}_optical")
+            header = Header(stamp=time_message(frame.time), frame_id=f"{name}_optical")
             height, width = frame.depth.shape
             color_pub.publish(
                 Image(
@@ -331,7 +330,7 @@ class SimNode(Node):
             depth_info_pub.publish(info)
 
     def _publish_truth(self, now: float) -> None:
-        message = DominoStateArray(header=Header(stamp=stamp(now), frame_id="world"))
+        message = DominoStateArray(header=Header(stamp=time_message(now), frame_id="world"))
         for domino in self.world.domino_truth():
             if domino.in_use:
                 message.dominoes.append(
@@ -559,12 +558,6 @@ class SimNode(Node):
 
 
 # ---------------------------------------------------------------------- conversions
-def stamp(now: float) -> Time:
-    """Simulated seconds as a ROS time."""
-    nanoseconds = round(now * 1e9)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
-
-
 def duration_seconds(duration) -> float:
     return duration.sec + duration.nanosec * 1e-9
 
@@ -607,7 +600,7 @@ def camera_info(frame: CameraFrame, header: Header) -> CameraInfo:
 def feedback_message(names, now, desired_state, state) -> ExecuteTrajectory.Feedback:
     desired, velocity, acceleration = desired_state
     feedback = ExecuteTrajectory.Feedback()
-    feedback.header.stamp = stamp(now)
+    feedback.header.stamp = time_message(now)
     feedback.joint_names = names
     feedback.desired = JointTrajectoryPoint(
         positions=desired.tolist(),
