@@ -66,20 +66,28 @@ def nearest(truth: dict[int, np.ndarray], pose: np.ndarray) -> tuple[int, float]
     return index, float(np.linalg.norm(truth[index][:3, 3] - pose[:3, 3]))
 
 
-def grasp_of(world: CellWorld, record: dict) -> Grasp:
-    """The TCP where the last approach of the plan ends (after a regrasp: the second)."""
+def grasp_of(world: CellWorld, record: dict) -> tuple[Grasp, np.ndarray]:
+    """The TCP where the last approach of the plan ends (after a regrasp: the second), and
+    the direction its approach line came down along (unit, from the grasp back up)."""
     approach = [s for s in record["segments"] if s["label"].endswith("approach_grasp")][-1]
-    world.set_robot_positions(np.array(approach["positions"][-1]))
+    tcp = []
+    for positions in approach["positions"][::-1]:
+        world.set_robot_positions(np.array(positions))
+        tcp.append(RigidTransform(world.tcp_pose()))
+        back = tcp[-1].translation() - tcp[0].translation()
+        if np.linalg.norm(back) > 0.005:  # m: on the straight line, far enough to aim
+            break
     width = DOMINO_SIZE[1]
-    return Grasp(RigidTransform(world.tcp_pose()), width, pregrasp_opening(width))
+    grasp = Grasp(tcp[0], width, pregrasp_opening(width))
+    return grasp, back / np.linalg.norm(back)
 
 
-def pads_against_truth(record: dict, grasp: Grasp, near: float) -> dict:
+def pads_against_truth(record: dict, grasp: Grasp, retreat: np.ndarray, near: float) -> dict:
     """The true dominoes the pads' path comes within ``near`` of (mm, detected or not)."""
     truth = truth_of(record)
     target, seen_off = nearest(truth, np.array(record["domino_pose"]))
     detected = {nearest(truth, np.array(p))[0] for p in record["pile_dominoes"]}
-    paths = grasp.pad_paths(PlannerSettings().pick_approach_distance)
+    paths = grasp.pad_paths(PlannerSettings().pick_approach_distance, retreat)
     points = np.array(record["pile_points"]).reshape(-1, 3)
     met = []
     for index, pose in sorted(truth.items()):
@@ -163,7 +171,7 @@ def main() -> None:
     args = parser.parse_args()
     record = json.loads(args.record.read_text())
     world = CellWorld(WorldConfig(cameras=False, domino_capacity=len(record["truth"])))
-    grasp = grasp_of(world, record)
+    grasp, retreat = grasp_of(world, record)
     result = {
         "benchmark": "replay_pick",
         "record": str(args.record),
@@ -171,7 +179,8 @@ def main() -> None:
         "plan": record["plan"],
         "failure": record.get("failure"),
         "grasp_tilt_deg": round(math.degrees(math.acos(-grasp.approach[2])), 1),
-        **pads_against_truth(record, grasp, args.near * 1e-3),
+        "approach_line_tilt_deg": round(math.degrees(math.acos(retreat[2])), 1),
+        **pads_against_truth(record, grasp, retreat, args.near * 1e-3),
     }
     if args.physics or args.carry:
         result["replayed"] = replay(world, record, args.carry)

@@ -26,6 +26,7 @@ from dombot_description.grasp import (
     PREGRASP_CLEARANCE,
     SYMMETRIES,
     WSG_URDF,
+    OrientedBox,
     canonical_grasp,
     domino_in_tcp,
     flat_pose,
@@ -237,6 +238,42 @@ def test_pad_paths_cover_the_approach_and_the_closing_stroke() -> None:
             assert min(path.signed_distance(point[None])[0] for path in paths) < 0.0
     beside = grasp.pose.translation() + grasp.pose.rotation().matrix()[:, 1] * 0.05
     assert min(path.signed_distance(beside[None])[0] for path in paths) > 0.0
+
+
+def test_pad_paths_follow_the_approach_line_given() -> None:
+    grasp = pick_grasps(flat_pose(0.5, -0.3, 0.4))[0]  # approach tilted 63° from vertical
+    up = np.array([0.0, 0.0, 1.0])
+    vertical, along_tcp = grasp.pad_paths(0.05, up), grasp.pad_paths(0.05)
+    pad = grasp.pad_boxes(grasp.pregrasp_opening)[0].pose.translation()
+
+    def inside(paths: list, point: np.ndarray) -> bool:
+        return min(path.signed_distance(point[None])[0] for path in paths) < 0.0
+
+    above, up_the_tcp_axis = pad + 0.04 * up, pad - 0.04 * grasp.approach
+    assert inside(vertical, above) and not inside(vertical, up_the_tcp_axis)
+    assert inside(along_tcp, up_the_tcp_axis) and not inside(along_tcp, above)
+
+
+def test_oblique_sweep_overhangs_the_swept_volume_by_less_than_a_step() -> None:
+    pad = pick_grasps(flat_pose(0.5, -0.3, 0.4))[0].pad_boxes()[0]
+    move = np.array([0.0, 0.0, 0.03])
+    pieces = pad.sweep(move, step=0.002)
+    assert len(pieces) == 15
+    # the exact swept volume's distance: nearest over finely spaced copies of the pad
+    rng = np.random.default_rng(0)
+    points = pad.pose.translation() + move / 2 + rng.uniform(-0.03, 0.03, (2000, 3))
+    copies = [
+        OrientedBox(
+            RigidTransform(pad.pose.rotation(), pad.pose.translation() + t * move), pad.size
+        )
+        for t in np.linspace(0.0, 1.0, 301)
+    ]
+    exact = np.min([c.signed_distance(points) for c in copies], axis=0)
+    covered = np.min([p.signed_distance(points) for p in pieces], axis=0)
+    assert np.all(covered <= exact + 1e-6)  # covers it
+    assert np.all(exact - covered < 0.002)  # by less than a step
+    straight = pad.sweep(pad.pose.rotation().matrix()[:, 0] * 0.03)
+    assert len(straight) == 1  # along an axis the one box is exact
 
 
 def test_upright_pose_is_the_bringup_layout_convention() -> None:

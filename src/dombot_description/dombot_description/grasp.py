@@ -52,6 +52,9 @@ SYMMETRIES = (
 FINGER_SWAP = RigidTransform(RotationMatrix.MakeZRotation(math.pi))
 # An approach with less downward component than this comes from below the domino: not usable.
 MIN_DOWNWARD_APPROACH = 0.05
+# A box swept obliquely to its axes is covered by pieces this long: each overhangs the
+# true swept volume by less than it (the planner keeps pads 1.5 mm from pile points).
+SWEEP_STEP = 0.002  # m
 WSG_URDF = PACKAGE_DIR / "models" / "wsg50.urdf"
 
 
@@ -78,6 +81,23 @@ class OrientedBox:
         local = rotation.T @ np.asarray(translation, dtype=float)
         center = self.pose.translation() + np.asarray(translation, dtype=float) / 2.0
         return OrientedBox(RigidTransform(self.pose.rotation(), center), self.size + np.abs(local))
+
+    def sweep(self, translation: np.ndarray, step: float = SWEEP_STEP) -> list[OrientedBox]:
+        """Boxes covering this one moved along ``translation`` (world): ``swept`` when the
+        move is along one of its axes, else pieces at most ``step`` long (a pad tilted 63°
+        swept straight up in one box would cover its neighbours' space too)."""
+        translation = np.asarray(translation, dtype=float)
+        length = float(np.linalg.norm(translation))
+        local = np.sort(np.abs(self.pose.rotation().matrix().T @ translation))
+        if length == 0.0 or local[1] <= 1e-9 * length:
+            return [self.swept(translation)]
+        pieces = math.ceil(length / step)
+        part = translation / pieces
+        rotation, start = self.pose.rotation(), self.pose.translation()
+        return [
+            OrientedBox(RigidTransform(rotation, start + k * part), self.size).swept(part)
+            for k in range(pieces)
+        ]
 
 
 @dataclass(frozen=True)
@@ -179,17 +199,22 @@ class Grasp:
             for box in gripper_geometry().pad_boxes_in_tcp(opening)
         ]
 
-    def pad_paths(self, approach_distance: float) -> list[OrientedBox]:
-        """The space each pad passes through: open, swept back ``approach_distance`` along
-        the approach, and its stroke from the pre-grasp opening onto the domino (a domino
-        tucked beside the picked one's long face stops the finger there: arc seed 6 missed
-        twice so, the fingers stalled at 31 mm on a domino standing on its edge)."""
+    def pad_paths(
+        self, approach_distance: float, retreat: np.ndarray | None = None
+    ) -> list[OrientedBox]:
+        """The space each pad passes through: open, on the approach line from
+        ``approach_distance`` along ``retreat`` (world unit vector from the grasp back to the
+        pre-grasp; default up the TCP axis) down to the grasp, and its stroke from the
+        pre-grasp opening onto the domino (a domino tucked beside the picked one's long face
+        stops the finger there: arc seed 6 missed twice so, the fingers stalled at 31 mm on a
+        domino standing on its edge)."""
+        retreat = -self.approach if retreat is None else np.asarray(retreat, dtype=float)
         paths = []
         for open_pad, closed_pad in zip(
             self.pad_boxes(self.pregrasp_opening), self.pad_boxes(), strict=True
         ):
             stroke = closed_pad.pose.translation() - open_pad.pose.translation()
-            paths += [open_pad.swept(-self.approach * approach_distance), open_pad.swept(stroke)]
+            paths += [*open_pad.sweep(retreat * approach_distance), open_pad.swept(stroke)]
         return paths
 
 

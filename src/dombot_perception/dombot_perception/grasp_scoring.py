@@ -35,6 +35,7 @@ from dombot_perception.frames import Detection
 
 FREE_SPACE = 0.05  # m: clearance reported when no neighbour is nearer
 NEIGHBOURHOOD = 0.12  # m around a domino's centre: farther points cannot touch its grasp
+VERTICAL = np.array([0.0, 0.0, 1.0])  # the planner's first approach line, down to the grasp
 TERMS = ("flatness", "clearance", "uncovered", "height", "reach")
 
 
@@ -51,7 +52,7 @@ class GraspScoringConfig:
     )
     good_clearance: float = 0.004  # m: clearance term saturates at 1 here
     min_clearance: float = 0.0015  # m: less is a predicted collision (pose error budget)
-    approach_distance: float = 0.05  # m: pads sweep this far back along the approach
+    approach_distance: float = 0.05  # m: pads sweep this far back along the approach line
     min_table_clearance: float = 0.0  # m: pads lower than this above the table: infeasible
     own_surface: float = 0.002  # m: points this close to the domino's box are its own
     cover_height: float = 0.002  # m above the top face: a point there lies on the domino
@@ -152,12 +153,12 @@ def best_grasp(
 
 
 def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: float) -> float:
-    """Smallest distance [m] from the pads' path (``Grasp.pad_paths``: down the approach,
-    then closing onto the domino) to any obstacle point; ``FREE_SPACE`` when nothing is
-    nearer."""
+    """Smallest distance [m] from the pads' path (``Grasp.pad_paths``: straight down to the
+    grasp, the planner's first approach line, then closing onto the domino) to any
+    obstacle point; ``FREE_SPACE`` when nothing is nearer."""
     if obstacles.shape[0] == 0:
         return FREE_SPACE
-    paths = grasp.pad_paths(approach_distance)
+    paths = grasp.pad_paths(approach_distance, VERTICAL)
     return min(FREE_SPACE, *(float(path.signed_distance(obstacles).min()) for path in paths))
 
 

@@ -447,7 +447,8 @@ class RequestPlanning(RequestMotions):
         free = self._free_direction()
         for index, grasp in enumerate(grasps):
             self.deadline.check("grasp")
-            if self._pads_meet_pile_points(grasp):
+            lifts = [d for d in lift_directions(grasp) if not self._pads_meet_pile_points(grasp, d)]
+            if not lifts:
                 self.search.grasp_failures["pads' path meets pile points"] += 1
                 continue
             held = domino_in_tcp(grasp, request.domino_pose)
@@ -455,7 +456,7 @@ class RequestPlanning(RequestMotions):
             pick = self._end(
                 grasp,
                 self.settings.pick_approach_distance,
-                lift_directions(grasp),
+                lifts,
                 [self.approach, transfer],
                 self.planner.fine_rules(at_pick=True, nudge=self.nudge),
                 self.seeds([request.start], grasp.translation()),
@@ -469,16 +470,16 @@ class RequestPlanning(RequestMotions):
             for place in self._place_ends(places, transfer, [pick.line[0], request.start]):
                 yield pick, place, transfer
 
-    def _pads_meet_pile_points(self, grasp: RigidTransform) -> bool:
-        """Whether the pads' path to ``grasp`` (down the approach, then closing on the
-        domino) comes within pile_point_clearance of a pile point: a domino seen but not
-        detected, for which the scenes have no box (arc seed 6: one standing on its edge
-        beside the picked one's long face stopped the fingers at 31 mm, twice)."""
+    def _pads_meet_pile_points(self, grasp: RigidTransform, lift: np.ndarray) -> bool:
+        """Whether the pads' path to ``grasp`` (down the approach line along ``lift``, then
+        closing on the domino) comes within pile_point_clearance of a pile point: a domino
+        seen but not detected, for which the scenes have no box (arc seed 6: one standing on
+        its edge beside the picked one's long face stopped the fingers at 31 mm, twice)."""
         if not len(self.pile_points):
             return False
         openings = self.openings
         paths = Grasp(grasp, openings["closed"], openings["pregrasp"]).pad_paths(
-            self.settings.pick_approach_distance
+            self.settings.pick_approach_distance, lift
         )
         nearest = min(float(path.signed_distance(self.pile_points).min()) for path in paths)
         return nearest < self.settings.pile_point_clearance
