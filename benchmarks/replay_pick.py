@@ -28,7 +28,7 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import Grasp, pregrasp_opening
+from dombot_description.grasp import Grasp, OrientedBox, pregrasp_opening
 from dombot_msgs.msg import TrajectorySegment
 from dombot_planner.settings import PlannerSettings
 from dombot_sim.trajectory import build_trajectory
@@ -42,18 +42,9 @@ GRIPPER_SETTLE = 1.5  # s simulated for the fingers to close or stall
 TRACKING_SETTLE = 0.3  # s simulated after each trajectory
 
 
-def box_surface(pose: np.ndarray, step: float = SURFACE_STEP) -> np.ndarray:
+def box_surface(pose: np.ndarray) -> np.ndarray:
     """Points on the six faces of a domino at ``pose`` (4x4), world frame."""
-    half, faces = np.asarray(DOMINO_SIZE) / 2.0, []
-    for axis in range(3):
-        others = [a for a in range(3) if a != axis]
-        grids = [np.arange(-half[a], half[a] + 1e-9, step) for a in others]
-        u, v = (g.ravel() for g in np.meshgrid(*grids, indexing="ij"))
-        for sign in (-1.0, 1.0):
-            local = np.zeros((u.size, 3))
-            local[:, others[0]], local[:, others[1]], local[:, axis] = u, v, sign * half[axis]
-            faces.append(local)
-    return np.concatenate(faces) @ pose[:3, :3].T + pose[:3, 3]
+    return OrientedBox(RigidTransform(pose), np.asarray(DOMINO_SIZE)).surface(SURFACE_STEP)
 
 
 def truth_of(record: dict) -> dict[int, np.ndarray]:

@@ -29,6 +29,7 @@ from dombot_bringup.arm_job import (
     spot_of,
 )
 from dombot_bringup.debris import sweep_pushes
+from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED
 from dombot_bringup.run_report import (
     DominoOutcome,
     RunReport,
@@ -36,6 +37,7 @@ from dombot_bringup.run_report import (
     plot_run,
     target_of,
 )
+from dombot_description import DOMINO_SIZE
 from dombot_description.pose_messages import pose_matrix
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike
@@ -168,7 +170,7 @@ class RefusingClient:
 
     def __init__(self, codes: dict[float, int]) -> None:
         self.codes = codes  # detection x → refusal code
-        self.offered: list[tuple[float, int]] = []  # (x, pile dominoes sent)
+        self.offered: list[tuple[float, int, bool]] = []  # (x, pile dominoes, any points)
         self.places: list[Pose] = []
 
     def wait_for_sim_time(self, seconds: float) -> None:
@@ -183,7 +185,7 @@ class RefusingClient:
 
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
         x = request.domino_pose.position.x
-        self.offered.append((x, len(request.pile_dominoes)))
+        self.offered.append((x, len(request.pile_dominoes), bool(request.pile_points)))
         self.places.append(request.place_pose)
         return PlanPlace.Response(success=False, error_code=self.codes[x], message="refused")
 
@@ -198,17 +200,38 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
     }
     run = job()
     run.client = RefusingClient(codes)
-    success, why, spot, moved = run._attempt(0, failed := [])
-    assert (success, why, spot, moved) == (False, "planning: 5 offers refused", None, False)
-    # with their pile (all within 25 cm of each other), then the roomiest without it but
-    # the one whose place was blocked (not offered again to this slot)
-    assert run.client.offered == [(0.50, 2), (0.55, 2), (0.60, 2), (0.50, 0), (0.55, 0)]
+    success, why, spot, moved = run._attempt(0, failed := [], ignore_pile=True)
+    assert (success, why, spot, moved) == (False, "planning: 7 offers refused", None, False)
+    # with their pile (all within 25 cm of each other), then the roomiest with only their
+    # neighbours' cores (as points), then ignoring the pile; not the one whose place was
+    # blocked (not offered again to this slot)
+    assert run.client.offered == [
+        *[(0.50, 2, False), (0.55, 2, False), (0.60, 2, False)],
+        *[(0.50, 0, True), (0.55, 0, True)],
+        *[(0.50, 0, False), (0.55, 0, False)],
+    ]
     assert [c.tolist() for c in run.state.crowded] == [[0.50, -0.3], [0.55, -0.3]]
     assert [c.tolist() for c in run.state.unpickable] == [[0.50, -0.3], [0.55, -0.3]]
     assert [f.tolist() for f in failed] == [[0.60, -0.3]]
     run.client.offered.clear()
-    run._attempt(1, [])  # the next slot: only the one refused for its place is offered
-    assert run.client.offered == [(0.60, 2)]
+    run._attempt(1, [], ignore_pile=True)  # the next slot: only the one refused for its place
+    assert run.client.offered == [(0.60, 2, False)]
+
+
+def test_the_pile_is_ignored_only_when_no_other_slot_can_be_built_first() -> None:
+    """Ignoring its pile's detected dominoes, 6 of 12 picks failed (f611c37): while other
+    slots may go first, the slot is put off instead, the cores tried before."""
+    run = job()
+    refused = PlanPlace.Response.GRASP_UNREACHABLE
+    run.client = RefusingClient({0.50: refused, 0.55: refused})
+    assert run._place_with_retries(0, may_defer=True) == DEFERRED
+    assert run.client.offered == [
+        (0.50, 1, False),
+        (0.55, 1, False),
+        (0.50, 0, True),
+        (0.55, 0, True),
+    ]
+    assert run.state.unpickable == []
 
 
 def test_the_planner_is_asked_to_release_a_domino_ahead_of_its_target_along_the_run() -> None:
@@ -398,8 +421,8 @@ def test_flat_dominoes_are_offered_before_leaning_ones() -> None:
         return answer
 
     run.client.detect = leaning_first
-    run._attempt(0, [])
-    assert [x for x, _ in run.client.offered] == [0.55, 0.50, 0.55, 0.50]
+    run._attempt(0, [], ignore_pile=True)
+    assert [offer[0] for offer in run.client.offered] == [0.55, 0.50] * 3
 
 
 def test_the_summary_counts_dominoes_the_simulator_had_within_3_mm_and_3_degrees() -> None:
@@ -431,7 +454,7 @@ def attempts_until_failed(spot: np.ndarray | None) -> int:
     ``spot`` lies, or (None) a domino carried that did not stand."""
     run = job()
     run.client = ResetOnlyClient()
-    run._attempt = lambda index, failed: (False, "it failed", spot, True)
+    run._attempt = lambda index, failed, ignore_pile: (False, "it failed", spot, True)
     assert run._place_with_retries(0, may_defer=False) == FAILED
     return run.report.dominoes[0].attempts
 
@@ -659,23 +682,32 @@ def test_perceptions_grasp_is_offered_to_the_planner_first_a_fallen_dominos_none
     run = job()
     run.client = GraspRecordingClient()
     pile = next(c for c in run._candidates([]) if c.run_index is None)
-    run._plan(0, pile, with_pile=True)
-    run._plan(0, Candidate(lying(0.45, 0.05), 1), with_pile=True)
+    run._plan(0, pile, PILE_BOXES)
+    run._plan(0, Candidate(lying(0.45, 0.05), 1), PILE_BOXES)
     assert [r.grasp_pose for r in run.client.requests] == [GraspRecordingClient.GRASP, Pose()]
 
 
 def test_points_seen_on_no_detected_domino_near_a_pick_go_to_the_planner_with_its_pile() -> None:
     """A domino perception saw but did not detect (on its edge beside the picked one: arc
     seed 6) is only points; the planner keeps the pads' path clear of those near the pick,
-    also when it plans ignoring the pile's detected dominoes (the last resort)."""
+    also when it plans ignoring the pile's detected dominoes (the last resort). With only
+    the pile's cores, those come on top."""
     run = job()
     run.client = GraspRecordingClient()
     pile = next(c for c in run._candidates([]) if c.run_index is None)
-    run._plan(0, pile, with_pile=True)
-    run._plan(0, pile, with_pile=False)
-    for request in run.client.requests:
+    for mode in (PILE_BOXES, PILE_IGNORED, PILE_CORES):
+        run._plan(0, pile, mode)
+    boxes, ignoring, cores = run.client.requests
+    for request in (boxes, ignoring):
         assert [(p.x, p.y) for p in request.pile_points] == [(0.57, -0.3)]
-    assert run.client.requests[1].pile_dominoes == []
+    assert len(boxes.pile_dominoes) == 1 and ignoring.pile_dominoes == cores.pile_dominoes == []
+    assert [(p.x, p.y) for p in cores.pile_points] == [(0.57, -0.3)]  # the other is 10 cm off
+    near_one = Candidate(pile.pose, neighbours=[lying(0.58, -0.3), lying(0.7, -0.3)])
+    run._plan(0, near_one, PILE_CORES)
+    core = np.array([(p.x, p.y, p.z) for p in run.client.requests[-1].pile_points])
+    half_core = np.asarray(DOMINO_SIZE) / 2 - 0.0045  # the thickness shrinks to nothing
+    assert np.all(np.abs(core - [0.58, -0.3, 0.00375]) <= np.maximum(half_core, 0) + 1e-9)
+    assert np.ptp(core[:, 0]) == pytest.approx(DOMINO_SIZE[0] - 0.009)
 
 
 class JointStateClient:
@@ -701,11 +733,11 @@ def test_a_recorded_pick_holds_what_it_was_planned_from_and_the_truth(tmp_path: 
     plan = PlanPlace.Response(success=True, message="planned", segments=[approach])
     truth = [("domino_7", pose_matrix(lying(0.5507, -0.30)))]
     for failure in ("approach_grasp: grasp missed", ""):
-        run._write_pick_record(run._pick_record(1, candidate, True, plan, truth), failure)
+        run._write_pick_record(run._pick_record(1, candidate, PILE_BOXES, plan, truth), failure)
     first, second = sorted((tmp_path / "picks").glob("*.json"))
     assert first.name == "pick000_slot2.json" and second.name == "pick001_slot2.json"
     record = json.loads(first.read_text())
-    assert record["failure"] == "approach_grasp: grasp missed"
+    assert record["failure"] == "approach_grasp: grasp missed" and record["pile"] == PILE_BOXES
     assert json.loads(second.read_text())["failure"] == ""
     assert record["pile_points"] == [[0.57, -0.3, 0.01]] and len(record["pile_dominoes"]) == 1
     assert record["start"] == {"names": ["iiwa_joint_1"], "positions": [0.3]}
@@ -714,7 +746,7 @@ def test_a_recorded_pick_holds_what_it_was_planned_from_and_the_truth(tmp_path: 
     assert segment["gripper_after"] == CLOSE
     assert np.allclose(record["truth"]["domino_7"], truth[0][1])
     without = job()  # not asked for: nothing recorded
-    assert without._pick_record(1, candidate, True, plan, truth) is None
+    assert without._pick_record(1, candidate, PILE_BOXES, plan, truth) is None
 
 
 class LateFramesClient(CheckingClient):

@@ -36,7 +36,15 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from dombot_bringup.cell_client import CallFailedError, CellClient
 from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
-from dombot_bringup.offers import NEIGHBOUR_RADIUS, roomiest_first, with_pile_first
+from dombot_bringup.offers import (
+    NEIGHBOUR_RADIUS,
+    PILE_BOXES,
+    PILE_CORES,
+    PILE_IGNORED,
+    pile_cores,
+    roomiest_first,
+    with_pile_first,
+)
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
@@ -54,6 +62,11 @@ SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 # its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
 GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE, PlanPlace.Response.TIMEOUT)
 PLACED, FAILED, DEFERRED = "placed", "failed", "deferred"  # how a slot's turn ended
+PILE_WORDS = {
+    PILE_BOXES: "",
+    PILE_CORES: " with its pile's cores",
+    PILE_IGNORED: " ignoring its pile",
+}
 # What the in-hand check says when it cannot measure the held domino.
 IN_HAND_WORDS = {
     CheckPlacement.Response.FALLEN: "no upright domino fitted below the pads",
@@ -81,10 +94,15 @@ class ArmJobSettings:
     # at its last gap with 16 dominoes still detected in the pile.
     max_missed_picks: int = 8
     # Per attempt, dominoes offered to the planner with their pile until one plans, then
-    # the roomiest without it (the last resort: 2 of the 9 such picks in the benchmark logs
-    # placed; 6 offers with the pile had left the roomiest of them untried with it).
+    # the roomiest with only their pile's cores (the pads may reach into a neighbour's box
+    # but not its core), and, when no other slot can be built first, ignoring the pile.
+    # Ignoring it, 6 of 12 picks failed (f611c37); replayed, each of the 6 had the pads'
+    # path 3.3-7.7 mm deep in a detected neighbour, the 6 that held at most 2.9 mm.
     max_candidates: int = 16
     last_resort_candidates: int = 3
+    # m per side a neighbour's core is smaller than its box: the planner keeps the pads'
+    # path 1.5 mm (pile_point_clearance) from the core, so ~3 mm deep in the box at most.
+    pile_core_shrink: float = 0.0045
     section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
     plan_budget: float = 5.0  # s of planning per request
     settle_after_place: float = 0.5  # s simulated before checking a placement
@@ -288,7 +306,7 @@ class ArmJob:
             outcome.attempts - missed < settings.max_attempts and missed < settings.max_missed_picks
         ):
             try:
-                success, why, spot, moved = self._attempt(index, failed)
+                success, why, spot, moved = self._attempt(index, failed, not may_defer)
             except CallFailedError as error:
                 success, why, spot, moved = False, str(error), None, True
             outcome.simulated_s += self.client.sim_time - sim_start
@@ -321,50 +339,55 @@ class ArmJob:
 
     # ------------------------------------------------------------------ one attempt
     def _attempt(
-        self, index: int, failed: list[np.ndarray]
+        self, index: int, failed: list[np.ndarray], ignore_pile: bool = False
     ) -> tuple[bool, str, np.ndarray | None, bool]:
         """Offer the planner candidates until one plans; execute and check it.
 
         First with their pile neighbours as obstacles (the planner keeps the pads clear of
         them, or lets them nudge one a few millimetres), in ``offers.with_pile_first``'s
-        order; when every one is refused, the roomiest again without the pile (the pads
-        may push neighbours further; a miss is caught by the grasp check and backed out
-        of). A refusal costs a planning call, not an attempt: the arm has not
-        moved (the last of the returned success, why, spot, moved says whether it did).
-        Refusals and failed picks are remembered for the run (refused with the
-        pile: not offered with it again; refused without it, or the pick blocked or
-        missed: not offered at all), until a pick within DISTURBED_RADIUS moves it.
+        order; when every one is refused, the roomiest with only their pile's cores (the
+        pads may push a neighbour up to pile_core_shrink); then, when ``ignore_pile`` (no
+        other slot can be built first), the roomiest ignoring the pile (a miss is caught by
+        the grasp check and backed out of, and stirs the pile). A refusal costs a planning
+        call, not an attempt: the arm has not moved (the last of the returned success, why,
+        spot, moved says whether it did). Refusals and failed picks are remembered for the
+        run (refused with the pile: not offered with it again; refused ignoring it, or the
+        pick blocked or missed: not offered at all), until a pick within DISTURBED_RADIUS
+        moves it.
         """
         candidates = self._candidates(failed)
         crowded, settings = self.state.crowded, self.settings
         ranked = [c for c in with_pile_first(candidates) if not near_any(c.spot(), crowded)]
         roomiest = roomiest_first(candidates)[: settings.last_resort_candidates]
-        offers = [(c, True) for c in ranked[: settings.max_candidates]]
-        offers += [(c, False) for c in roomiest]
+        offers = [(c, PILE_BOXES) for c in ranked[: settings.max_candidates]]
+        offers += [(c, PILE_CORES) for c in roomiest]
+        offers += [(c, PILE_IGNORED) for c in roomiest] if ignore_pile else []
         refused = 0
-        for candidate, with_pile in offers:
+        for candidate, pile in offers:
             spot = candidate.spot()
             if near_any(spot, failed):
                 continue  # refused for this slot already
-            plan = self._plan(index, candidate, with_pile)
+            plan = self._plan(index, candidate, pile)
             if not plan.success:
                 refused += 1
-                self._log_refusal(index, candidate, with_pile, plan.message)
+                self._log_refusal(index, candidate, pile, plan.message)
                 if plan.error_code not in GRASP_REFUSALS:
                     failed.append(spot)
-                else:
-                    (self.state.crowded if with_pile else self.state.unpickable).append(spot)
+                elif pile == PILE_BOXES:
+                    self.state.crowded.append(spot)
+                elif pile == PILE_IGNORED:
+                    self.state.unpickable.append(spot)
                 continue
-            pile = "" if with_pile else " ignoring its pile"
             log(
                 f"domino {index + 1}/{len(self.layout)}: picking {candidate.source} "
-                f"({candidate.posture_name}) at {spot.round(3).tolist()}, {plan.message}{pile}"
+                f"({candidate.posture_name}) at {spot.round(3).tolist()}, "
+                f"{plan.message}{PILE_WORDS[pile]}"
             )
             self._forget_refusals_near(spot)  # the pick disturbs its neighbours
             truth = self._truth()
             truth_name, seen_off = nearest_truth(truth, candidate.pose)
             self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
-            record = self._pick_record(index, candidate, with_pile, plan, truth)
+            record = self._pick_record(index, candidate, pile, plan, truth)
             executed, why = self._execute(plan.segments, (index, plan.held_above_place))
             self._write_pick_record(record, why)
             if not executed:  # blocked or missed: unless it moved, the same would happen again
@@ -440,13 +463,14 @@ class ArmJob:
         log(f"domino {run_index + 1} kept standing where it is ({outcome.check})")
         return False, why, spot, True
 
-    def _log_refusal(self, index: int, candidate: Candidate, with_pile: bool, why: str) -> None:
+    def _log_refusal(self, index: int, candidate: Candidate, pile: str, why: str) -> None:
         """One short line per refusal: the planner's reason up to its details."""
-        where = f"{candidate.source} at {candidate.spot().round(3).tolist()}"
-        pile = "" if with_pile else " ignoring its pile"
-        log(f"domino {index + 1}/{len(self.layout)}: refused {where}{pile}: {why.split(' (')[0]}")
+        where = f"{candidate.source} at {candidate.spot().round(3).tolist()}{PILE_WORDS[pile]}"
+        log(f"domino {index + 1}/{len(self.layout)}: refused {where}: {why.split(' (')[0]}")
 
-    def _plan(self, index: int, candidate: Candidate, with_pile: bool) -> PlanPlace.Response:
+    def _plan(self, index: int, candidate: Candidate, pile: str) -> PlanPlace.Response:
+        with_pile = pile == PILE_BOXES
+        points = [*candidate.points, *self._cores(candidate)] if pile == PILE_CORES else None
         return self.client.plan_place(
             PlanPlace.Request(
                 domino_pose=candidate.pose,
@@ -457,7 +481,7 @@ class ArmJob:
                 pile_dominoes=candidate.neighbours if with_pile else [],
                 # unlike the pile's boxes, kept in the last resort too: it missed 8 of 11
                 # (58ee708), and a domino never detected is nothing the pads may push
-                pile_points=candidate.points,
+                pile_points=candidate.points if points is None else points,
                 grasp_width=0.0,
                 place_pose=self.releases[index],
                 standing_dominoes=[
@@ -468,6 +492,12 @@ class ArmJob:
             ),
             timeout=self.settings.plan_budget + 30.0,
         )
+
+    def _cores(self, candidate: Candidate) -> list[Point]:
+        """The points of the cores of ``candidate``'s pile neighbours (``offers.pile_cores``)."""
+        neighbours = [pose_matrix(p) for p in candidate.neighbours]
+        cores = pile_cores(candidate.spot(), neighbours, self.settings.pile_core_shrink)
+        return [Point(x=x, y=y, z=z) for x, y, z in cores.tolist()]
 
     def _debris(
         self, candidate: Candidate, with_pile: bool = True, place: np.ndarray | None = None
@@ -765,7 +795,7 @@ class ArmJob:
         self,
         index: int,
         candidate: Candidate,
-        with_pile: bool,
+        pile: str,
         plan: PlanPlace.Response,
         truth: list[tuple[str, np.ndarray]],
     ) -> dict | None:
@@ -780,7 +810,7 @@ class ArmJob:
             "source": candidate.source,
             "domino_pose": pose_matrix(candidate.pose).tolist(),
             "grasp_pose": None if grasp is None else pose_matrix(grasp).tolist(),
-            "with_pile": with_pile,
+            "pile": pile,
             "pile_dominoes": [pose_matrix(p).tolist() for p in candidate.neighbours],
             "pile_points": [[p.x, p.y, p.z] for p in candidate.points],
             "plan": plan.message,

@@ -74,6 +74,21 @@ class OrientedBox:
         outside = np.linalg.norm(np.maximum(excess, 0.0), axis=1)
         return np.where(np.all(excess <= 0.0, axis=1), excess.max(axis=1), outside)
 
+    def surface(self, step: float) -> np.ndarray:
+        """Points on the six faces (N×3, world), ``step`` apart or closer (corners included)."""
+        half, faces = self.size / 2.0, []
+        for axis in range(3):
+            others = [a for a in range(3) if a != axis]
+            counts = [math.ceil(2.0 * half[a] / step) + 1 for a in others]
+            grids = [np.linspace(-half[a], half[a], n) for a, n in zip(others, counts, strict=True)]
+            u, v = (g.ravel() for g in np.meshgrid(*grids, indexing="ij"))
+            for sign in (-1.0, 1.0):
+                local = np.zeros((u.size, 3))
+                local[:, others[0]], local[:, others[1]], local[:, axis] = u, v, sign * half[axis]
+                faces.append(local)
+        rotation = self.pose.rotation().matrix()
+        return np.concatenate(faces) @ rotation.T + self.pose.translation()
+
     def swept(self, translation: np.ndarray) -> OrientedBox:
         """The box of the same orientation covering this one moved along ``translation``
         (world): exactly the swept volume when the move is along one of its axes."""
