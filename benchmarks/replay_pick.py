@@ -28,7 +28,7 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import Grasp, OrientedBox, pregrasp_opening
+from dombot_description.grasp import Grasp, OrientedBox, nearest_distance, pregrasp_opening
 from dombot_msgs.msg import TrajectorySegment
 from dombot_planner.settings import PlannerSettings
 from dombot_sim.trajectory import build_trajectory
@@ -85,7 +85,7 @@ def pads_against_truth(record: dict, grasp: Grasp, retreat: np.ndarray, near: fl
         if index == target:
             continue
         surface = box_surface(pose)
-        distance = min(float(path.signed_distance(surface).min()) for path in paths)
+        distance = nearest_distance(paths, surface)
         if distance < near:
             met.append(
                 {"domino": index, "mm": round(distance * 1e3, 2), "detected": index in detected}

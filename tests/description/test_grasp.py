@@ -31,6 +31,7 @@ from dombot_description.grasp import (
     domino_in_tcp,
     flat_pose,
     gripper_geometry,
+    nearest_distance,
     pick_grasps,
     place_grasps,
     upright_pose,
@@ -274,6 +275,17 @@ def test_oblique_sweep_overhangs_the_swept_volume_by_less_than_a_step() -> None:
     assert np.all(exact - covered < 0.002)  # by less than a step
     straight = pad.sweep(pad.pose.rotation().matrix()[:, 0] * 0.03)
     assert len(straight) == 1  # along an axis the one box is exact
+
+
+def test_nearest_distance_is_the_smallest_signed_distance_to_any_box() -> None:
+    grasp = pick_grasps(flat_pose(0.5, -0.3, 0.4))[0]
+    paths = grasp.pad_paths(0.05, np.array([0.0, 0.0, 1.0]))
+    rng = np.random.default_rng(1)
+    for spread in (0.002, 0.01, 0.05):  # inside the pads' path, near it, around it
+        points = grasp.pose.translation() + rng.normal(0.0, spread, (500, 3))
+        brute = min(float(path.signed_distance(points).min()) for path in paths)
+        assert nearest_distance(paths, points) == pytest.approx(brute, abs=1e-12)
+    assert nearest_distance(paths, np.zeros((0, 3))) == math.inf
 
 
 def test_upright_pose_is_the_bringup_layout_convention() -> None:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
 
@@ -113,6 +114,30 @@ class OrientedBox:
             OrientedBox(RigidTransform(rotation, start + k * part), self.size).swept(part)
             for k in range(pieces)
         ]
+
+
+def nearest_distance(boxes: Sequence[OrientedBox], points: np.ndarray) -> float:
+    """The smallest signed distance from any of ``points`` (N×3) to any of ``boxes`` (inf
+    when either is empty): exact, but each box measured only to the points its bounding
+    sphere leaves in question (a swept pad is ~30 boxes; measured to every scene point,
+    perception's grasp scoring took 4-5 s a pile)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    if not len(points) or not len(boxes):
+        return math.inf
+    centres = np.array([box.pose.translation() for box in boxes])
+    radii = np.array([float(np.linalg.norm(box.size)) / 2.0 for box in boxes])
+    # a point's distance to a box's centre less its radius never exceeds its distance to
+    # the box (squared distances as a product: 5x faster than differences; 1 µm for rounding)
+    squared = (centres**2).sum(axis=1)[:, None] + (points**2).sum(axis=1) - 2.0 * centres @ points.T
+    bounds = np.sqrt(np.maximum(squared, 0.0)) - radii[:, None] - 1e-6
+    nearest_bounds = bounds.min(axis=1)
+    best = math.inf
+    for k in np.argsort(nearest_bounds):
+        if nearest_bounds[k] >= best:
+            break  # nor any box after it
+        candidates = bounds[k] < best
+        best = min(best, float(boxes[k].signed_distance(points[candidates]).min()))
+    return best
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from scipy.spatial import cKDTree
 
-from dombot_description.grasp import Grasp, comes_from_above, pick_grasps
+from dombot_description.grasp import Grasp, comes_from_above, nearest_distance, pick_grasps
 from dombot_perception.domino_model import HALF_SIZE, box_signed_distance
 from dombot_perception.frames import Detection
 
@@ -159,7 +159,7 @@ def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: floa
     if obstacles.shape[0] == 0:
         return FREE_SPACE
     paths = grasp.pad_paths(approach_distance, VERTICAL)
-    return min(FREE_SPACE, *(float(path.signed_distance(obstacles).min()) for path in paths))
+    return min(FREE_SPACE, nearest_distance(paths, obstacles))
 
 
 def pads_above_table(grasp: Grasp, min_height: float) -> bool:

@@ -41,6 +41,7 @@ from dombot_description.grasp import (
     OrientedBox,
     comes_from_above,
     domino_in_tcp,
+    nearest_distance,
     pick_grasps,
     place_grasps,
     pregrasp_opening,
@@ -481,8 +482,7 @@ class RequestPlanning(RequestMotions):
         paths = Grasp(grasp, openings["closed"], openings["pregrasp"]).pad_paths(
             self.settings.pick_approach_distance, lift
         )
-        nearest = min(float(path.signed_distance(self.pile_points).min()) for path in paths)
-        return nearest < self.settings.pile_point_clearance
+        return nearest_distance(paths, self.pile_points) < self.settings.pile_point_clearance
 
     def _place_ends(
         self, places: list[RigidTransform], transfer: Scene, seeds: list[np.ndarray]
