@@ -285,7 +285,10 @@ def test_nearest_distance_is_the_smallest_signed_distance_to_any_box() -> None:
         points = grasp.pose.translation() + rng.normal(0.0, spread, (500, 3))
         brute = min(float(path.signed_distance(points).min()) for path in paths)
         assert nearest_distance(paths, points) == pytest.approx(brute, abs=1e-12)
+        capped = nearest_distance(paths, points, cap=0.004)
+        assert capped == pytest.approx(min(brute, 0.004), abs=1e-12)
     assert nearest_distance(paths, np.zeros((0, 3))) == math.inf
+    assert nearest_distance(paths, np.ones((4, 3)), cap=0.01) == 0.01  # all far away
 
 
 def test_upright_pose_is_the_bringup_layout_convention() -> None:

@@ -33,7 +33,9 @@ from dombot_description.grasp import Grasp, comes_from_above, nearest_distance, 
 from dombot_perception.domino_model import HALF_SIZE, box_signed_distance
 from dombot_perception.frames import Detection
 
-FREE_SPACE = 0.05  # m: clearance reported when no neighbour is nearer
+# m: clearance reported when no point is nearer: the score saturates at good_clearance,
+# and the bring-up's roomiest first needs no finer order among those with this much room
+FREE_SPACE = 0.015
 NEIGHBOURHOOD = 0.12  # m around a domino's centre: farther points cannot touch its grasp
 VERTICAL = np.array([0.0, 0.0, 1.0])  # the planner's first approach line, down to the grasp
 TERMS = ("flatness", "clearance", "uncovered", "height", "reach")
@@ -156,10 +158,8 @@ def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: floa
     """Smallest distance [m] from the pads' path (``Grasp.pad_paths``: straight down to the
     grasp, the planner's first approach line, then closing onto the domino) to any
     obstacle point; ``FREE_SPACE`` when nothing is nearer."""
-    if obstacles.shape[0] == 0:
-        return FREE_SPACE
     paths = grasp.pad_paths(approach_distance, VERTICAL)
-    return min(FREE_SPACE, nearest_distance(paths, obstacles))
+    return nearest_distance(paths, obstacles, cap=FREE_SPACE)
 
 
 def pads_above_table(grasp: Grasp, min_height: float) -> bool:
