@@ -101,6 +101,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "leaning 1.5°) is carried again from where it is held (2; 0: no check)",
     )
     run.add_argument(
+        "--pile-core-shrink",
+        type=float,
+        default=4.5,
+        help="[mm] when no pick plans with its pile, plan again keeping the pads 1.5 mm from "
+        "the pile's dominoes shrunk this much a side (4.5: they may push one ~3 mm; 0..12)",
+    )
+    run.add_argument(
         "--record-picks",
         action="store_true",
         help="write each pick's offer, plan and the simulator's truth to OUT/picks/ "
@@ -161,6 +168,8 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--place-lead must be 0..3 mm: {args.place_lead}")
     if not 0.0 <= args.in_hand_tolerance <= 3.0:  # beyond 3 mm the placement has failed
         raise layouts.LayoutError(f"--in-hand-tolerance must be 0..3 mm: {args.in_hand_tolerance}")
+    if not 0.0 <= args.pile_core_shrink <= 12.0:  # 12 mm a side leaves a line of a domino
+        raise layouts.LayoutError(f"--pile-core-shrink must be 0..12 mm: {args.pile_core_shrink}")
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -174,6 +183,7 @@ def run_arm(args: argparse.Namespace) -> int:
         keep_when_stuck=args.keep_when_stuck * 1e-3,
         place_lead=args.place_lead * 1e-3,
         in_hand_tolerance=args.in_hand_tolerance * 1e-3,
+        pile_core_shrink=args.pile_core_shrink * 1e-3,
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
         record_picks=args.out / "picks" if args.record_picks else None,
