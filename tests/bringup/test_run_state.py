@@ -218,19 +218,24 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
     assert run.client.offered == [(0.60, 2, False)]
 
 
-def test_the_pile_is_ignored_only_when_no_other_slot_can_be_built_first() -> None:
-    """Ignoring its pile's detected dominoes, 6 of 12 picks failed (f611c37): while other
-    slots may go first, the slot is put off instead, the cores tried before."""
-    run = job()
+def test_the_pile_is_ignored_only_when_putting_the_slot_off_cannot_help() -> None:
+    """Ignoring its pile's detected dominoes, 6 of 12 picks failed (f611c37): their cores
+    are tried first. After a refusal about the slot (its place), other slots may go
+    first; refusals about the dominoes would recur at every slot."""
     refused = PlanPlace.Response.GRASP_UNREACHABLE
+    run = job()
     run.client = RefusingClient({0.50: refused, 0.55: refused})
+    run._attempt(0, [], ignore_pile=False)
+    boxes, cores, ignoring = (
+        [(0.50, 1, False), (0.55, 1, False)],
+        [(0.50, 0, True), (0.55, 0, True)],
+        [(0.50, 0, False), (0.55, 0, False)],
+    )
+    assert run.client.offered == boxes + cores + ignoring
+    run = job()
+    run.client = RefusingClient({0.50: refused, 0.55: PlanPlace.Response.PLACE_IN_COLLISION})
     assert run._place_with_retries(0, may_defer=True) == DEFERRED
-    assert run.client.offered == [
-        (0.50, 1, False),
-        (0.55, 1, False),
-        (0.50, 0, True),
-        (0.55, 0, True),
-    ]
+    assert run.client.offered == [*boxes, (0.50, 0, True)]  # 0.55 refused for its place
     assert run.state.unpickable == []
 
 

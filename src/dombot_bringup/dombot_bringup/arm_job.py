@@ -23,7 +23,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -346,24 +346,30 @@ class ArmJob:
         First with their pile neighbours as obstacles (the planner keeps the pads clear of
         them, or lets them nudge one a few millimetres), in ``offers.with_pile_first``'s
         order; when every one is refused, the roomiest with only their pile's cores (the
-        pads may push a neighbour up to pile_core_shrink); then, when ``ignore_pile`` (no
-        other slot can be built first), the roomiest ignoring the pile (a miss is caught by
-        the grasp check and backed out of, and stirs the pile). A refusal costs a planning
-        call, not an attempt: the arm has not moved (the last of the returned success, why,
-        spot, moved says whether it did). Refusals and failed picks are remembered for the
-        run (refused with the pile: not offered with it again; refused ignoring it, or the
-        pick blocked or missed: not offered at all), until a pick within DISTURBED_RADIUS
-        moves it.
+        pads may push a neighbour up to pile_core_shrink); then the roomiest ignoring the
+        pile (a miss is caught by the grasp check and backed out of, and stirs the pile),
+        unless a refusal was about the slot and not ``ignore_pile`` (other slots may be
+        built first; refusals about the dominoes would recur at every slot). A refusal
+        costs a planning call, not an attempt: the arm has not moved (the last of the
+        returned success, why, spot, moved says whether it did). Refusals and failed picks
+        are remembered for the run (refused with the pile: not offered with it again;
+        refused ignoring it, or the pick blocked or missed: not offered at all), until a
+        pick within DISTURBED_RADIUS moves it.
         """
         candidates = self._candidates(failed)
         crowded, settings = self.state.crowded, self.settings
         ranked = [c for c in with_pile_first(candidates) if not near_any(c.spot(), crowded)]
         roomiest = roomiest_first(candidates)[: settings.last_resort_candidates]
-        offers = [(c, PILE_BOXES) for c in ranked[: settings.max_candidates]]
-        offers += [(c, PILE_CORES) for c in roomiest]
-        offers += [(c, PILE_IGNORED) for c in roomiest] if ignore_pile else []
+        slot_refusals: list[np.ndarray] = []
+
+        def offers() -> Iterator[tuple[Candidate, str]]:
+            yield from ((c, PILE_BOXES) for c in ranked[: settings.max_candidates])
+            yield from ((c, PILE_CORES) for c in roomiest)
+            if ignore_pile or not slot_refusals:
+                yield from ((c, PILE_IGNORED) for c in roomiest)
+
         refused = 0
-        for candidate, pile in offers:
+        for candidate, pile in offers():
             spot = candidate.spot()
             if near_any(spot, failed):
                 continue  # refused for this slot already
@@ -373,6 +379,7 @@ class ArmJob:
                 self._log_refusal(index, candidate, pile, plan.message)
                 if plan.error_code not in GRASP_REFUSALS:
                     failed.append(spot)
+                    slot_refusals.append(spot)
                 elif pile == PILE_BOXES:
                     self.state.crowded.append(spot)
                 elif pile == PILE_IGNORED:
