@@ -17,6 +17,8 @@ from dombot_planner.motion import (
     GRIPPER_CLOSE,
     GRIPPER_NONE,
     GRIPPER_OPEN,
+    Deadline,
+    RequestMotions,
     elbow_not_up,
     faces_away,
 )
@@ -262,6 +264,21 @@ def test_only_the_usual_branch_is_taken(planner, q, up: bool) -> None:
     assert 0.3 < np.hypot(*tcp[:2]) < 0.8 and tcp[0] > 0.0 and tcp[2] < 0.15
     other = faces_away(q, tcp) or elbow_not_up(scene, SCENARIO.arm_joints, q)
     assert other == (not up)
+
+
+def test_a_coarse_move_between_ik_branches_is_refused_for_its_swing(planner) -> None:
+    """7500eb1's benchmark: a pick with joint 3 turned over (2.6 rad) and a place in the
+    usual branch; the transfer between them took the TCP 0.54 m up at 1.8 m/s and threw
+    the domino onto the run. Between two ends in the usual branch the move stays low."""
+    scene = Scene(planner.plants.get(DOMINO_SIZE[1]), SCENARIO.tcp_frame)
+    motions = RequestMotions(planner, SCENARIO.home_position, Deadline(60.0))
+    place = np.array([0.24, 1.23, 0.60, -1.14, -0.80, 1.78, -1.69])
+    turned_over = np.array([-0.78, 1.69, 2.60, 0.31, 1.02, -1.99, -1.12])
+    with pytest.raises(PlanningError, match="swung"):
+        motions.coarse_move("transfer", scene, turned_over, place, {})
+    usual = np.array([-1.44, 1.36, 0.71, -1.90, -1.00, -0.45, -2.07])
+    path = motions.coarse_move("transfer", scene, usual, place, {})
+    assert path.duration > 0.0
 
 
 def test_start_where_a_grasp_missed_is_left_straight_up_first(planner, planned) -> None:

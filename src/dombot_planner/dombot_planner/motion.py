@@ -53,6 +53,7 @@ SEED_TURN = 0.8  # rad: random IK seeds turn joint 1 up to this far from the tar
 ELBOW_UP = 0.3  # the elbow's offset from the shoulder–wrist line points at least this up
 STRAIGHT_ARM = 0.02  # m: an elbow this close to the shoulder–wrist line is left alone
 UP = np.array([0.0, 0.0, 1.0])
+RISE_SAMPLES = 40  # along a coarse move, for the TCP's height
 
 # A clearance check: the scene and the rules it must keep there.
 Check = tuple[Scene, ClearanceRules]
@@ -435,6 +436,10 @@ class RequestMotions:
             if violations:
                 failure = f"too close between samples: {violations[0]}"
                 continue
+            rise = tcp_rise(scene, path)
+            if rise > s.max_coarse_rise:  # the ends lie in different IK branches: so will any
+                failure = f"the TCP swung {rise:.2f} m above the higher end"
+                break
             timed = retime(label, path, scene.plant, self.planner.limits)
             if timed is not None:
                 return timed
@@ -482,6 +487,13 @@ def first_violation(q: np.ndarray, checks: Sequence[Check]) -> str:
         if violations:
             return violations[0].split(" ")[0]
     return ""
+
+
+def tcp_rise(scene: Scene, path) -> float:
+    """How far [m] the TCP rises along ``path`` above the higher of its ends."""
+    samples = path.vector_values(np.linspace(path.start_time(), path.end_time(), RISE_SAMPLES))
+    heights = [scene.tcp_pose(q).translation()[2] for q in samples.T]
+    return max(heights) - max(heights[0], heights[-1])
 
 
 def dense_violations(scene: Scene, path, rules: ClearanceRules) -> list[str]:

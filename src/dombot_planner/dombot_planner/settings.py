@@ -38,6 +38,10 @@ class PlannerSettings:
     kto_control_points: int = 10
     kto_collision_samples: int = 16
     kto_attempts: int = 4
+    # m a coarse move's TCP may rise above the higher of its ends. Moves between IK
+    # branches (joint 3 turned over at one end only) swung it 0.4-0.7 m higher and threw a
+    # held domino onto the run in the benchmark of 7500eb1; the raised via rises 0.15 m.
+    max_coarse_rise: float = 0.25
     ik_random_seeds: int = 6
     # Retiming.
     velocity_scale: float = 1.0  # of the URDF joint velocity limits
