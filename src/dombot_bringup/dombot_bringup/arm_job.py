@@ -96,7 +96,7 @@ class ArmJobSettings:
     max_missed_picks: int = 8
     # Per attempt, dominoes offered to the planner with their pile until one plans, then
     # the roomiest with only their pile's cores (the pads may reach into a neighbour's box
-    # but not its core), and, when no other slot can be built first, ignoring the pile.
+    # but not its core), then ignoring the pile (unless the slot can be put off instead).
     # Ignoring it, 6 of 12 picks failed (f611c37); replayed, each of the 6 had the pads'
     # path 3.3-7.7 mm deep in a detected neighbour, the 6 that held at most 2.9 mm.
     max_candidates: int = 16
@@ -489,7 +489,6 @@ class ArmJob:
 
     def _plan(self, index: int, candidate: Candidate, pile: str) -> PlanPlace.Response:
         with_pile = pile == PILE_BOXES
-        points = [*candidate.points, *self._cores(candidate)] if pile == PILE_CORES else None
         return self.client.plan_place(
             PlanPlace.Request(
                 domino_pose=candidate.pose,
@@ -500,7 +499,7 @@ class ArmJob:
                 pile_dominoes=candidate.neighbours if with_pile else [],
                 # unlike the pile's boxes, kept in the last resort too: it missed 8 of 11
                 # (58ee708), and a domino never detected is nothing the pads may push
-                pile_points=candidate.points if points is None else points,
+                pile_points=self._pile_points(candidate, pile),
                 grasp_width=0.0,
                 place_pose=self.releases[index],
                 standing_dominoes=[
@@ -512,11 +511,14 @@ class ArmJob:
             timeout=self.settings.plan_budget + 30.0,
         )
 
-    def _cores(self, candidate: Candidate) -> list[Point]:
-        """The points of the cores of ``candidate``'s pile neighbours (``offers.pile_cores``)."""
+    def _pile_points(self, candidate: Candidate, pile: str) -> list[Point]:
+        """The points the planner keeps the pads' path from: those seen on no detected
+        domino, and with PILE_CORES the cores of the pile neighbours (``offers.pile_cores``)."""
+        if pile != PILE_CORES:
+            return candidate.points
         neighbours = [pose_matrix(p) for p in candidate.neighbours]
         cores = pile_cores(candidate.spot(), neighbours, self.settings.pile_core_shrink)
-        return [Point(x=x, y=y, z=z) for x, y, z in cores.tolist()]
+        return [*candidate.points, *(Point(x=x, y=y, z=z) for x, y, z in cores.tolist())]
 
     def _debris(
         self, candidate: Candidate, with_pile: bool = True, place: np.ndarray | None = None
@@ -831,7 +833,7 @@ class ArmJob:
             "grasp_pose": None if grasp is None else pose_matrix(grasp).tolist(),
             "pile": pile,
             "pile_dominoes": [pose_matrix(p).tolist() for p in candidate.neighbours],
-            "pile_points": [[p.x, p.y, p.z] for p in candidate.points],
+            "pile_points": [[p.x, p.y, p.z] for p in self._pile_points(candidate, pile)],
             "plan": plan.message,
             "start": {"names": list(joints.name), "positions": list(joints.position)},
             "segments": [segment_record(s) for s in plan.segments],
