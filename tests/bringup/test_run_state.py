@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -172,6 +173,12 @@ class RefusingClient:
         self.codes = codes  # detection x → refusal code
         self.offered: list[tuple[float, int, bool]] = []  # (x, pile dominoes, any points)
         self.places: list[Pose] = []
+        self.strikes: list[PlanStrike.Request] = []  # strikes and sweeps asked for
+
+    def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
+        self.strikes.append(request)
+        code = PlanStrike.Response.PLACE_IN_COLLISION
+        return PlanStrike.Response(success=False, error_code=code, message="refused")
 
     def wait_for_sim_time(self, seconds: float) -> None:
         pass
@@ -232,6 +239,7 @@ def test_the_pile_is_ignored_only_when_putting_the_slot_off_cannot_help() -> Non
         [(0.50, 0, False), (0.55, 0, False)],
     )
     assert run.client.offered == boxes + cores + ignoring
+    assert run.client.strikes  # spreading the pile was asked for (and refused) before
     run = job()
     run.client = RefusingClient({0.50: refused, 0.55: PlanPlace.Response.PLACE_IN_COLLISION})
     assert run._place_with_retries(0, may_defer=True) == DEFERRED
@@ -645,17 +653,16 @@ class SweepingClient(PlanningClient):
     def __init__(self, statuses: list[list[int]]) -> None:
         super().__init__({0.55: 0})  # one flat domino in the pile
         self.statuses = statuses
-        self.sweeps: list[PlanStrike.Request] = []
 
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
-        if not self.sweeps:
+        if not self.strikes:
             return PlanPlace.Response(
                 success=False, error_code=PlanPlace.Response.PLACE_IN_COLLISION, message="debris"
             )
         return super().plan_place(request, timeout)
 
     def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
-        self.sweeps.append(request)
+        self.strikes.append(request)
         return PlanStrike.Response(success=True, message="planned")
 
     def check_placement(
@@ -675,7 +682,7 @@ def test_fallen_debris_no_grasp_reaches_is_swept_out_of_the_slot_it_blocks() -> 
     run.state.unpickable.append(spot_of(run.state.fallen[2]))
     run.client = SweepingClient([[STANDING, STANDING, NOT_SEEN, STANDING]])
     assert run._place_with_retries(2, may_defer=True) == PLACED
-    (sweep,) = run.client.sweeps
+    (sweep,) = run.client.strikes
     assert [sweep.sweep_direction.x, sweep.sweep_direction.y] == pytest.approx([1.0, 0.0])
     assert sweep.push_distance == pytest.approx(0.031)
     assert sweep.domino_pose.position.x == pytest.approx(run.targets[2].position.x + 0.013)
@@ -695,7 +702,60 @@ def test_debris_a_grasp_reaches_or_away_from_the_slot_is_not_swept() -> None:
     run.state.fallen[2] = lying(run.targets[2].position.x + 0.013, run.targets[2].position.y)
     run.state.unpickable.clear()
     assert not run._sweep_debris(2, failed=[])  # not refused: picked up, not swept
-    assert run.client.sweeps == []
+    assert run.client.strikes == []
+
+
+class SpreadingClient(PlanningCheckingClient):
+    """Three flat dominoes end to end: no pick plans until one was pushed apart (a sweep
+    planned); then every pick plans, and the placement stands."""
+
+    def __init__(self) -> None:
+        super().__init__([STANDING], [0.001], [0.0])
+        self.codes = dict.fromkeys((0.50, 0.55, 0.60), PlanPlace.Response.GRASP_UNREACHABLE)
+        self.detections = 0
+
+    def detect(self, not_before: float = 0.0) -> DetectDominoes.Response:
+        self.detections += 1
+        return super().detect(not_before)
+
+    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
+        if self.strikes:
+            return PlanningClient.plan_place(self, request, timeout)
+        return RefusingClient.plan_place(self, request, timeout)
+
+    def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
+        self.strikes.append(request)
+        return PlanStrike.Response(success=True, message="planned")
+
+
+def test_a_crowded_pile_is_pushed_apart_before_it_is_ignored() -> None:
+    """Ignoring their pile, 4 of 6 picks of crowded dominoes closed on nothing (7500eb1):
+    one of the roomiest is pushed out of the row instead, and the pile looked at again."""
+    run = job()
+    run.client = SpreadingClient()
+    run._execute = lambda segments, *_, **__: (True, "")
+    assert run._place_with_retries(0, may_defer=False) == PLACED
+    (sweep,) = run.client.strikes
+    # the row's end (the roomiest), pushed out of it: away from the row, not into it
+    assert sweep.domino_pose.position.x == pytest.approx(0.50)
+    assert sweep.sweep_direction.x < 0.0
+    assert 0.02 <= sweep.push_distance <= 0.05
+    assert len(sweep.standing_dominoes) == 2  # kept clear of its neighbours
+    assert run.client.detections == 2  # looked at again after the push
+    assert all(pile or points for _, pile, points in run.client.offered)  # never ignored
+    outcome = run.report.dominoes[0]
+    assert outcome.attempts == 1 and len(outcome.spreads) == 1
+    assert run.report.summary()["pile_spread"] == 1
+
+
+def test_with_no_spreads_allowed_the_crowded_pile_is_ignored_as_before() -> None:
+    run = job()
+    run.settings = replace(run.settings, max_spreads=0)
+    run.client = SpreadingClient()
+    run._execute = lambda segments, *_, **__: (True, "")
+    run._attempt(0, [], ignore_pile=True)
+    assert run.client.strikes == []
+    assert run.client.offered[-1][1:] == (0, False)  # planned ignoring the pile
 
 
 class GraspRecordingClient(RefusingClient):

@@ -11,7 +11,8 @@ with perception (camera_2 watches the build area) → on failure retry with the 
 candidate; a domino that fell is picked up again from where perception found it.
 
 A fallen domino that no grasp reaches and that lies where a slot goes is swept aside
-(``/plan_strike`` with a sweep direction: pushed low across the run).
+(``/plan_strike`` with a sweep direction: pushed low across the run); so is a pile
+domino out of a crowd that no pick plans for.
 
 When the run stands, ``/plan_strike`` knocks the first domino over and perception
 checks that every domino fell. The simulator's ground truth goes into the report only.
@@ -23,7 +24,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,6 +48,7 @@ from dombot_bringup.offers import (
 )
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
+from dombot_bringup.spread import plan_view, spread_pushes
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.pose_messages import pose_matrix
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
@@ -104,6 +106,16 @@ class ArmJobSettings:
     # m per side a neighbour's core is smaller than its box: the planner keeps the pads'
     # path 1.5 mm (pile_point_clearance) from the core, so ~3 mm deep in the box at most.
     pile_core_shrink: float = 0.0045
+    # ... and when nothing plans with the cores either, one of those roomiest is pushed out
+    # of its crowd (``spread``) and the pile looked at again, at most max_spreads times a
+    # slot, before the pile is ignored: the shortest push after which it lies
+    # spread_clearance from everything seen, within spread_radius of the pile's centre
+    # (the cameras see 0.16 m around it), trying spread_directions ways per domino.
+    max_spreads: int = 2
+    spread_clearance: float = 0.02  # m
+    spread_radius: float = 0.12  # m
+    spread_directions: int = 4
+    pile_center: tuple[float, float] = (0.55, -0.30)  # m, the scenario's pile_area
     section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
     plan_budget: float = 5.0  # s of planning per request
     settle_after_place: float = 0.5  # s simulated before checking a placement
@@ -347,10 +359,12 @@ class ArmJob:
         First with their pile neighbours as obstacles (the planner keeps the pads clear of
         them, or lets them nudge one a few millimetres), in ``offers.with_pile_first``'s
         order; when every one is refused, the roomiest with only their pile's cores (the
-        pads may push a neighbour up to pile_core_shrink); then the roomiest ignoring the
-        pile (a miss is caught by the grasp check and backed out of, and stirs the pile),
-        unless a refusal was about the slot and not ``ignore_pile`` (other slots may be
-        built first; refusals about the dominoes would recur at every slot). A refusal
+        pads may push a neighbour up to pile_core_shrink); then, unless a refusal was
+        about the slot and not ``ignore_pile`` (other slots may be built first; refusals
+        about the dominoes would recur at every slot), one of those roomiest is pushed out
+        of its crowd and the attempt starts again from a fresh look (up to max_spreads a
+        slot); only then the roomiest ignoring the pile (a miss is caught by the grasp
+        check and backed out of, and stirs the pile). A refusal
         costs a planning call, not an attempt: the arm has not moved (the last of the
         returned success, why, spot, moved says whether it did). Refusals and failed picks
         are remembered for the run (refused with the pile: not offered with it again;
@@ -367,63 +381,97 @@ class ArmJob:
         ranked = [c for c in with_pile_first(candidates) if not near_any(c.spot(), crowded)]
         roomiest = roomiest_first(candidates)[: settings.last_resort_candidates]
         slot_refusals: list[np.ndarray] = []
+        with_pile = [
+            *((c, PILE_BOXES) for c in ranked[: settings.max_candidates]),
+            *((c, PILE_CORES) for c in roomiest),
+        ]
+        found, refused = self._first_plan(index, with_pile, failed, slot_refusals)
+        if found is None and (ignore_pile or not slot_refusals):
+            spreads = self.report.dominoes[index].spreads
+            if len(spreads) < settings.max_spreads and self._spread(index, roomiest):
+                return self._attempt(index, failed, ignore_pile, turned)
+            ignoring = [(c, PILE_IGNORED) for c in roomiest]
+            found, more = self._first_plan(index, ignoring, failed, slot_refusals)
+            refused += more
+        if found is None:
+            if refused:
+                return False, f"planning: {refused} offers refused", None, False
+            return False, "no graspable domino seen", None, False
+        return self._pick(index, *found, failed, ignore_pile, turned)
 
-        def offers() -> Iterator[tuple[Candidate, str]]:
-            yield from ((c, PILE_BOXES) for c in ranked[: settings.max_candidates])
-            yield from ((c, PILE_CORES) for c in roomiest)
-            if ignore_pile or not slot_refusals:
-                yield from ((c, PILE_IGNORED) for c in roomiest)
+    def _pick(
+        self,
+        index: int,
+        candidate: Candidate,
+        pile: str,
+        plan: PlanPlace.Response,
+        failed: list[np.ndarray],
+        ignore_pile: bool,
+        turned: bool,
+    ) -> tuple[bool, str, np.ndarray | None, bool]:
+        """Execute ``plan`` (``candidate`` picked with its ``pile`` tier) and check the
+        placement; as ``_attempt`` returns."""
+        spot = candidate.spot()
+        log(
+            f"domino {index + 1}/{len(self.layout)}: picking {candidate.source} "
+            f"({candidate.posture_name}) at {spot.round(3).tolist()}, "
+            f"{plan.message}{PILE_WORDS[pile]}"
+        )
+        self._forget_refusals_near(spot)  # the pick disturbs its neighbours
+        truth = self._truth()
+        truth_name, seen_off = nearest_truth(truth, candidate.pose)
+        self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
+        record = self._pick_record(index, candidate, pile, plan, truth)
+        turn = [s for s in plan.segments if s.label.startswith(REGRASP_PREFIX)]
+        look_again = bool(turn) and candidate.run_index is None and not turned
+        segments = turn if look_again else plan.segments
+        executed, why = self._execute(segments, (index, plan.held_above_place))
+        self._write_pick_record(record, why or ("turned in place only" if look_again else ""))
+        if not executed:  # blocked or missed: unless it moved, the same would happen again
+            if seen_off is not None:  # the name finds it in sim_node's "during the" lines
+                log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
+            # A run domino stays where it was: an obstacle for every later carry (a new
+            # domino was once built into one that still stood there).
+            self.state.unpickable.append(spot)
+            if candidate.run_index is not None:
+                return self._keep_if_standing(index, candidate.run_index, why, spot)
+            return False, why, spot, True
+        if look_again:
+            log(f"domino {index + 1}/{len(self.layout)}: turned it in place; looking again")
+            return self._attempt(index, failed, ignore_pile, turned=True)
+        if candidate.run_index is not None:
+            self.state.fallen.pop(candidate.run_index, None)  # carried away
+        return self._check(index), self.report.dominoes[index].check, None, True
 
+    def _first_plan(
+        self,
+        index: int,
+        offers: Sequence[tuple[Candidate, str]],
+        failed: list[np.ndarray],
+        slot_refusals: list[np.ndarray],
+    ) -> tuple[tuple[Candidate, str, PlanPlace.Response] | None, int]:
+        """The first of ``offers`` (candidate, pile tier) that plans for slot ``index``
+        and how many were refused before it. Refusals about the slot go to ``failed`` and
+        ``slot_refusals``; those about the domino are remembered for the run (see
+        ``_attempt``)."""
         refused = 0
-        for candidate, pile in offers():
+        for candidate, pile in offers:
             spot = candidate.spot()
             if near_any(spot, failed):
                 continue  # refused for this slot already
             plan = self._plan(index, candidate, pile)
-            if not plan.success:
-                refused += 1
-                self._log_refusal(index, candidate, pile, plan.message)
-                if plan.error_code not in GRASP_REFUSALS:
-                    failed.append(spot)
-                    slot_refusals.append(spot)
-                elif pile == PILE_BOXES:
-                    self.state.crowded.append(spot)
-                elif pile == PILE_IGNORED:
-                    self.state.unpickable.append(spot)
-                continue
-            log(
-                f"domino {index + 1}/{len(self.layout)}: picking {candidate.source} "
-                f"({candidate.posture_name}) at {spot.round(3).tolist()}, "
-                f"{plan.message}{PILE_WORDS[pile]}"
-            )
-            self._forget_refusals_near(spot)  # the pick disturbs its neighbours
-            truth = self._truth()
-            truth_name, seen_off = nearest_truth(truth, candidate.pose)
-            self.report.dominoes[index].pick_seen_off_mm.append(seen_off)
-            record = self._pick_record(index, candidate, pile, plan, truth)
-            turn = [s for s in plan.segments if s.label.startswith(REGRASP_PREFIX)]
-            look_again = bool(turn) and candidate.run_index is None and not turned
-            segments = turn if look_again else plan.segments
-            executed, why = self._execute(segments, (index, plan.held_above_place))
-            self._write_pick_record(record, why or ("turned in place only" if look_again else ""))
-            if not executed:  # blocked or missed: unless it moved, the same would happen again
-                if seen_off is not None:  # the name finds it in sim_node's "during the" lines
-                    log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
-                # A run domino stays where it was: an obstacle for every later carry (a new
-                # domino was once built into one that still stood there).
+            if plan.success:
+                return (candidate, pile, plan), refused
+            refused += 1
+            self._log_refusal(index, candidate, pile, plan.message)
+            if plan.error_code not in GRASP_REFUSALS:
+                failed.append(spot)
+                slot_refusals.append(spot)
+            elif pile == PILE_BOXES:
+                self.state.crowded.append(spot)
+            elif pile == PILE_IGNORED:
                 self.state.unpickable.append(spot)
-                if candidate.run_index is not None:
-                    return self._keep_if_standing(index, candidate.run_index, why, spot)
-                return False, why, spot, True
-            if look_again:
-                log(f"domino {index + 1}/{len(self.layout)}: turned it in place; looking again")
-                return self._attempt(index, failed, ignore_pile, turned=True)
-            if candidate.run_index is not None:
-                self.state.fallen.pop(candidate.run_index, None)  # carried away
-            return self._check(index), self.report.dominoes[index].check, None, True
-        if refused:
-            return False, f"planning: {refused} offers refused", None, False
-        return False, "no graspable domino seen", None, False
+        return None, refused
 
     def _sweep_debris(self, index: int, failed: list[np.ndarray]) -> bool:
         """Push aside the nearest fallen domino within a domino length of slot ``index`` that
@@ -440,30 +488,73 @@ class ArmJob:
             others = [p for i, p in self.state.fallen.items() if i != k]
             margin = self.settings.sweep_margin
             for direction, distance in sweep_pushes(pose_matrix(pose), self.layout[index], margin):
-                plan = self.client.plan_strike(
-                    PlanStrike.Request(
-                        domino_pose=pose,
-                        standing_dominoes=[*self.state.standing.values(), *others],
-                        sweep_direction=Vector3(x=direction[0], y=direction[1], z=0.0),
-                        push_distance=distance,
-                        time_budget=self.settings.plan_budget,
-                    ),
-                    timeout=self.settings.plan_budget + 30.0,
-                )
                 what = f"domino {k + 1} lying at {spot_of(pose).round(3).tolist()}"
-                if not plan.success:
-                    log(f"sweeping {what} aside refused: {plan.message.split(' (')[0]}")
+                swept = self._sweep(pose, others, direction, distance, what, "across the run")
+                if swept is None:
                     continue
-                executed, why = self._execute(plan.segments, holds_domino=False)
-                swept = f"{what}: swept {distance * 1e3:.0f} mm across the run"
-                swept += "" if executed else f", stopped ({why})"
                 self.report.dominoes[index].sweeps.append(swept)
                 log(f"domino {index + 1}/{len(self.layout)}: {swept}")
                 self.state.fallen.pop(k)
-                self._forget_refusals_near(spot_of(pose))
                 self._check(k, just_placed=False)  # still there (fallen again) or gone
                 return True
         return False
+
+    def _spread(self, index: int, crowded: Sequence[Candidate]) -> bool:
+        """Push one of the ``crowded`` pile dominoes (those no pick planned for, roomiest
+        first) out of its crowd (``spread.spread_pushes``); True once the arm moved."""
+        settings = self.settings
+        for candidate in (c for c in crowded if c.run_index is None):
+            pose = candidate.pose
+            seen = [pose_matrix(p) for p in (*candidate.neighbours, *self.state.standing.values())]
+            undetected = [(p.x, p.y) for p in candidate.points]
+            others = np.vstack([plan_view(seen), np.reshape(undetected, (-1, 2))])
+            pushes = spread_pushes(
+                pose_matrix(pose),
+                others,
+                np.asarray(settings.pile_center),
+                settings.spread_radius,
+                settings.spread_clearance,
+            )
+            what = f"pile domino at {candidate.spot().round(3).tolist()}"
+            for direction, distance in pushes[: settings.spread_directions]:
+                obstacles = [*candidate.neighbours, *self.state.fallen.values()]
+                spread = self._sweep(pose, obstacles, direction, distance, what)
+                if spread is not None:
+                    self.report.dominoes[index].spreads.append(spread)
+                    log(f"domino {index + 1}/{len(self.layout)}: spreading the pile: {spread}")
+                    return True
+        return False
+
+    def _sweep(
+        self,
+        pose: Pose,
+        others: Sequence[Pose],
+        direction: np.ndarray,
+        distance: float,
+        what: str,
+        where: str = "",
+    ) -> str | None:
+        """Push the domino at ``pose`` ``distance`` along ``direction`` (/plan_strike's
+        sweep), keeping clear of ``others`` and the standing run: what was done, or None
+        if the planner refused (the arm has not moved)."""
+        plan = self.client.plan_strike(
+            PlanStrike.Request(
+                domino_pose=pose,
+                standing_dominoes=[*self.state.standing.values(), *others],
+                sweep_direction=Vector3(x=direction[0], y=direction[1], z=0.0),
+                push_distance=distance,
+                time_budget=self.settings.plan_budget,
+            ),
+            timeout=self.settings.plan_budget + 30.0,
+        )
+        if not plan.success:
+            log(f"sweeping {what} refused: {plan.message.split(' (')[0]}")
+            return None
+        executed, why = self._execute(plan.segments, holds_domino=False)
+        self._forget_refusals_near(spot_of(pose))
+        self._forget_refusals_near(spot_of(pose) + distance * np.asarray(direction)[:2])
+        swept = f"{what}: swept {distance * 1e3:.0f} mm {where}".rstrip()
+        return swept + ("" if executed else f", stopped ({why})")
 
     def _keep_if_standing(
         self, index: int, run_index: int, why: str, spot: np.ndarray

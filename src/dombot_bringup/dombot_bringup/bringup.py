@@ -108,6 +108,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "the pile's dominoes shrunk this much a side (4.5: they may push one ~3 mm; 0..12)",
     )
     run.add_argument(
+        "--spreads",
+        type=int,
+        default=2,
+        help="when no pick plans even with the pile's cores, push a crowded domino apart "
+        "and look again, up to this often a slot, before ignoring the pile (2; 0..5)",
+    )
+    run.add_argument(
         "--record-picks",
         action="store_true",
         help="write each pick's offer, plan and the simulator's truth to OUT/picks/ "
@@ -148,14 +155,11 @@ def make_layout(args: argparse.Namespace) -> list[layouts.DominoPlacement]:
     return layouts.from_csv(args.csv, args.count, args.spacing)
 
 
-def build_area() -> layouts.BuildArea:
-    scenario = load_scenario()
-    return layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
-
-
 def run_arm(args: argparse.Namespace) -> int:
     placements = make_layout(args)
-    layouts.validate(placements, build_area())
+    scenario = load_scenario()
+    area = layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
+    layouts.validate(placements, area)
     if not 1 <= args.pile <= 200:
         raise layouts.LayoutError(f"--pile must be 1..200, got {args.pile}")
     if args.section < 0:
@@ -170,6 +174,8 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--in-hand-tolerance must be 0..3 mm: {args.in_hand_tolerance}")
     if not 0.0 <= args.pile_core_shrink <= 12.0:  # 12 mm a side leaves a line of a domino
         raise layouts.LayoutError(f"--pile-core-shrink must be 0..12 mm: {args.pile_core_shrink}")
+    if not 0 <= args.spreads <= 5:
+        raise layouts.LayoutError(f"--spreads must be 0..5: {args.spreads}")
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -184,6 +190,8 @@ def run_arm(args: argparse.Namespace) -> int:
         place_lead=args.place_lead * 1e-3,
         in_hand_tolerance=args.in_hand_tolerance * 1e-3,
         pile_core_shrink=args.pile_core_shrink * 1e-3,
+        max_spreads=args.spreads,
+        pile_center=tuple(scenario.pile_center),
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
         record_picks=args.out / "picks" if args.record_picks else None,

@@ -52,6 +52,8 @@ class DominoOutcome:
     corrected_in_hand: list[str] = field(default_factory=list)
     # Fallen dominoes no grasp reached, pushed out of this slot's way.
     sweeps: list[str] = field(default_factory=list)
+    # Crowded pile dominoes pushed apart when no pick planned (before ignoring the pile).
+    spreads: list[str] = field(default_factory=list)
     simulated_s: float = 0.0
     wall_s: float = 0.0
     # Per pick executed: how far the simulator had the nearest domino from the pose
@@ -94,6 +96,7 @@ class RunReport:
             "retries": sum(max(d.attempts - 1, 0) for d in self.dominoes),
             "corrected_in_hand": sum(len(d.corrected_in_hand) for d in self.dominoes),
             "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
+            "pile_spread": sum(len(d.spreads) for d in self.dominoes),
             "standing_before_strike_by_truth": self.standing_by_truth,
             "toppled_by_perception": self.toppled_by_perception,
             "toppled_by_truth": self.toppled_by_truth,

@@ -1,0 +1,72 @@
+"""Which way and how far a crowded pile domino is pushed apart (dombot_bringup.spread)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dombot_bringup.debris import MAX_SWEEP
+from dombot_bringup.spread import plan_view, spread_pushes
+
+CENTRE = np.array([0.55, -0.30])
+
+
+def flat(x: float, y: float) -> np.ndarray:
+    """A domino lying flat, its length along x."""
+    pose = np.eye(4)
+    pose[:3, 3] = [x, y, 0.00375]
+    return pose
+
+
+def pushes_of(target: np.ndarray, others: list[np.ndarray], radius: float = 0.12) -> list:
+    return spread_pushes(target, plan_view(others), CENTRE, radius, clearance=0.02)
+
+
+def test_a_domino_in_a_row_end_to_end_is_pushed_out_sideways_just_far_enough() -> None:
+    """Between two neighbours 2 mm from its ends: not along the row (the pusher has no room
+    behind it, and the row goes on), but across it, 20 mm clear of both."""
+    target = flat(0.50, -0.30)
+    pushes = pushes_of(target, [flat(0.45, -0.30), flat(0.55, -0.30)])
+    assert pushes
+    assert all(abs(direction[0]) < 0.9 for direction, _ in pushes)  # never along the row
+    assert all(direction[2] == 0.0 for direction, _ in pushes)
+    direction, distance = pushes[0]
+    assert abs(direction[1]) > 0.9
+    # 24 mm to get past the neighbours' sides, then 20 mm of room: the next step up is 50
+    assert distance == pytest.approx(0.05)
+    assert all(distance <= MAX_SWEEP for _, distance in pushes)
+    moved = target.copy()
+    moved[:2, 3] += distance * direction[:2]
+    gaps = plan_view([moved])[:, None, :] - plan_view([flat(0.45, -0.30), flat(0.55, -0.30)])
+    assert np.linalg.norm(gaps, axis=2).min() >= 0.02 - 1e-9
+
+
+def test_the_shortest_pushes_come_first_then_those_leading_out_of_the_pile() -> None:
+    target = flat(0.50, -0.30)  # 5 cm on the -x side of the pile's centre
+    pushes = pushes_of(target, [flat(0.45, -0.30), flat(0.55, -0.30)])
+    distances = [distance for _, distance in pushes]
+    assert distances == sorted(distances)
+    shortest = [direction for direction, distance in pushes if distance == distances[0]]
+    assert shortest[0][0] <= shortest[-1][0]  # towards -x (outwards) first
+
+
+def test_no_push_where_the_pusher_cannot_come_down_behind_the_domino() -> None:
+    """A neighbour 6 mm beside its long side leaves the pusher no room there: nothing pushes
+    it away from that neighbour."""
+    target = flat(0.50, -0.30)
+    pushes = pushes_of(target, [flat(0.50, -0.336)])
+    assert pushes
+    assert all(direction[1] < 0.9 for direction, _ in pushes)
+
+
+def test_a_domino_alone_needs_only_the_shortest_push_and_none_leaves_the_cameras_view() -> None:
+    target = flat(0.55, -0.30)
+    alone = pushes_of(target, [])
+    assert [distance for _, distance in alone] == pytest.approx([0.02] * len(alone))
+    assert len(alone) == 16  # every way
+    far_out = flat(0.55, -0.19)  # 11 cm from the centre
+    pushes = pushes_of(far_out, [], radius=0.12)
+    ends = [far_out[:2, 3] + distance * direction[:2] for direction, distance in pushes]
+    assert 0 < len(ends) < 16
+    assert all(np.linalg.norm(end - CENTRE) <= 0.12 for end in ends)
+    assert pushes_of(target, [flat(0.45, -0.30)], radius=0.01) == []
