@@ -14,6 +14,7 @@ from dombot_bringup.layouts import LayoutError
         ("--pile-core-shrink", "13", r"--pile-core-shrink must be 0\.\.12 mm"),
         ("--in-hand-tolerance", "-1", r"--in-hand-tolerance must be 0\.\.3 mm"),
         ("--place-lead", "4", r"--place-lead must be 0\.\.3 mm"),
+        ("--spreads", "-1", r"--spreads must be 0\.\.5"),
         ("--pile", "5", r"a run of 10 needs at least as many dominoes"),
     ],
 )
