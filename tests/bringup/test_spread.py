@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dombot_bringup.debris import MAX_SWEEP
-from dombot_bringup.spread import plan_view, spread_pushes
+from dombot_bringup.spread import spread_pushes, surfaces
 
 CENTRE = np.array([0.55, -0.30])
 
@@ -19,7 +19,7 @@ def flat(x: float, y: float) -> np.ndarray:
 
 
 def pushes_of(target: np.ndarray, others: list[np.ndarray], radius: float = 0.12) -> list:
-    return spread_pushes(target, plan_view(others), CENTRE, radius, clearance=0.02)
+    return spread_pushes(target, surfaces(others), CENTRE, radius, clearance=0.02)
 
 
 def test_a_domino_in_a_row_end_to_end_is_pushed_out_sideways_just_far_enough() -> None:
@@ -37,7 +37,7 @@ def test_a_domino_in_a_row_end_to_end_is_pushed_out_sideways_just_far_enough() -
     assert all(distance <= MAX_SWEEP for _, distance in pushes)
     moved = target.copy()
     moved[:2, 3] += distance * direction[:2]
-    gaps = plan_view([moved])[:, None, :] - plan_view([flat(0.45, -0.30), flat(0.55, -0.30)])
+    gaps = surfaces([moved])[:, None, :] - surfaces([flat(0.45, -0.30), flat(0.55, -0.30)])
     assert np.linalg.norm(gaps, axis=2).min() >= 0.02 - 1e-9
 
 
@@ -70,3 +70,14 @@ def test_a_domino_alone_needs_only_the_shortest_push_and_none_leaves_the_cameras
     assert 0 < len(ends) < 16
     assert all(np.linalg.norm(end - CENTRE) <= 0.12 for end in ends)
     assert pushes_of(target, [flat(0.45, -0.30)], radius=0.01) == []
+
+
+def test_the_domino_a_pushed_one_lies_on_leaves_the_pusher_room_above_it() -> None:
+    """The pusher's tips come down to 0.4 of the pushed domino's height: a domino lying on
+    another is pushed off it from above the one below."""
+    below = flat(0.48, -0.30)  # sticks out 20 mm behind the one on top
+    on_top = flat(0.50, -0.30)
+    on_top[2, 3] = 0.01125
+    assert any(direction[0] > 0.99 for direction, _ in pushes_of(on_top, [below]))
+    beside = flat(0.50, -0.30)  # the same outline on the table: the pusher meets it
+    assert not any(direction[0] > 0.99 for direction, _ in pushes_of(beside, [flat(0.46, -0.30)]))

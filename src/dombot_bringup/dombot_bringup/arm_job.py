@@ -48,7 +48,7 @@ from dombot_bringup.offers import (
 )
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
-from dombot_bringup.spread import plan_view, spread_pushes
+from dombot_bringup.spread import spread_pushes, surfaces
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.pose_messages import pose_matrix
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
@@ -64,6 +64,7 @@ SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 # its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
 GRASP_REFUSALS = (PlanPlace.Response.GRASP_UNREACHABLE, PlanPlace.Response.TIMEOUT)
 PLACED, FAILED, DEFERRED = "placed", "failed", "deferred"  # how a slot's turn ended
+SPREAD_TRIES = 2  # pushes of one pile domino offered to the planner (the shortest first)
 PILE_WORDS = {
     PILE_BOXES: "",
     PILE_CORES: " with its pile's cores",
@@ -106,15 +107,16 @@ class ArmJobSettings:
     # m per side a neighbour's core is smaller than its box: the planner keeps the pads'
     # path 1.5 mm (pile_point_clearance) from the core, so ~3 mm deep in the box at most.
     pile_core_shrink: float = 0.0045
-    # ... and when nothing plans with the cores either, one of those roomiest is pushed out
-    # of its crowd (``spread``) and the pile looked at again, at most max_spreads times a
-    # slot, before the pile is ignored: the shortest push after which it lies
-    # spread_clearance from everything seen, within spread_radius of the pile's centre
-    # (the cameras see 0.16 m around it), trying spread_directions ways per domino.
+    # ... and when nothing plans with the cores either, a pile domino is pushed out of its
+    # crowd (``spread``) and the pile looked at again, at most max_spreads times a slot,
+    # before the pile is ignored: the shortest push after which nothing seen lies within
+    # spread_clearance of its long sides (perception's scoring caps its clearance at
+    # 15 mm), its centre within spread_radius of the pile's centre (the cameras see 0.16 m
+    # around it); the roomiest first, asking the planner at most spread_plans times.
     max_spreads: int = 2
-    spread_clearance: float = 0.02  # m
-    spread_radius: float = 0.12  # m
-    spread_directions: int = 4
+    spread_clearance: float = 0.016  # m
+    spread_radius: float = 0.13  # m
+    spread_plans: int = 6
     pile_center: tuple[float, float] = (0.55, -0.30)  # m, the scenario's pile_area
     section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
     plan_budget: float = 5.0  # s of planning per request
@@ -361,9 +363,9 @@ class ArmJob:
         order; when every one is refused, the roomiest with only their pile's cores (the
         pads may push a neighbour up to pile_core_shrink); then, unless a refusal was
         about the slot and not ``ignore_pile`` (other slots may be built first; refusals
-        about the dominoes would recur at every slot), one of those roomiest is pushed out
-        of its crowd and the attempt starts again from a fresh look (up to max_spreads a
-        slot); only then the roomiest ignoring the pile (a miss is caught by the grasp
+        about the dominoes would recur at every slot), a pile domino is pushed out of its
+        crowd (``_spread``) and the attempt starts again from a fresh look (up to
+        max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught by the grasp
         check and backed out of, and stirs the pile). A refusal
         costs a planning call, not an attempt: the arm has not moved (the last of the
         returned success, why, spot, moved says whether it did). Refusals and failed picks
@@ -388,7 +390,7 @@ class ArmJob:
         found, refused = self._first_plan(index, with_pile, failed, slot_refusals)
         if found is None and (ignore_pile or not slot_refusals):
             spreads = self.report.dominoes[index].spreads
-            if len(spreads) < settings.max_spreads and self._spread(index, roomiest):
+            if len(spreads) < settings.max_spreads and self._spread(index, candidates):
                 return self._attempt(index, failed, ignore_pile, turned)
             ignoring = [(c, PILE_IGNORED) for c in roomiest]
             found, more = self._first_plan(index, ignoring, failed, slot_refusals)
@@ -499,30 +501,34 @@ class ArmJob:
                 return True
         return False
 
-    def _spread(self, index: int, crowded: Sequence[Candidate]) -> bool:
-        """Push one of the ``crowded`` pile dominoes (those no pick planned for, roomiest
-        first) out of its crowd (``spread.spread_pushes``); True once the arm moved."""
-        settings = self.settings
-        for candidate in (c for c in crowded if c.run_index is None):
-            pose = candidate.pose
+    def _spread(self, index: int, candidates: Sequence[Candidate]) -> bool:
+        """Push one of the pile ``candidates`` (none of which planned; roomiest first) out of
+        its crowd (``spread.spread_pushes``), asking the planner at most spread_plans
+        times; True once the arm moved."""
+        settings, asked = self.settings, 0
+        for candidate in roomiest_first([c for c in candidates if c.run_index is None]):
             seen = [pose_matrix(p) for p in (*candidate.neighbours, *self.state.standing.values())]
-            undetected = [(p.x, p.y) for p in candidate.points]
-            others = np.vstack([plan_view(seen), np.reshape(undetected, (-1, 2))])
+            undetected = np.array([(p.x, p.y, p.z) for p in candidate.points]).reshape(-1, 3)
             pushes = spread_pushes(
-                pose_matrix(pose),
-                others,
+                pose_matrix(candidate.pose),
+                np.vstack([surfaces(seen), undetected]),
                 np.asarray(settings.pile_center),
                 settings.spread_radius,
                 settings.spread_clearance,
             )
             what = f"pile domino at {candidate.spot().round(3).tolist()}"
-            for direction, distance in pushes[: settings.spread_directions]:
-                obstacles = [*candidate.neighbours, *self.state.fallen.values()]
-                spread = self._sweep(pose, obstacles, direction, distance, what)
+            obstacles = [*candidate.neighbours, *self.state.fallen.values()]
+            for direction, distance in pushes[:SPREAD_TRIES]:
+                if asked == settings.spread_plans:
+                    return False
+                asked += 1
+                spread = self._sweep(candidate.pose, obstacles, direction, distance, what)
                 if spread is not None:
                     self.report.dominoes[index].spreads.append(spread)
                     log(f"domino {index + 1}/{len(self.layout)}: spreading the pile: {spread}")
                     return True
+        if not asked:
+            log(f"domino {index + 1}/{len(self.layout)}: no push would spread the pile")
         return False
 
     def _sweep(
