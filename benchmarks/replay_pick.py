@@ -11,7 +11,9 @@ plan's segments) and the simulator's truth at the time, so this script can say:
 * with ``--physics``, what happens when the recorded approach and close run in a fresh
   ``CellWorld`` holding the true dominoes: where the fingers stop and what moved; with
   ``--carry`` also the carry to above the slot: how far the domino turned and slid in
-  the hand on the way (or whether it left it).
+  the hand on the way (or whether it left it); with ``--place`` on through the release
+  and the retreat: whether it is still in the hand, where it lies and how far from the
+  release pose (records written after 4e6913a hold it).
 
 Prints one JSON object. In ``./dombot shell``: ``python benchmarks/replay_pick.py RECORD
 [--physics]``.
@@ -27,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
-from dombot_description import DOMINO_SIZE
+from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.grasp import Grasp, OrientedBox, nearest_distance, pregrasp_opening
 from dombot_msgs.msg import TrajectorySegment
 from dombot_planner.settings import PlannerSettings
@@ -100,10 +102,11 @@ def pads_against_truth(record: dict, grasp: Grasp, retreat: np.ndarray, near: fl
     }
 
 
-def replay(world: CellWorld, record: dict, carry: bool) -> dict:
+def replay(world: CellWorld, record: dict, carry: bool, place: bool = False) -> dict:
     """Run the recorded segments in a world holding the true dominoes, up to the close
-    (``carry``: to the end of "transfer"); where the fingers stopped, which dominoes moved
-    during the close, and how the domino sat in the hand after the carry."""
+    (``carry``: to the end of "transfer"; ``place``: to the end, the release and the
+    retreat); where the fingers stopped, which dominoes moved during the close, how the
+    domino sat in the hand after the carry, and where it was after the retreat."""
     truth = truth_of(record)
     target, _ = nearest(truth, np.array(record["domino_pose"]))
     result: dict = {}
@@ -149,7 +152,20 @@ def replay(world: CellWorld, record: dict, carry: bool) -> dict:
                 "turned_deg": round(math.degrees(turn), 2),
                 "fingers_mm": round(world.gripper_state().opening * 1e3, 2),
             }
-            return result
+            if not place:
+                return result
+    if place and "fingers_stopped_mm" in result:
+        world.advance(TRACKING_SETTLE)
+        released = next(t.X_WD for t in world.domino_truth() if t.index == target)
+        release = np.array(record["place_pose"]) if "place_pose" in record else None
+        result["after_retreat"] = {
+            "in_hand_mm": round(float(np.linalg.norm(world.domino_in_tcp(target)[:3, 3])) * 1e3, 2),
+            "tilt_deg": round(math.degrees(tilt_from_vertical(released)), 2),
+            "position": released[:3, 3].round(4).tolist(),
+            "from_place_mm": None
+            if release is None
+            else round(float(np.linalg.norm(released[:2, 3] - release[:2, 3])) * 1e3, 2),
+        }
     return result
 
 
@@ -159,6 +175,9 @@ def main() -> None:
     parser.add_argument("--near", type=float, default=2.0, help="[mm] list dominoes this close")
     parser.add_argument("--physics", action="store_true", help="replay the approach and close")
     parser.add_argument("--carry", action="store_true", help="--physics on to above the slot")
+    parser.add_argument(
+        "--place", action="store_true", help="--physics on through the release and retreat"
+    )
     args = parser.parse_args()
     record = json.loads(args.record.read_text())
     world = CellWorld(WorldConfig(cameras=False, domino_capacity=len(record["truth"])))
@@ -173,8 +192,8 @@ def main() -> None:
         "approach_line_tilt_deg": round(math.degrees(math.acos(retreat[2])), 1),
         **pads_against_truth(record, grasp, retreat, args.near * 1e-3),
     }
-    if args.physics or args.carry:
-        result["replayed"] = replay(world, record, args.carry)
+    if args.physics or args.carry or args.place:
+        result["replayed"] = replay(world, record, args.carry or args.place, args.place)
     print(json.dumps(result, indent=1))
 
 

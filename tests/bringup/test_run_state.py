@@ -849,6 +849,7 @@ def test_a_recorded_pick_holds_what_it_was_planned_from_and_the_truth(tmp_path: 
     assert segment["times"] == [0.0, 1.5] and segment["positions"] == [[0.3], [0.5]]
     assert segment["gripper_after"] == CLOSE
     assert np.allclose(record["truth"]["domino_7"], truth[0][1])
+    assert np.allclose(record["place_pose"], pose_matrix(run.releases[1]))  # slot 2's
     without = job()  # not asked for: nothing recorded
     assert without._pick_record(1, candidate, PILE_BOXES, plan, truth) is None
 

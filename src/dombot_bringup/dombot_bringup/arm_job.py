@@ -932,6 +932,7 @@ class ArmJob:
             "pile_dominoes": [pose_matrix(p).tolist() for p in candidate.neighbours],
             "pile_points": [[p.x, p.y, p.z] for p in self._pile_points(candidate, pile)],
             "plan": plan.message,
+            "place_pose": pose_matrix(self.releases[index]).tolist(),
             "start": {"names": list(joints.name), "positions": list(joints.position)},
             "segments": [segment_record(s) for s in plan.segments],
             "truth": {name: matrix.tolist() for name, matrix in truth},
