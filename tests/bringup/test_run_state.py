@@ -23,7 +23,6 @@ from dombot_bringup.arm_job import (
     ArmJob,
     ArmJobSettings,
     Candidate,
-    duration,
     nearest_truth,
     neighbours_of,
     placement_pose,
@@ -39,7 +38,7 @@ from dombot_bringup.run_report import (
     target_of,
 )
 from dombot_description import DOMINO_SIZE
-from dombot_description.pose_messages import pose_matrix
+from dombot_description.pose_messages import duration_message, pose_matrix
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike
 
@@ -832,7 +831,9 @@ def test_a_recorded_pick_holds_what_it_was_planned_from_and_the_truth(tmp_path: 
     approach.trajectory.joint_names = ["iiwa_joint_1"]
     approach.trajectory.points = [
         JointTrajectoryPoint(positions=[0.3], velocities=[0.0]),
-        JointTrajectoryPoint(positions=[0.5], velocities=[0.0], time_from_start=duration(1.5)),
+        JointTrajectoryPoint(
+            positions=[0.5], velocities=[0.0], time_from_start=duration_message(1.5)
+        ),
     ]
     plan = PlanPlace.Response(success=True, message="planned", segments=[approach])
     truth = [("domino_7", pose_matrix(lying(0.5507, -0.30)))]

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -50,7 +49,7 @@ from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_bringup.spread import spread_pushes, surfaces
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
-from dombot_description.pose_messages import pose_matrix
+from dombot_description.pose_messages import duration_message, pose_matrix, seconds_of
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
@@ -1056,13 +1055,8 @@ def is_approach(segment: TrajectorySegment) -> bool:
     return segment.label.endswith("approach_grasp")
 
 
-def seconds(point) -> float:
-    return point.time_from_start.sec + point.time_from_start.nanosec * 1e-9
-
-
-def duration(value: float) -> Duration:
-    nanoseconds = round(value * 1e9)
-    return Duration(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+def seconds(point: JointTrajectoryPoint) -> float:
+    return seconds_of(point.time_from_start)
 
 
 def reversed_trajectory(trajectory: JointTrajectory, lead: float) -> JointTrajectory:
@@ -1077,7 +1071,7 @@ def reversed_trajectory(trajectory: JointTrajectory, lead: float) -> JointTrajec
             JointTrajectoryPoint(
                 positions=list(point.positions),
                 velocities=[-v for v in point.velocities],
-                time_from_start=duration(elapsed),
+                time_from_start=duration_message(elapsed),
             )
         )
     return JointTrajectory(joint_names=list(trajectory.joint_names), points=points)

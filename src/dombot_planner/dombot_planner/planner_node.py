@@ -21,7 +21,6 @@ from collections.abc import Callable
 
 import numpy as np
 import rclpy
-from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Pose, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -30,7 +29,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from dombot_description.pose_messages import pose_message
+from dombot_description.pose_messages import duration_message, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
 from dombot_msgs.srv import PlanPlace, PlanStrike
@@ -72,11 +71,6 @@ def sweep_of(message: Vector3) -> np.ndarray | None:
 
 def poses_of(poses: list[Pose], field: str) -> tuple:
     return tuple(pose_of(p, f"{field}[{i}]") for i, p in enumerate(poses))
-
-
-def duration_of(seconds: float) -> Duration:
-    whole = int(seconds)
-    return Duration(sec=whole, nanosec=round((seconds - whole) * 1e9))
 
 
 class PlannerNode(Node):
@@ -279,7 +273,7 @@ class PlannerNode(Node):
                         positions=q.tolist(),
                         velocities=qd.tolist(),
                         accelerations=qdd.tolist(),
-                        time_from_start=duration_of(float(t)),
+                        time_from_start=duration_message(float(t)),
                     )
                 )
             response.segments.append(

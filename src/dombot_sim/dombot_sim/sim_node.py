@@ -35,7 +35,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from dombot_description.pose_messages import pose_message, time_message
+from dombot_description.pose_messages import pose_message, seconds_of, time_message
 from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
@@ -432,7 +432,7 @@ class SimNode(Node):
             try:
                 spline = build_trajectory(
                     goal.trajectory.joint_names,
-                    [duration_seconds(p.time_from_start) for p in points],
+                    [seconds_of(p.time_from_start) for p in points],
                     [list(p.positions) for p in points],
                     [list(p.velocities) for p in points]
                     if _all_have(points, "velocities")
@@ -448,7 +448,7 @@ class SimNode(Node):
         names = list(self.world.arm_joint_names)
         path_tolerance = tolerances(goal.path_tolerance, names, default=-1.0)
         goal_tolerance = tolerances(goal.goal_tolerance, names, default=DEFAULT_GOAL_TOLERANCE)
-        settle = duration_seconds(goal.goal_time_tolerance) or GOAL_SETTLE_TIME
+        settle = seconds_of(goal.goal_time_tolerance) or GOAL_SETTLE_TIME
         self.get_logger().info(
             f"executing a {spline.end_time():.2f} s trajectory ({len(points)} points)"
         )
@@ -558,10 +558,6 @@ class SimNode(Node):
 
 
 # ---------------------------------------------------------------------- conversions
-def duration_seconds(duration) -> float:
-    return duration.sec + duration.nanosec * 1e-9
-
-
 def _all_have(points, field_name: str) -> bool:
     return bool(points) and all(len(getattr(p, field_name)) > 0 for p in points)
 
