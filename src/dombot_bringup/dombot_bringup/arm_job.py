@@ -259,6 +259,7 @@ class ArmJob:
             pile=settings.pile,
             seed=settings.seed,
         )
+        self.picks_recorded = 0  # files in settings.record_picks
 
     # ------------------------------------------------------------------ the run
     def run(self) -> RunReport:
@@ -943,8 +944,9 @@ class ArmJob:
         folder = self.settings.record_picks
         folder.mkdir(parents=True, exist_ok=True)
         record["failure"] = failure  # "": carried to the slot
-        path = folder / f"pick{len(list(folder.glob('pick*.json'))):03d}_slot{record['slot']}.json"
+        path = folder / f"pick{self.picks_recorded:03d}_slot{record['slot']}.json"
         path.write_text(json.dumps(record))
+        self.picks_recorded += 1
 
     def _record_truth(self, before_strike: bool) -> None:
         """Ground truth for the report: the simulator domino nearest each target."""
