@@ -47,7 +47,7 @@ from dombot_bringup.offers import (
 )
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
-from dombot_bringup.spread import spread_pushes, surfaces
+from dombot_bringup.spread import spread_pushes
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.pose_messages import duration_message, pose_matrix, seconds_of
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
@@ -508,10 +508,10 @@ class ArmJob:
         settings, asked = self.settings, 0
         for candidate in roomiest_first([c for c in candidates if c.run_index is None]):
             seen = [pose_matrix(p) for p in (*candidate.neighbours, *self.state.standing.values())]
-            undetected = np.array([(p.x, p.y, p.z) for p in candidate.points]).reshape(-1, 3)
             pushes = spread_pushes(
                 pose_matrix(candidate.pose),
-                np.vstack([surfaces(seen), undetected]),
+                seen,
+                np.array([(p.x, p.y, p.z) for p in candidate.points]),
                 np.asarray(settings.pile_center),
                 settings.spread_radius,
                 settings.spread_clearance,

@@ -5,7 +5,7 @@ fingers. Picked ignoring the pile, 4 of 6 such picks closed on nothing (7500eb1)
 one of them is pushed out of the crowd with the planner's sweep (/plan_strike with a
 sweep direction: the closed pads push it low along the table), and the pile is looked at
 again. Here is which way and how far: where the pusher has room to come down behind it,
-and the shortest push after which it lies clear of everything else seen.
+and the shortest push after which the fingers have room beside it.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from dombot_bringup.debris import MAX_SWEEP
 from dombot_description import DOMINO_SIZE, domino_corners
 from dombot_description.grasp import OrientedBox
+from dombot_planner.request import sweep_blocker
 
 SPREAD_DIRECTIONS = 16  # tried around the circle
 SPREAD_STEP = 0.01  # m between the push distances tried
@@ -32,6 +33,8 @@ OUTLINE_STEP = 0.003  # m between the points of a domino's faces
 # planner checks all this exactly; here it only chooses what to ask for.
 PUSHER_BEHIND = 0.018  # m
 PUSHER_ROOM = 0.013  # m
+PUSHER_STANDOFF = 0.01  # m the pads travel before they meet the domino
+PUSHER_STEP = 0.005  # m between the pusher's spots checked along the push
 PUSHER_BELOW = 0.002  # m
 SWEEP_HEIGHT = 0.4
 FINGERS_END = 0.005  # m beyond its ends that the fingers' room must reach
@@ -49,18 +52,22 @@ def surfaces(poses: Sequence[np.ndarray]) -> np.ndarray:
 
 def spread_pushes(
     target: np.ndarray,
-    others: np.ndarray,
+    neighbours: Sequence[np.ndarray],
+    points: np.ndarray,
     centre: np.ndarray,
     radius: float,
     clearance: float,
 ) -> list[tuple[np.ndarray, float]]:
     """(direction, distance) pushes of the domino at ``target`` (4×4) after which, seen
-    from above, no point of ``others`` (N×3: the faces of the dominoes around it, and
-    points seen on none) lies within ``clearance`` of its long sides, where the fingers
-    go (FINGERS_END beyond its ends), and its centre is within ``radius`` of ``centre``
+    from above, nothing of its ``neighbours`` (4×4 poses) or of ``points`` (N×3: seen on
+    no domino) lies within ``clearance`` of its long sides, where the fingers go
+    (FINGERS_END beyond its ends), and its centre is within ``radius`` of ``centre``
     (x, y: where the cameras look); the shortest per direction, none longer than
-    MAX_SWEEP, and only where the pusher has room to come down behind it. Shortest
-    first, then those leading away from ``centre``."""
+    MAX_SWEEP. Only pushes the planner can take: the domino's path meets no neighbour it
+    does not touch already (``sweep_blocker``, the planner's own check), and the pusher
+    has room to come down behind it and follow it. Shortest first, then those leading
+    away from ``centre``."""
+    others = np.vstack([surfaces(neighbours), points.reshape(-1, 3)])
     corners = domino_corners(target)
     low, high = corners[:, 2].min(), corners[:, 2].max()
     above = others[others[:, 2] > low + SWEEP_HEIGHT * (high - low) - PUSHER_BELOW]
@@ -74,22 +81,39 @@ def spread_pushes(
     seen = (others[:, :2] - start) @ frame.T  # relative to the start, in its frame
     outward = start - np.asarray(centre, dtype=float)
     outward = outward / (np.linalg.norm(outward) or 1.0)
-    distances = np.arange(MIN_SPREAD, MAX_SWEEP + 1e-9, SPREAD_STEP)
     pushes = []
     for angle in np.linspace(0.0, 2.0 * np.pi, SPREAD_DIRECTIONS, endpoint=False):
         direction = np.array([np.cos(angle), np.sin(angle)])
-        behind = start + ((corners[:, :2] - start) @ direction).min() * direction
-        if not _room(pusher_tree, behind - PUSHER_BEHIND * direction, PUSHER_ROOM):
+        distance = _shortest_clear(seen, frame @ direction, free_low, free_high)
+        if distance is None or np.linalg.norm(start + distance * direction - centre) > radius:
             continue
-        for distance in distances:
-            if np.linalg.norm(start + distance * direction - centre) > radius:
-                break
-            moved = seen - frame @ (distance * direction)
-            inside = np.all((moved >= free_low) & (moved <= free_high), axis=1)
-            if not inside.any():
-                pushes.append((np.array([*direction, 0.0]), float(distance)))
-                break
+        behind = start + ((corners[:, :2] - start) @ direction).min() * direction
+        pusher = behind - PUSHER_BEHIND * direction
+        travel = np.arange(0.0, PUSHER_STANDOFF + distance + 1e-9, PUSHER_STEP)
+        if not all(_room(pusher_tree, pusher + t * direction, PUSHER_ROOM) for t in travel):
+            continue
+        pushed = np.array([*direction, 0.0])
+        near = [
+            RigidTransform(n)
+            for n in neighbours
+            if np.linalg.norm(n[:2, 3] - start) < distance + DOMINO_SIZE[0]
+        ]
+        if sweep_blocker(RigidTransform(target), pushed, distance, near) is None:
+            pushes.append((pushed, distance))
     return sorted(pushes, key=lambda push: (push[1], -push[0][:2] @ outward))
+
+
+def _shortest_clear(
+    seen: np.ndarray, step: np.ndarray, free_low: np.ndarray, free_high: np.ndarray
+) -> float | None:
+    """The shortest of the push distances after which none of ``seen`` (N×2, in the
+    domino's frame from its start) lies in its fingers' room [free_low, free_high], the
+    domino moving ``step`` (its frame) per metre; None beyond MAX_SWEEP."""
+    for distance in np.arange(MIN_SPREAD, MAX_SWEEP + 1e-9, SPREAD_STEP):
+        moved = seen - distance * step
+        if not np.any(np.all((moved >= free_low) & (moved <= free_high), axis=1)):
+            return float(distance)
+    return None
 
 
 def _room(tree: cKDTree | None, point: np.ndarray, clearance: float) -> bool:

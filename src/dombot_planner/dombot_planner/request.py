@@ -182,23 +182,36 @@ def check_sweep(request: StrikeRequest, distance: float) -> None:
         raise invalid(
             "validation", f"sweep_direction must be a horizontal unit vector, got {direction}"
         )
-    start = request.domino_pose
-    touching = {
-        i for i, other in enumerate(request.standing) if dominoes_overlap(start, other, 0.0)
-    }
+    blocker = sweep_blocker(request.domino_pose, direction, distance, request.standing)
+    if blocker is not None:
+        i, travel = blocker
+        x, y = request.standing[i].translation()[:2]
+        raise PlanningError(
+            ErrorCode.PLACE_IN_COLLISION,
+            "validation",
+            f"sweeping domino_pose {travel * 1000:.0f} mm along "
+            f"({direction[0]:.2f}, {direction[1]:.2f}) pushes it into "
+            f"standing_dominoes[{i}] at ({x:.3f}, {y:.3f}) m",
+        )
+
+
+def sweep_blocker(
+    start: RigidTransform,
+    direction: np.ndarray,
+    distance: float,
+    standing: Sequence[RigidTransform],
+) -> tuple[int, float] | None:
+    """The index of the first of ``standing`` that the domino at ``start``, pushed
+    ``distance`` along ``direction`` (a horizontal unit 3-vector), meets without touching
+    it already, and how far it had gone; None when its path is free."""
+    touching = {i for i, other in enumerate(standing) if dominoes_overlap(start, other, 0.0)}
     steps = max(1, math.ceil(distance / SWEEP_CHECK_STEP))
     for travel in np.linspace(0.0, distance, steps + 1)[1:]:
         moved = RigidTransform(start.rotation(), start.translation() + travel * direction)
-        for i, other in enumerate(request.standing):
+        for i, other in enumerate(standing):
             if i not in touching and dominoes_overlap(moved, other, OVERLAP_TOLERANCE):
-                x, y = other.translation()[:2]
-                raise PlanningError(
-                    ErrorCode.PLACE_IN_COLLISION,
-                    "validation",
-                    f"sweeping domino_pose {travel * 1000:.0f} mm along "
-                    f"({direction[0]:.2f}, {direction[1]:.2f}) pushes it into "
-                    f"standing_dominoes[{i}] at ({x:.3f}, {y:.3f}) m",
-                )
+                return i, float(travel)
+    return None
 
 
 def check_workspace(pose: RigidTransform, what: str, settings: PlannerSettings) -> None:
