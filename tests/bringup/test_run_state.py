@@ -282,6 +282,21 @@ def test_two_slots_nothing_plans_for_do_not_put_each_other_off_for_ever() -> Non
     assert not report.built and report.message.startswith("domino 3 could not be placed")
 
 
+def test_a_slot_and_a_gap_nothing_plans_for_let_a_later_gap_have_its_turn() -> None:
+    """S-curve seed 3 (f457642): the 9th and the 10th (a gap) were put off, each put back
+    just behind the other and before the 15th (a gap still to build), and took turns for
+    ever (151 deferrals): a slot put off goes behind one that was not."""
+    run = job()
+    run.layout = layouts.line((0.45, 0.0), math.pi / 2, 7)
+    run.targets = run.releases = [placement_pose(p) for p in run.layout]
+    run.report.dominoes = [DominoOutcome(p.index, target_of(p)) for p in run.layout]
+    run.settings = ArmJobSettings(section=2)  # gaps at the 3rd and 6th
+    turns, report = turns_with_one_slot_put_off(run, put_off=1, also=(2,))
+    assert 5 in [slot for slot, _ in turns]  # the 6th had its turn
+    assert turns[-1] == (2, False) and report.message.startswith("domino 3 could not be placed")
+    assert len(turns) == 11
+
+
 class CheckingClient:
     """Perception's placement check answering the given statuses, each 1 mm off unless
     told otherwise, measured that far off in x."""

@@ -279,14 +279,19 @@ class ArmJob:
                 continue  # kept standing where it was (see _keep_if_standing)
             # Only slots still to build count: a standing one left behind in the queue kept
             # two slots nothing planned for putting each other off for ever (S-curve seed 2).
-            may_defer = any(i not in deferred and i not in self.state.standing for i in queue)
+            standing = set(self.state.standing)
+            may_defer = any(i not in deferred | standing for i in queue)
             result = self._place_with_retries(index, may_defer)
             if result == DEFERRED:
                 deferred.add(index)
-                # before the safety gaps (filled last), but after at least one other slot:
-                # with only gaps left it went back to the front, put off for ever (S-curve 4)
+                # before the safety gaps (filled last), but after at least one other slot
+                # that was not put off (its turn may free this one): behind only gaps it
+                # came straight back (S-curve 4); behind a slot put off too, the two took
+                # turns for ever while a gap behind them never had one (S-curve 3)
+                open_slots = (k for k, i in enumerate(queue) if i not in deferred | standing)
+                first_open = next(open_slots, len(queue) - 1)
                 first_gap = next((k for k, i in enumerate(queue) if i in gaps), len(queue))
-                queue.insert(max(first_gap, 1), index)
+                queue.insert(max(first_gap, first_open + 1), index)
                 continue
             if result == FAILED:
                 self.report.message = f"domino {index + 1} could not be placed; stopping the build"
