@@ -88,8 +88,16 @@ class Cameras:
         )
 
     def check_placement(self, expected: list[np.ndarray]) -> CheckPlacement.Response:
+        """The node's answer once it has camera_2's frames: the fixture waits for the pile
+        cameras only, and on a loaded CPU camera_2's first frames came later (the check
+        answered "no colour, depth and camera_info received yet")."""
         request = CheckPlacement.Request(expected=[pose_message(pose) for pose in expected])
-        return self.call(CheckPlacement, "/perception/check_placement", request)
+        deadline = time.monotonic() + 30.0
+        while True:
+            response = self.call(CheckPlacement, "/perception/check_placement", request)
+            if "received yet" not in response.message or time.monotonic() > deadline:
+                return response
+            self.settle(0.5)
 
     def set_parameter(self, name: str, value: ParameterValue):
         request = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
