@@ -14,8 +14,7 @@ import numpy as np
 
 from dombot_bringup.layouts import DOMINO_WIDTH, DominoPlacement
 from dombot_description import domino_corners
-
-MAX_SWEEP = 0.1  # m: the planner's longest sweep
+from dombot_planner.request import MAX_SWEEP_DISTANCE as MAX_SWEEP
 
 
 def sweep_pushes(

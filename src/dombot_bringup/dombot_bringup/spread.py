@@ -20,23 +20,25 @@ from dombot_bringup.debris import MAX_SWEEP
 from dombot_description import DOMINO_SIZE, domino_corners
 from dombot_description.grasp import OrientedBox
 from dombot_planner.request import sweep_blocker
+from dombot_planner.settings import PlannerSettings
 
 SPREAD_DIRECTIONS = 16  # tried around the circle
 SPREAD_STEP = 0.01  # m between the push distances tried
 MIN_SPREAD = 0.02  # m: the shortest push
 OUTLINE_STEP = 0.003  # m between the points of a domino's faces
-# The pusher (closed pads, ~16 × 16 mm, pointing down) comes down this far behind the
-# pushed domino (the planner's strike_standoff plus half the pads), its tips at
-# SWEEP_HEIGHT of the domino's vertical extent (the planner's sweep_height), and needs
-# this much room around that spot above its tips (less PUSHER_BELOW: the planner's
+# The pusher (closed pads, ~16 × 16 mm, pointing down) comes down PUSHER_BEHIND behind
+# the pushed domino (the planner's strike_standoff, which the pads travel before they
+# meet it, plus half the pads), its tips at sweep_height of the domino's vertical
+# extent, and needs PUSHER_ROOM around that spot above its tips (less the planner's
 # fine_obstacle_clearance): a domino the pushed one lies on is no obstacle to it. The
 # planner checks all this exactly; here it only chooses what to ask for.
-PUSHER_BEHIND = 0.018  # m
+_PLANNER = PlannerSettings()
+PUSHER_STANDOFF = _PLANNER.strike_standoff  # m
+PUSHER_BEHIND = PUSHER_STANDOFF + 0.008  # m
 PUSHER_ROOM = 0.013  # m
-PUSHER_STANDOFF = 0.01  # m the pads travel before they meet the domino
 PUSHER_STEP = 0.005  # m between the pusher's spots checked along the push
-PUSHER_BELOW = 0.002  # m
-SWEEP_HEIGHT = 0.4
+PUSHER_BELOW = _PLANNER.fine_obstacle_clearance  # m
+SWEEP_HEIGHT = _PLANNER.sweep_height
 FINGERS_END = 0.005  # m beyond its ends that the fingers' room must reach
 
 
