@@ -94,6 +94,7 @@ def test_plan_has_the_gripper_events_in_order(planned) -> None:
     assert events == [
         ("open_gripper", GRIPPER_OPEN),
         ("approach_grasp", GRIPPER_CLOSE),
+        ("lift", GRIPPER_NONE),
         ("transfer", GRIPPER_NONE),
         ("place", GRIPPER_OPEN),
         ("retreat", GRIPPER_NONE),
@@ -321,12 +322,12 @@ def test_transfer_ends_straight_above_the_release_holding_the_domino_as_reported
     the domino there, place_approach_distance straight above where it is let go."""
     req, plan, _ = planned
     checker = checker_for(req)
-    above = checker.tcp_pose(end_of(plan.segments[2])) @ plan.held_in_tcp
-    released = checker.tcp_pose(end_of(plan.segments[3])) @ plan.held_in_tcp
+    above = checker.tcp_pose(end_of(plan.segments[3])) @ plan.held_in_tcp
+    released = checker.tcp_pose(end_of(plan.segments[4])) @ plan.held_in_tcp
     assert above.IsNearlyEqualTo(plan.held_above_place, 1e-5)  # IK to ~4e-6
     rise = above.translation() - released.translation()
     assert rise == pytest.approx([0.0, 0.0, SETTINGS.place_approach_distance], abs=1e-4)
-    assert [piece.label for piece in plan.segments[3].pieces] == ["descend_to_place"]
+    assert [piece.label for piece in plan.segments[4].pieces] == ["descend_to_place"]
 
 
 @pytest.mark.parametrize("where", ["above", "release"])
@@ -339,7 +340,7 @@ def test_a_domino_turned_in_the_hand_is_placed_again_from_where_it_is_held(
     when it stood on it) and opens there, so that the domino as now held stands on its
     place pose."""
     req, plan, _ = planned
-    start = end_of(plan.segments[2 if where == "above" else 3])
+    start = end_of(plan.segments[3 if where == "above" else 4])
     checker = checker_for(req)
     tcp = checker.tcp_pose(start)
     turned = RigidTransform(RotationMatrix.MakeYRotation(math.radians(6.0)), [0.0, 0.0, 0.003])
@@ -369,7 +370,7 @@ def test_a_held_domino_whose_place_is_out_of_reach_says_the_place_is(planner, pl
     """S-curve seed 4: a held domino's re-place was refused as GRASP_UNREACHABLE "for any
     of 0 grasps"; it is held already, the place is what failed."""
     req, plan, _ = planned
-    at_release = end_of(plan.segments[3])
+    at_release = end_of(plan.segments[4])
     measured = checker_for(req).tcp_pose(at_release) @ plan.held_in_tcp
     held = dataclasses.replace(
         req,

@@ -101,6 +101,7 @@ def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> N
     assert [s.label for s in response.segments] == [
         "open_gripper",
         "approach_grasp",
+        "lift",
         "transfer",
         "place",
         "retreat",
@@ -108,6 +109,7 @@ def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> N
     assert [s.gripper_after for s in response.segments] == [
         TrajectorySegment.GRIPPER_OPEN,
         TrajectorySegment.GRIPPER_CLOSE,
+        TrajectorySegment.GRIPPER_NONE,
         TrajectorySegment.GRIPPER_NONE,
         TrajectorySegment.GRIPPER_OPEN,
         TrajectorySegment.GRIPPER_NONE,

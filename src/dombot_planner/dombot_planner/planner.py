@@ -582,7 +582,8 @@ class RequestPlanning(RequestMotions):
                 0.0,
                 force,
             ),
-            self._transfer_segment([pieces["lift"], to_place]),
+            Segment("lift", [pieces["lift"]], openings["closed"]),
+            self._transfer_segment([to_place]),
             self._place_segment(place, transfer),
             self._retreat_segment(place),
         ]
@@ -598,7 +599,9 @@ class RequestPlanning(RequestMotions):
 
     def _transfer_segment(self, pieces: list[TimedPath]) -> Segment:
         """Carrying the held domino to above its place, clear of the run: the hold can be
-        looked at there, and a domino turned in the hand carried again from there."""
+        looked at there, and a domino turned in the hand carried again from there. After a
+        pick it starts above the grasp (the lift is its own segment): run backwards, it
+        takes a hold that can be neither placed nor carried again back over the pile."""
         return Segment("transfer", pieces, self.openings["closed"])
 
     def _place_segment(self, place: End, transfer: Scene) -> Segment:
