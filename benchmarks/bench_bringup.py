@@ -114,6 +114,8 @@ def run_case(name: str, arguments: list[str], seed: int, out: Path, record: bool
         "retries": summary["retries"],
         "corrected_in_hand": summary.get("corrected_in_hand", 0),
         "debris_swept": summary.get("debris_swept", 0),
+        "pile_spread": summary.get("pile_spread", 0),
+        "put_back_on_pile": summary.get("put_back_on_pile", 0),
         "simulated_s_per_domino": summary["simulated_s_per_domino_mean"],
         "wall_s_per_domino": summary["wall_s_per_domino_mean"],
         "wall_s": wall,
@@ -133,6 +135,8 @@ def aggregate(runs: list[dict]) -> dict:
         "placements_off_target": sum(r.get("placed_off_target", 0) for r in runs),
         "placements_corrected_in_hand": sum(r.get("corrected_in_hand", 0) for r in runs),
         "debris_swept": sum(r.get("debris_swept", 0) for r in runs),
+        "pile_spread": sum(r.get("pile_spread", 0) for r in runs),
+        "put_back_on_pile": sum(r.get("put_back_on_pile", 0) for r in runs),
         "runs_completed_rate": len(completed) / len(runs),
         "completed_runs_toppled_rate": (
             sum(r["toppled"] for r in completed) / len(completed) if completed else None

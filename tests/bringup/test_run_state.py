@@ -13,13 +13,15 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import Point, Pose, Quaternion
 from sensor_msgs.msg import JointState
-from trajectory_msgs.msg import JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_bringup import layouts
 from dombot_bringup.arm_job import (
     DEFERRED,
     FAILED,
+    LET_GO_OPENING,
     PLACED,
+    PUT_BACK,
     ArmJob,
     ArmJobSettings,
     Candidate,
@@ -39,6 +41,7 @@ from dombot_bringup.run_report import (
 )
 from dombot_description import DOMINO_SIZE
 from dombot_description.pose_messages import duration_message, pose_matrix
+from dombot_msgs.action import ExecuteTrajectory
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike
 
@@ -561,11 +564,12 @@ class HandCheckingClient:
 
     sim_time = 0.0
 
-    def __init__(self, status: int, off: float, tilt: float) -> None:
-        self.status, self.off, self.tilt = status, off, tilt
+    def __init__(self, status: int, off: float, tilt: float, refuse: bool = False) -> None:
+        self.status, self.off, self.tilt, self.refuse = status, off, tilt, refuse
         self.held_requests: list[PlanPlace.Request] = []
         self.openings: list[float] = []
         self.looked_at: list[Pose] = []
+        self.executed: list[JointTrajectory] = []
 
     def wait_for_sim_time(self, seconds: float) -> None:
         pass
@@ -588,6 +592,12 @@ class HandCheckingClient:
 
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
         self.held_requests.append(request)
+        if self.refuse:
+            return PlanPlace.Response(
+                success=False,
+                error_code=PlanPlace.Response.PLACE_UNREACHABLE,
+                message="PLACE_UNREACHABLE at place: no place pose reachable (14 tried)",
+            )
         segments = [
             TrajectorySegment(label="transfer"),
             TrajectorySegment(label="place", gripper_after=OPEN, gripper_position=0.031),
@@ -597,6 +607,10 @@ class HandCheckingClient:
 
     def gripper(self, position: float, max_effort: float):
         self.openings.append(position)
+
+    def execute(self, trajectory: JointTrajectory, timeout: float, tolerance: float = 0.0):
+        self.executed.append(trajectory)
+        return ExecuteTrajectory.Result(error_code=0)
 
 
 @pytest.mark.parametrize(
@@ -644,6 +658,61 @@ def test_a_domino_found_off_in_the_hand_above_its_slot_is_carried_again_from_the
     if placed_again:
         assert held[0].holding and held[0].place_pose == run.releases[1]
         assert held[0].domino_pose.position.x == pytest.approx(run.releases[1].position.x + off)
+
+
+def line_trajectory(start: float, end: float, duration: float) -> JointTrajectory:
+    return JointTrajectory(
+        joint_names=["iiwa_joint_1"],
+        points=[
+            JointTrajectoryPoint(positions=[start], velocities=[0.0]),
+            JointTrajectoryPoint(
+                positions=[end], velocities=[0.0], time_from_start=duration_message(duration)
+            ),
+        ],
+    )
+
+
+@pytest.mark.parametrize(("tilt", "put_back"), [(12.3, True), (6.0, False)])
+def test_a_hold_that_can_neither_stand_nor_be_carried_again_goes_back_to_the_pile(
+    tilt: float, put_back: bool
+) -> None:
+    """S-curve seed 3 (f457642's validation): a hold read 12.3° off at a safety gap, and
+    the planner found no place reachable with it; placed as held it fell and took four
+    standing neighbours with it. Now it is carried back along "transfer" to above where
+    it was picked, let go there, and the arm goes back along "transfer" (out of the
+    cameras' view of the pile); nothing is let go over the slot. Leaning 6°, it may
+    still stand: placed as held."""
+    run = job()
+    run.client = HandCheckingClient(STANDING, 0.003, math.radians(tilt), refuse=True)
+    transfer = TrajectorySegment(label="transfer", trajectory=line_trajectory(0.3, 0.5, 2.0))
+    planned = [
+        TrajectorySegment(label="lift"),
+        transfer,
+        TrajectorySegment(label="place", gripper_after=OPEN, gripper_position=0.034),
+        TrajectorySegment(label="retreat"),
+    ]
+    executed, why = run._execute(planned, (1, run.releases[1]))
+    carried = [[p.positions[0] for p in t.points] for t in run.client.executed]
+    if not put_back:
+        assert (executed, why) == (True, "") and run.client.openings == [0.034]
+        assert carried == [[0.3, 0.5]] and not run.report.dominoes[1].put_back
+        return
+    assert not executed and why.startswith(PUT_BACK) and "12.3°" in why
+    assert carried == [[0.3, 0.5], [0.5, 0.3], [0.3, 0.5]]  # there, back, there again
+    assert run.client.openings == [LET_GO_OPENING]  # let go once, over the pile
+    assert run.report.dominoes[1].put_back == ["foot 3.0 mm off, leaning 12.3°"]
+
+
+def test_a_hold_put_back_costs_an_attempt_not_a_pick_and_leaves_its_spot_pickable() -> None:
+    """The domino lies on the pile again, near where it was picked: that spot is not
+    remembered as unpickable, nor the pick as one that failed."""
+    run = job()
+    run.client = PlanningCheckingClient([STANDING], [0.001], [0.0])
+    run.client.codes = {0.55: 0}
+    run._execute = lambda *_, **__: (False, f"{PUT_BACK}: held foot 2.0 mm off, leaning 12.0°")
+    success, why, spot, moved = run._attempt(1, [])
+    assert not success and why.startswith(PUT_BACK) and spot is None and moved
+    assert run.state.unpickable == []
 
 
 def test_sweeps_push_debris_across_the_run_towards_its_side_first() -> None:

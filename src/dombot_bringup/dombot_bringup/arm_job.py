@@ -55,6 +55,8 @@ from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 
 NodeCommand = Callable[[str, str, dict], list[str]]
 BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
+LET_GO_OPENING = 0.04  # m the fingers open to, around a 24 mm domino, to let go of it
+PUT_BACK = "put back on the pile"  # how an attempt whose hold could not be placed ended
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
 DETECT_TRIES = 4
 POINTS_RADIUS = 0.12  # m: seen points farther from a pick than this cannot meet the pads
@@ -159,6 +161,11 @@ class ArmJobSettings:
     # 1.1 mm / 1.2°, was "corrected" 12.9 mm off; at 6 mm (e81930d) a real 6.2 mm / 3.9°
     # shift was refused and the domino stood 7.1 mm off.
     in_hand_max_off: float = 0.012  # m
+    # A hold leaning more than this whose correction the planner refused is not placed
+    # (it would fall, at a safety gap onto standing neighbours: S-curve seed 3 of f457642's
+    # validation, 12.3°) but carried back over the pile and dropped there: 1° short of
+    # the ~8.9° at which a domino's weight leaves its foot (thickness over height).
+    put_back_lean: float = math.atan2(DOMINO_SIZE[2], DOMINO_SIZE[0]) - math.radians(1.0)
     grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
     # ... but not this much inside it: a flat hold stops 0.2-0.8 mm inside (the pads' give
     # at grip_force); 0.9 mm and more inside, the pads met an edge and the domino hangs
@@ -279,8 +286,8 @@ class ArmJob:
                 continue  # kept standing where it was (see _keep_if_standing)
             # Only slots still to build count: a standing one left behind in the queue kept
             # two slots nothing planned for putting each other off for ever (S-curve seed 2).
-            standing = set(self.state.standing)
-            may_defer = any(i not in deferred | standing for i in queue)
+            settled = deferred | set(self.state.standing)  # no turn to wait for
+            may_defer = any(i not in settled for i in queue)
             result = self._place_with_retries(index, may_defer)
             if result == DEFERRED:
                 deferred.add(index)
@@ -288,7 +295,7 @@ class ArmJob:
                 # that was not put off (its turn may free this one): behind only gaps it
                 # came straight back (S-curve 4); behind a slot put off too, the two took
                 # turns for ever while a gap behind them never had one (S-curve 3)
-                open_slots = (k for k, i in enumerate(queue) if i not in deferred | standing)
+                open_slots = (k for k, i in enumerate(queue) if i not in settled)
                 first_open = next(open_slots, len(queue) - 1)
                 first_gap = next((k for k, i in enumerate(queue) if i in gaps), len(queue))
                 queue.insert(max(first_gap, first_open + 1), index)
@@ -370,9 +377,9 @@ class ArmJob:
         about the slot and not ``ignore_pile`` (other slots may be built first; refusals
         about the dominoes would recur at every slot), a pile domino is pushed out of its
         crowd (``_spread``) and the attempt starts again from a fresh look (up to
-        max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught by the grasp
-        check and backed out of, and stirs the pile). A refusal
-        costs a planning call, not an attempt: the arm has not moved (the last of the
+        max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught
+        by the grasp check and backed out of, and stirs the pile). A refusal costs a
+        planning call, not an attempt: the arm has not moved (the last of the
         returned success, why, spot, moved says whether it did). Refusals and failed picks
         are remembered for the run (refused with the pile: not offered with it again;
         refused ignoring it, or the pick blocked or missed: not offered at all), until a
@@ -434,6 +441,10 @@ class ArmJob:
         segments = turn if look_again else plan.segments
         executed, why = self._execute(segments, (index, plan.held_above_place))
         self._write_pick_record(record, why or ("turned in place only" if look_again else ""))
+        if candidate.run_index is not None and (executed or why.startswith(PUT_BACK)):
+            self.state.fallen.pop(candidate.run_index, None)  # carried away
+        if why.startswith(PUT_BACK):  # an attempt (the arm moved), not a pick that failed
+            return False, why, None, True
         if not executed:  # blocked or missed: unless it moved, the same would happen again
             if seen_off is not None:  # the name finds it in sim_node's "during the" lines
                 log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
@@ -446,8 +457,6 @@ class ArmJob:
         if look_again:
             log(f"domino {index + 1}/{len(self.layout)}: turned it in place; looking again")
             return self._attempt(index, failed, ignore_pile, turned=True)
-        if candidate.run_index is not None:
-            self.state.fallen.pop(candidate.run_index, None)  # carried away
         return self._check(index), self.report.dominoes[index].check, None, True
 
     def _first_plan(
@@ -727,17 +736,21 @@ class ArmJob:
                 self.client.gripper(segment.gripper_position, 0.0)
             if slot is not None and segment.label == HOLD_CHECK_SEGMENT:
                 again = self._carried_again(*slot)
+                if isinstance(again, str):
+                    self._put_back(segment)
+                    return False, again
                 if again is not None:
                     return self._execute(again)
         return True, ""
 
-    def _carried_again(self, index: int, held_above: Pose) -> list[TrajectorySegment] | None:
+    def _carried_again(self, index: int, held_above: Pose) -> list[TrajectorySegment] | str | None:
         """The held domino straight above slot ``index`` (planned to be held at
         ``held_above``), seen by perception: when it turned or slid in the hand on the way
         (``in_hand_tolerance``), a plan from where it is held to its release pose (down
         onto it from above, the fingers open there, then the retreat). None: placed as
         planned (within the tolerance, read beyond ``in_hand_max_off``, not seen well, or
-        no plan)."""
+        no plan for a hold that may still stand). A string (why, starting with PUT_BACK):
+        no plan, and leaning over ``put_back_lean`` it would fall: not to be placed."""
         settings = self.settings
         if settings.in_hand_tolerance <= 0.0:
             return None
@@ -771,13 +784,30 @@ class ArmJob:
             timeout=self.settings.plan_budget + 30.0,
         )
         if not plan.success:
-            log(
-                f"domino {index + 1}/{n} in the hand: {seen}; carrying it again refused, "
-                f"placing it as it is ({plan.message.split(' (')[0]})"
-            )
+            refused = f"carrying it again refused ({plan.message.split(' (')[0]})"
+            if tilt > settings.put_back_lean:
+                self.report.dominoes[index].put_back.append(seen)
+                log(f"domino {index + 1}/{n} in the hand: {seen}; {refused}; it would fall")
+                return f"{PUT_BACK}: held {seen}, {refused}"
+            log(f"domino {index + 1}/{n} in the hand: {seen}; {refused}; placing it as it is")
             return None
         log(f"domino {index + 1}/{n} in the hand: {seen}; carrying it again from where it is held")
         return list(plan.segments)
+
+    def _put_back(self, transfer: TrajectorySegment) -> None:
+        """Carry the held domino back along ``transfer`` to above where it was picked
+        (the way it came, with this hold), let it drop onto the pile from there, and go
+        back along ``transfer``: out of the cameras' view of the pile before the next
+        look, where the next plan starts as after a placement."""
+        log(f"{PUT_BACK}: carrying it back to where it was picked and letting it drop")
+        backwards = reversed_trajectory(transfer.trajectory, BACK_OUT_LEAD)
+        for trajectory in (backwards, None, transfer.trajectory):
+            if trajectory is None:
+                self.client.gripper(LET_GO_OPENING, 0.0)
+                continue
+            result = self.client.execute(trajectory, 60.0 * seconds(trajectory.points[-1]) + 120)
+            if result.error_code != 0:
+                log(f"putting it back: {result.error_string}")
 
     def _grasp_problem(self, opening: float) -> str:
         """What the finger opening after a close says is wrong with the grasp, or ""."""
@@ -794,7 +824,7 @@ class ArmJob:
         The way in was collision-free, so the way back is too, and it takes the arm out
         of the cameras' view of the pile before perception looks again.
         """
-        self.client.gripper(segment.gripper_position + 0.04, 0.0)
+        self.client.gripper(segment.gripper_position + LET_GO_OPENING, 0.0)
         if segment.trajectory.points:
             backwards = reversed_trajectory(segment.trajectory, BACK_OUT_LEAD)
             result = self.client.execute(backwards, 60.0 * seconds(backwards.points[-1]) + 120)

@@ -50,6 +50,8 @@ class DominoOutcome:
     # Held dominoes found off before the fingers let go, and placed again from where they
     # were held: what perception measured each time.
     corrected_in_hand: list[str] = field(default_factory=list)
+    # Held dominoes that could neither stand nor be carried again: dropped back on the pile.
+    put_back: list[str] = field(default_factory=list)
     # Fallen dominoes no grasp reached, pushed out of this slot's way.
     sweeps: list[str] = field(default_factory=list)
     # Crowded pile dominoes pushed apart when no pick planned (before ignoring the pile).
@@ -95,6 +97,7 @@ class RunReport:
             "within_tolerance_by_truth": sum(map(_within_tolerance, self.dominoes)),
             "retries": sum(max(d.attempts - 1, 0) for d in self.dominoes),
             "corrected_in_hand": sum(len(d.corrected_in_hand) for d in self.dominoes),
+            "put_back_on_pile": sum(len(d.put_back) for d in self.dominoes),
             "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
             "pile_spread": sum(len(d.spreads) for d in self.dominoes),
             "standing_before_strike_by_truth": self.standing_by_truth,
