@@ -211,12 +211,12 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
     run.client = RefusingClient(codes)
     success, why, spot, moved = run._attempt(0, failed := [], ignore_pile=True)
     assert (success, why, spot, moved) == (False, "planning: 7 offers refused", None, False)
-    # with their pile (all within 25 cm of each other), then the roomiest with only their
-    # neighbours' cores (as points), then ignoring the pile; not the one whose place was
-    # blocked (not offered again to this slot)
+    # with their pile (all within 25 cm of each other), then the roomiest with their
+    # neighbours' cores (as points) besides the boxes, then ignoring the pile; not the
+    # one whose place was blocked (not offered again to this slot)
     assert run.client.offered == [
         *[(0.50, 2, False), (0.55, 2, False), (0.60, 2, False)],
-        *[(0.50, 0, True), (0.55, 0, True)],
+        *[(0.50, 2, True), (0.55, 2, True)],
         *[(0.50, 0, False), (0.55, 0, False)],
     ]
     assert [c.tolist() for c in run.state.crowded] == [[0.50, -0.3], [0.55, -0.3]]
@@ -237,7 +237,7 @@ def test_the_pile_is_ignored_only_when_putting_the_slot_off_cannot_help() -> Non
     run._attempt(0, [], ignore_pile=False)
     boxes, cores, ignoring = (
         [(0.50, 1, False), (0.55, 1, False)],
-        [(0.50, 0, True), (0.55, 0, True)],
+        [(0.50, 1, True), (0.55, 1, True)],
         [(0.50, 0, False), (0.55, 0, False)],
     )
     assert run.client.offered == boxes + cores + ignoring
@@ -245,7 +245,7 @@ def test_the_pile_is_ignored_only_when_putting_the_slot_off_cannot_help() -> Non
     run = job()
     run.client = RefusingClient({0.50: refused, 0.55: PlanPlace.Response.PLACE_IN_COLLISION})
     assert run._place_with_retries(0, may_defer=True) == DEFERRED
-    assert run.client.offered == [*boxes, (0.50, 0, True)]  # 0.55 refused for its place
+    assert run.client.offered == [*boxes, cores[0]]  # 0.55 refused for its place
     assert run.state.unpickable == []
 
 
@@ -877,8 +877,9 @@ def test_perceptions_grasp_is_offered_to_the_planner_first_a_fallen_dominos_none
 def test_points_seen_on_no_detected_domino_near_a_pick_go_to_the_planner_with_its_pile() -> None:
     """A domino perception saw but did not detect (on its edge beside the picked one: arc
     seed 6) is only points; the planner keeps the pads' path clear of those near the pick,
-    also when it plans ignoring the pile's detected dominoes (the last resort). With only
-    the pile's cores, those come on top."""
+    also when it plans ignoring the pile's detected dominoes (the last resort). With the
+    pile's cores, those come on top, and the pads may reach into the boxes (the gripper
+    body keeps clear of them)."""
     run = job()
     run.client = GraspRecordingClient()
     pile = next(c for c in run._candidates([]) if c.run_index is None)
@@ -887,7 +888,8 @@ def test_points_seen_on_no_detected_domino_near_a_pick_go_to_the_planner_with_it
     boxes, ignoring, cores = run.client.requests
     for request in (boxes, ignoring):
         assert [(p.x, p.y) for p in request.pile_points] == [(0.57, -0.3)]
-    assert len(boxes.pile_dominoes) == 1 and ignoring.pile_dominoes == cores.pile_dominoes == []
+    assert len(boxes.pile_dominoes) == len(cores.pile_dominoes) == 1 and not ignoring.pile_dominoes
+    assert cores.pads_into_pile and not (boxes.pads_into_pile or ignoring.pads_into_pile)
     assert [(p.x, p.y) for p in cores.pile_points] == [(0.57, -0.3)]  # the other is 10 cm off
     near_one = Candidate(pile.pose, neighbours=[lying(0.58, -0.3), lying(0.7, -0.3)])
     run._plan(0, near_one, PILE_CORES)

@@ -99,8 +99,9 @@ class ArmJobSettings:
     # at its last gap with 16 dominoes still detected in the pile.
     max_missed_picks: int = 8
     # Per attempt, dominoes offered to the planner with their pile until one plans, then
-    # the roomiest with only their pile's cores (the pads may reach into a neighbour's box
-    # but not its core), then ignoring the pile (unless the slot can be put off instead).
+    # the roomiest with their pile's cores (the pads may reach into a neighbour's box but
+    # not its core; the gripper body keeps clear of the box), then ignoring the pile
+    # (unless the slot can be put off instead).
     # Ignoring it, 6 of 12 picks failed (f611c37); replayed, each of the 6 had the pads'
     # path 3.3-7.7 mm deep in a detected neighbour, the 6 that held at most 2.9 mm.
     max_candidates: int = 16
@@ -372,14 +373,14 @@ class ArmJob:
 
         First with their pile neighbours as obstacles (the planner keeps the pads clear of
         them, or lets them nudge one a few millimetres), in ``offers.with_pile_first``'s
-        order; when every one is refused, the roomiest with only their pile's cores (the
-        pads may push a neighbour up to pile_core_shrink); then, unless a refusal was
-        about the slot and not ``ignore_pile`` (other slots may be built first; refusals
-        about the dominoes would recur at every slot), a pile domino is pushed out of its
-        crowd (``_spread``) and the attempt starts again from a fresh look (up to
-        max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught
-        by the grasp check and backed out of, and stirs the pile). A refusal costs a
-        planning call, not an attempt: the arm has not moved (the last of the
+        order; when every one is refused, the roomiest with their pile's cores (the pads
+        may push a neighbour up to pile_core_shrink, the gripper body keeps clear); then,
+        unless a refusal was about the slot and not ``ignore_pile`` (other slots may be
+        built first; refusals about the dominoes would recur at every slot), a pile domino
+        is pushed out of its crowd (``_spread``) and the attempt starts again from a fresh
+        look (up to max_spreads a slot); only then the roomiest ignoring the pile (a miss
+        is caught by the grasp check and backed out of, and stirs the pile). A refusal
+        costs a planning call, not an attempt: the arm has not moved (the last of the
         returned success, why, spot, moved says whether it did). Refusals and failed picks
         are remembered for the run (refused with the pile: not offered with it again;
         refused ignoring it, or the pick blocked or missed: not offered at all), until a
@@ -599,7 +600,7 @@ class ArmJob:
         log(f"domino {index + 1}/{len(self.layout)}: refused {where}: {why.split(' (')[0]}")
 
     def _plan(self, index: int, candidate: Candidate, pile: str) -> PlanPlace.Response:
-        with_pile = pile == PILE_BOXES
+        with_pile = pile != PILE_IGNORED
         return self.client.plan_place(
             PlanPlace.Request(
                 domino_pose=candidate.pose,
@@ -608,6 +609,9 @@ class ArmJob:
                 # perception had within 1.2 mm of the truth
                 grasp_pose=candidate.grasp or Pose(),
                 pile_dominoes=candidate.neighbours if with_pile else [],
+                # with the cores, only the gripper body and arm keep clear of the boxes: in
+                # 2 of 3 such picks that missed (4e6913a), the body was 6-9 mm inside one
+                pads_into_pile=pile == PILE_CORES,
                 # unlike the pile's boxes, kept in the last resort too: it missed 8 of 11
                 # (58ee708), and a domino never detected is nothing the pads may push
                 pile_points=self._pile_points(candidate, pile),

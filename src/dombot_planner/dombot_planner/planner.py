@@ -12,7 +12,8 @@ Plan of a request (docs/PLANNER.md has the picture):
    to pick) keep ``pile_clearance`` from the pads and ``pile_arm_clearance`` from gripper
    body and arm on the approach line, at the grasp and on the lift; when no grasp keeps
    the pads that clear, they may reach ``pile_nudge`` into a pile domino (pushing it
-   aside). The picked domino may touch them.
+   aside); with the request's ``pads_into_pile`` as far as they like (only its
+   ``pile_points`` then bound the pads' path). The picked domino may touch them.
 2. *Coarse moves* by KinematicTrajectoryOptimization: start → above the grasp (open
    fingers), above the grasp → above the placement (holding the domino), seeded by the
    straight joint line, then by a raised via configuration, then by perturbed ones;
@@ -20,7 +21,7 @@ Plan of a request (docs/PLANNER.md has the picture):
    something than a coarse move may begin (e.g. where a missed grasp left the arm) is
    left first by a straight line up (``RequestMotions.escape``).
 3. *Timing:* every piece is retimed by TOPP-RA and pieces join at rest. Segments:
-   open the gripper; approach and grasp (close); lift, transfer, descend (open); retreat.
+   open the gripper; approach and grasp (close); lift; transfer; descend (open); retreat.
 """
 
 from __future__ import annotations
@@ -209,18 +210,21 @@ class EndSearch:
 class PickPlacePlanner(ArmPlanner):
     """Plans /plan_place requests; keeps shadow plants between requests (not thread-safe)."""
 
-    def fine_rules(self, at_pick: bool, nudge: bool = False) -> ClearanceRules:
+    def fine_rules(
+        self, at_pick: bool, nudge: bool = False, pads_into_pile: bool = False
+    ) -> ClearanceRules:
         """Within the lines only pads and the held domino come near the table and dominoes;
-        the pads come pile_clearance near the pile (``nudge``: pile_nudge into it), gripper
-        body and arm pile_arm_clearance; at the pick the held domino may drag along the
-        pile dominoes it lies among."""
+        the pads come pile_clearance near the pile (``nudge``: pile_nudge into it;
+        ``pads_into_pile``: as far as they like), gripper body and arm pile_arm_clearance;
+        at the pick the held domino may drag along the pile dominoes it lies among."""
         s = self.settings
+        pads_pile = -s.pile_nudge if nudge else s.pile_clearance
         return self.relaxed_rules(
             {
                 (PADS, TABLE): s.pad_table_clearance,
                 (PADS, STANDING): s.fine_obstacle_clearance,
                 (PADS, TARGET): s.fine_obstacle_clearance,
-                (PADS, PILE): -s.pile_nudge if nudge else s.pile_clearance,
+                (PADS, PILE): -math.inf if pads_into_pile else pads_pile,
                 (ARM, PILE): s.pile_arm_clearance,
                 (HELD, TABLE): -s.release_height - 1e-3,  # lies on the table at pick
                 (HELD, STANDING): s.fine_obstacle_clearance,
@@ -259,7 +263,7 @@ class PickPlacePlanner(ArmPlanner):
         try:
             return RequestPlanning(self, request, deadline).plan()
         except PlanningError as error:
-            nudge = self.settings.pile_nudge > 0.0 and request.pile
+            nudge = self.settings.pile_nudge > 0.0 and request.pile and not request.pads_into_pile
             if error.code != ErrorCode.GRASP_UNREACHABLE or not nudge:
                 raise
             try:
@@ -459,7 +463,7 @@ class RequestPlanning(RequestMotions):
                 self.settings.pick_approach_distance,
                 lifts,
                 [self.approach, transfer],
-                self.planner.fine_rules(at_pick=True, nudge=self.nudge),
+                self.planner.fine_rules(True, self.nudge, request.pads_into_pile),
                 self.seeds([request.start], grasp.translation()),
                 self.search.grasp_failures,
             )

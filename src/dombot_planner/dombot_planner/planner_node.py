@@ -239,6 +239,7 @@ class PlannerNode(Node):
             standing=poses_of(request.standing_dominoes, "standing_dominoes"),
             pile=poses_of(request.pile_dominoes, "pile_dominoes"),
             pile_points=np.array([(p.x, p.y, p.z) for p in request.pile_points]).reshape(-1, 3),
+            pads_into_pile=request.pads_into_pile,
             time_budget=request.time_budget,
             holding=request.holding,
         )

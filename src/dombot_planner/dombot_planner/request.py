@@ -42,6 +42,9 @@ class PickPlaceRequest:
     # seen points near it on no domino of ``pile`` (N×3, world): what perception saw but
     # could not fit a domino to
     pile_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # the pads may reach into ``pile`` (only arm and gripper body keep clear of it; the
+    # pile_points still bound the pads' path)
+    pads_into_pile: bool = False
     time_budget: float = 0.0  # s; 0: the planner's default
     # The domino is in the hand already, at domino_pose (measured there), held where the
     # start puts the TCP: plan only the carry to place_pose and the retreat.
