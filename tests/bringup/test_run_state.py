@@ -965,3 +965,35 @@ def test_the_placement_check_asks_for_frames_taken_once_the_placement_settled() 
     run.client = LateFramesClient()
     run._check(0)
     assert run.client.not_befores == [pytest.approx(7.0 + run.settings.settle_after_place)]
+
+
+class StillPileClient(LateFramesClient, RefusingClient):
+    """LateFramesClient whose simulated time advances with each wait; records the frame
+    time each look at the pile asked for."""
+
+    def __init__(self) -> None:
+        LateFramesClient.__init__(self)
+        RefusingClient.__init__(self, {0.55: 0})
+        self.detect_not_befores: list[float] = []
+
+    def wait_for_sim_time(self, seconds: float) -> None:
+        self.sim_time += seconds
+
+    def detect(self, not_before: float = 0.0) -> DetectDominoes.Response:
+        self.detect_not_befores.append(not_before)
+        return RefusingClient.detect(self)
+
+
+def test_the_look_at_the_pile_after_a_placement_check_takes_its_frames_until_the_arm_moves():
+    """Nothing moved since the check's frames: the pile cameras' are as fresh (one camera
+    period less to wait a domino). Once the arm moved, it waits for frames again."""
+    run = job()
+    run.client = StillPileClient()
+    run._check(0)
+    checked_at, waited_until = run.client.not_befores[0], run.client.sim_time
+    run._detect()
+    assert run.client.detect_not_befores == [checked_at] and run.client.sim_time == waited_until
+    run._execute([])  # the arm moves (here: nothing to run)
+    run._detect()
+    assert run.client.detect_not_befores[1] == waited_until > checked_at
+    assert run.client.sim_time > waited_until
