@@ -117,6 +117,7 @@ def run_case(name: str, arguments: list[str], seed: int, out: Path, record: bool
         "pile_spread": summary.get("pile_spread", 0),
         "put_back_on_pile": summary.get("put_back_on_pile", 0),
         "simulated_s_per_domino": summary["simulated_s_per_domino_mean"],
+        "simulated_s_per_domino_by_activity": summary.get("simulated_s_per_domino_by_activity"),
         "wall_s_per_domino": summary["wall_s_per_domino_mean"],
         "wall_s": wall,
     }

@@ -59,6 +59,12 @@ def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> 
         assert all(off < 5.0 for off in domino["pick_seen_off_mm"]), domino
     assert report["toppled_by_truth"] and report["toppled_by_perception"]
     assert (tmp_path / "run.png").stat().st_size > 10_000
+    # where the simulated time went: every activity was waited for, and they add up
+    by_activity = report["summary"]["simulated_s_per_domino_by_activity"]
+    assert {"motion", "planning", "perception", "gripper", "waiting"} <= set(by_activity)
+    assert min(by_activity[a] for a in ("motion", "perception", "waiting")) > 0.5, by_activity
+    mean = report["summary"]["simulated_s_per_domino_mean"]
+    assert sum(by_activity.values()) == pytest.approx(mean, abs=0.05)
     for node in ("[sim_node]", "[perception_node]", "[planner_node]"):
         assert node in result.stdout
 

@@ -25,6 +25,7 @@ from dombot_bringup.arm_job import (
     ArmJob,
     ArmJobSettings,
     Candidate,
+    add_spent,
     nearest_truth,
     neighbours_of,
     placement_pose,
@@ -130,6 +131,7 @@ class ResetOnlyClient:
     """What run() asks of the cell around the slots' turns: a reset, the clock, the truth."""
 
     sim_time = 0.0
+    simulated_by_activity: dict[str, float] = {}  # noqa: RUF012 (never changed)
 
     def reset(self, pile: int, seed: int):
         return type("Reset", (), {"message": "poured"})()
@@ -170,6 +172,7 @@ class RefusingClient:
     """Perception sees three flat dominoes; the planner refuses each with its own code."""
 
     sim_time = 0.0
+    simulated_by_activity: dict[str, float] = {}  # noqa: RUF012 (never changed)
 
     def __init__(self, codes: dict[float, int]) -> None:
         self.codes = codes  # detection x → refusal code
@@ -985,15 +988,33 @@ class StillPileClient(LateFramesClient, RefusingClient):
 
 
 def test_the_look_at_the_pile_after_a_placement_check_takes_its_frames_until_the_arm_moves():
-    """Nothing moved since the check's frames: the pile cameras' are as fresh (one camera
-    period less to wait a domino). Once the arm moved, it waits for frames again."""
+    """Nothing moved since the check's frames: the pile cameras' are as fresh (no frame
+    to wait for). Once the arm moved, perception is asked for frames from then on, and
+    waits for them itself: the bring-up waits only for a placement to settle."""
     run = job()
     run.client = StillPileClient()
     run._check(0)
-    checked_at, waited_until = run.client.not_befores[0], run.client.sim_time
+    checked_at = run.client.not_befores[0]
+    assert run.client.sim_time == checked_at  # waited for the settling, not a frame more
     run._detect()
-    assert run.client.detect_not_befores == [checked_at] and run.client.sim_time == waited_until
-    run._execute([])  # the arm moves (here: nothing to run)
+    assert run.client.detect_not_befores == [checked_at]
+    run._execute([])  # the arm moves (here: nothing to run) ...
+    run.client.sim_time += 2.0  # ... for 2 s
     run._detect()
-    assert run.client.detect_not_befores[1] == waited_until > checked_at
-    assert run.client.sim_time > waited_until
+    assert run.client.detect_not_befores[1] == run.client.sim_time == checked_at + 2.0
+
+
+def test_the_simulated_time_of_a_slot_is_told_by_activity_over_its_turns() -> None:
+    """A slot's time adds up over its turns (put off, then built); the summary gives the
+    mean per placed domino, and what no answer was waited for as "other"."""
+    run = job()
+    outcome = run.report.dominoes[0]
+    spent = add_spent(outcome.simulated_by_activity, {"planning": 2.0}, {})
+    spent = add_spent(outcome.simulated_by_activity, {"planning": 3.0, "motion": 6.0}, spent)
+    assert outcome.simulated_by_activity == {"planning": 3.0, "motion": 6.0}
+    assert spent == {"planning": 3.0, "motion": 6.0}
+    outcome.placed, outcome.simulated_s = True, 10.0
+    other = replace(outcome, index=1, simulated_s=4.0, simulated_by_activity={"motion": 4.0})
+    run.report.dominoes[1] = other
+    by_activity = run.report.summary()["simulated_s_per_domino_by_activity"]
+    assert by_activity == {"planning": 1.5, "motion": 5.0, "other": 0.5}

@@ -332,6 +332,8 @@ class ArmJob:
         missed = 0  # picks that failed (the attempt returned where)
         sweeps = 0
         sim_start, wall_start = self.client.sim_time, time.monotonic()
+        activities = self.client.simulated_by_activity
+        spent = dict(activities)
         settings = self.settings
         while (
             outcome.attempts - missed < settings.max_attempts and missed < settings.max_missed_picks
@@ -343,6 +345,7 @@ class ArmJob:
             outcome.simulated_s += self.client.sim_time - sim_start
             outcome.wall_s += time.monotonic() - wall_start
             sim_start, wall_start = self.client.sim_time, time.monotonic()
+            spent = add_spent(outcome.simulated_by_activity, activities, spent)
             if not moved and sweeps < settings.max_sweeps and self._sweep_debris(index, failed):
                 sweeps += 1
                 failed.clear()  # refused while the debris lay there (missed picks: unpickable)
@@ -687,12 +690,12 @@ class ArmJob:
     def _detect(self) -> tuple[list[DominoDetection], list[Point]]:
         """Perception's detections in fresh frames, and the points seen on none of them.
         A failure or an empty pile (e.g. the cameras' first frames after the reset not yet
-        through) is asked again a few camera periods on; an empty answer after that is
-        taken as the pile's end. Nothing moved since the last placement check: its frames
-        serve (one camera period less to wait, ~0.55 s simulated a domino)."""
+        through) is asked again for later frames; an empty answer after that is taken as
+        the pile's end. Nothing moved since the last placement check: its frames serve
+        (no frame to wait for)."""
         for attempt in range(DETECT_TRIES):
             still = self.still_since if attempt == 0 else None
-            answer = self.client.detect(self._wait_for_fresh_frames() if still is None else still)
+            answer = self.client.detect(self._settle() if still is None else still)
             if answer.success and answer.detections.detections:
                 return list(answer.detections.detections), list(answer.unexplained_points)
             log(f"perception: {answer.message}; asking again")
@@ -764,7 +767,7 @@ class ArmJob:
         settings = self.settings
         if settings.in_hand_tolerance <= 0.0:
             return None
-        fresh = self._wait_for_fresh_frames()
+        fresh = self._settle()
         release, n = self.releases[index], len(self.layout)
         answer = self.client.check_placement([held_above], in_hand=True, not_before=fresh)
         if not (answer.success and answer.status[0] == CheckPlacement.Response.STANDING):
@@ -842,14 +845,16 @@ class ArmJob:
                 log(f"backing out failed: {result.error_string}")
 
     # ------------------------------------------------------------------ checks
-    def _wait_for_fresh_frames(self, settle: float = 0.0) -> float:
-        """Let ``settle`` simulated seconds pass, then one camera period, so that frames
-        taken after the arm stopped exist; the simulated time from which on they show the
-        scene settled, for perception's ``not_before`` (on a loaded CPU the images arrive
-        after the joint states: a frame from before a placement once had perception call
-        the domino standing there MISSING, and the next carry swept through it)."""
+    def _settle(self, settle: float = 0.0) -> float:
+        """The simulated time from which on camera frames show the scene as it is
+        ``settle`` seconds from now (waited for here), for perception's ``not_before``:
+        perception waits for the first frame stamped then or later (on a loaded CPU the
+        images arrive after the joint states: a frame from before a placement once had
+        perception call the domino standing there MISSING, and the next carry swept
+        through it). Waiting here a camera period more cost ~0.3 s simulated a look."""
         fresh = self.client.sim_time + settle
-        self.client.wait_for_sim_time(settle + 1.0 / self.settings.camera_rate + 0.05)
+        if settle > 0.0:
+            self.client.wait_for_sim_time(settle)
         return fresh
 
     def _check(self, index: int, just_placed: bool = True) -> bool:
@@ -864,7 +869,7 @@ class ArmJob:
         one that stays within the tolerance of where it was left, and one whose pick-up
         again failed, up to keep_when_stuck. A hidden ``index`` not ``just_placed`` (e.g.
         the slot a fallen domino was swept out of) is not taken as standing."""
-        fresh = self._wait_for_fresh_frames(self.settings.settle_after_place)
+        fresh = self._settle(self.settings.settle_after_place)
         self.still_since = fresh
         indices = sorted(set(self.state.standing) | {index})
         answer = self.client.check_placement([self.targets[i] for i in indices], not_before=fresh)
@@ -944,7 +949,7 @@ class ArmJob:
             log(self.report.message)
             return
         self.report.struck = True
-        fresh = self._wait_for_fresh_frames(self.settings.topple_wait)
+        fresh = self._settle(self.settings.topple_wait)
         answer = self.client.check_placement(self.targets, not_before=fresh)
         fallen = [s != CheckPlacement.Response.STANDING for s in answer.status]
         self.report.toppled_by_perception = answer.success and all(fallen)
@@ -1096,6 +1101,18 @@ def near(spot: np.ndarray, other: np.ndarray, radius: float) -> bool:
 def near_any(spot: np.ndarray, spots: Sequence[np.ndarray]) -> bool:
     """``spot`` is one of ``spots`` (within SAME_SPOT): the same domino seen again."""
     return any(near(spot, other, SAME_SPOT) for other in spots)
+
+
+def add_spent(
+    into: dict[str, float], spent: dict[str, float], before: dict[str, float]
+) -> dict[str, float]:
+    """Add to ``into`` the simulated seconds per activity that ``spent`` grew by since
+    ``before``; ``spent`` as it is now, to count from next."""
+    for activity, seconds in spent.items():
+        grown = seconds - before.get(activity, 0.0)
+        if grown:
+            into[activity] = round(into.get(activity, 0.0) + grown, 3)
+    return dict(spent)
 
 
 def is_approach(segment: TrajectorySegment) -> bool:

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections import defaultdict
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Pose
@@ -30,6 +32,19 @@ SERVICES = {
     "/perception/check_placement": CheckPlacement,
     "/plan_place": PlanPlace,
     "/plan_strike": PlanStrike,
+}
+
+
+# What simulated time spent waiting for each answer is counted as.
+ACTIVITIES = {
+    "/sim/reset": "reset",
+    "/perception/detect": "perception",
+    "/perception/check_placement": "perception",
+    "/plan_place": "planning",
+    "/plan_strike": "planning",
+    "/execute_trajectory": "motion",
+    "/gripper_command": "gripper",
+    "simulated time": "waiting",  # for fresh camera frames, a domino to settle
 }
 
 
@@ -86,6 +101,8 @@ class CellClient:
         self._truth: DominoStateArray | None = None
         self._sim_time = 0.0
         self._received = 0  # joint states so far
+        # simulated seconds that passed while waiting for each kind of answer (ACTIVITIES)
+        self.simulated_by_activity: dict[str, float] = defaultdict(float)
         self.node.create_subscription(JointState, "/joint_states", self._on_joint_state, 10)
         self.node.create_subscription(
             DominoStateArray, "/sim/domino_ground_truth", self._on_truth, 2
@@ -141,9 +158,10 @@ class CellClient:
         older than the last answer (a reset blocks the simulator's publishing).
         """
         received = self._received
-        self._wait(lambda: self._received > received or None, timeout, "/joint_states")
-        target = self.sim_time + seconds
-        self._wait(lambda: self.sim_time >= target or None, timeout, "simulated time")
+        with self._spending("simulated time"):
+            self._wait(lambda: self._received > received or None, timeout, "/joint_states")
+            target = self.sim_time + seconds
+            self._wait(lambda: self.sim_time >= target or None, timeout, "simulated time")
 
     def ready(self, names: Sequence[str]) -> bool:
         """Are these services (and both actions) available?"""
@@ -159,8 +177,9 @@ class CellClient:
         client = self._clients[name]
         if not client.wait_for_service(timeout_sec=min(timeout, 10.0)):
             raise CallFailedError(f"{name} is not available")
-        future = client.call_async(request)
-        return self._wait(lambda: future.result() if future.done() else None, timeout, name)
+        with self._spending(name):
+            future = client.call_async(request)
+            return self._wait(lambda: future.result() if future.done() else None, timeout, name)
 
     def reset(self, count: int, seed: int) -> ResetSim.Response:
         return self.call("/sim/reset", ResetSim.Request(domino_count=count, seed=seed), 600.0)
@@ -207,12 +226,23 @@ class CellClient:
     def _run_action(self, client: ActionClient, goal, timeout: float, name: str):
         if not client.wait_for_server(timeout_sec=10.0):
             raise CallFailedError(f"{name} is not available")
-        sent = client.send_goal_async(goal)
-        handle = self._wait(lambda: sent.result() if sent.done() else None, 10.0, name)
-        if not handle.accepted:
-            raise CallFailedError(f"{name} refused the goal")
-        result = handle.get_result_async()
-        return self._wait(lambda: result.result() if result.done() else None, timeout, name).result
+        with self._spending(name):
+            sent = client.send_goal_async(goal)
+            handle = self._wait(lambda: sent.result() if sent.done() else None, 10.0, name)
+            if not handle.accepted:
+                raise CallFailedError(f"{name} refused the goal")
+            result = handle.get_result_async()
+            done = self._wait(lambda: result.result() if result.done() else None, timeout, name)
+            return done.result
+
+    @contextmanager
+    def _spending(self, name: str) -> Iterator[None]:
+        """Count the simulated time that passes inside as ``name``'s activity."""
+        start = self.sim_time
+        try:
+            yield
+        finally:
+            self.simulated_by_activity[ACTIVITIES[name]] += self.sim_time - start
 
     def _wait(self, poll, timeout: float, what: str):
         deadline = time.monotonic() + timeout

@@ -58,6 +58,9 @@ class DominoOutcome:
     spreads: list[str] = field(default_factory=list)
     simulated_s: float = 0.0
     wall_s: float = 0.0
+    # ... of it waiting for each kind of answer (motion, planning, perception, gripper,
+    # waiting for fresh frames or a domino to settle): where the time goes
+    simulated_by_activity: dict[str, float] = field(default_factory=dict)
     # Per pick executed: how far the simulator had the nearest domino from the pose
     # perception gave the planner (to tell a misperceived domino from a missed grasp).
     pick_seen_off_mm: list[float | None] = field(default_factory=list)
@@ -107,9 +110,23 @@ class RunReport:
             "wall_s_per_domino_mean": (
                 float(np.mean([d.wall_s for d in placed])) if placed else None
             ),
+            "simulated_s_per_domino_by_activity": _by_activity(placed),
             "simulated_s": self.simulated_s,
             "wall_s": self.wall_s,
         }
+
+
+def _by_activity(placed: list[DominoOutcome]) -> dict[str, float]:
+    """Mean simulated seconds per placed domino by activity; "other": the rest (between
+    answers: the bring-up's own work and the messages' way)."""
+    if not placed:
+        return {}
+    totals: dict[str, float] = {}
+    for outcome in placed:
+        for activity, seconds in outcome.simulated_by_activity.items():
+            totals[activity] = totals.get(activity, 0.0) + seconds
+    totals["other"] = sum(d.simulated_s for d in placed) - sum(totals.values())
+    return {activity: round(seconds / len(placed), 2) for activity, seconds in totals.items()}
 
 
 def _within_tolerance(outcome: DominoOutcome) -> bool:
