@@ -1018,3 +1018,25 @@ def test_the_simulated_time_of_a_slot_is_told_by_activity_over_its_turns() -> No
     run.report.dominoes[1] = other
     by_activity = run.report.summary()["simulated_s_per_domino_by_activity"]
     assert by_activity == {"planning": 1.5, "motion": 5.0, "other": 0.5}
+
+
+class LateCamerasClient(StillPileClient):
+    """Perception has no frames for the first two looks (the cameras' first after the
+    reset not yet through)."""
+
+    def detect(self, not_before: float = 0.0) -> DetectDominoes.Response:
+        answer = super().detect(not_before)
+        if len(self.detect_not_befores) <= 2:
+            return DetectDominoes.Response(success=False, message="no colour received yet")
+        return answer
+
+
+def test_a_look_that_found_no_frames_is_asked_again_a_camera_period_on() -> None:
+    """Asked again at once, a run's first looks after the reset found no frames for four
+    attempts and it stopped (S-curve seed 1 of 4ee4e82)."""
+    run = job()
+    run.client = LateCamerasClient()
+    start, period = run.client.sim_time, 1.0 / run.settings.camera_rate
+    detections, _ = run._detect()
+    assert len(detections) == 1
+    assert run.client.detect_not_befores == [start, start + period, start + 2 * period]

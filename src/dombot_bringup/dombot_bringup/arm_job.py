@@ -58,7 +58,7 @@ BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto i
 LET_GO_OPENING = 0.04  # m the fingers open to, around a 24 mm domino, to let go of it
 PUT_BACK = "put back on the pile"  # how an attempt whose hold could not be placed ended
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
-DETECT_TRIES = 4
+DETECT_TRIES = 5
 POINTS_RADIUS = 0.12  # m: seen points farther from a pick than this cannot meet the pads
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 # Refusals about the domino, not the slot: remembered for the run. A search that used up
@@ -690,12 +690,17 @@ class ArmJob:
     def _detect(self) -> tuple[list[DominoDetection], list[Point]]:
         """Perception's detections in fresh frames, and the points seen on none of them.
         A failure or an empty pile (e.g. the cameras' first frames after the reset not yet
-        through) is asked again for later frames; an empty answer after that is taken as
-        the pile's end. Nothing moved since the last placement check: its frames serve
+        through) is asked again a camera period on (a run whose first looks came at once
+        after the reset found no frames for four attempts); an empty answer after that is
+        taken as the pile's end. Nothing moved since the last placement check: its frames serve
         (no frame to wait for)."""
+        period = 1.0 / self.settings.camera_rate
         for attempt in range(DETECT_TRIES):
-            still = self.still_since if attempt == 0 else None
-            answer = self.client.detect(self._settle() if still is None else still)
+            if attempt:  # a camera period on: frames asked for at once may not be out yet
+                not_before = self._settle(period)
+            else:
+                not_before = self._settle() if self.still_since is None else self.still_since
+            answer = self.client.detect(not_before)
             if answer.success and answer.detections.detections:
                 return list(answer.detections.detections), list(answer.unexplained_points)
             log(f"perception: {answer.message}; asking again")
