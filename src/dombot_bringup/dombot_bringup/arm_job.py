@@ -818,14 +818,9 @@ class ArmJob:
         back along ``transfer``: out of the cameras' view of the pile before the next
         look, where the next plan starts as after a placement."""
         log(f"{PUT_BACK}: carrying it back to where it was picked and letting it drop")
-        backwards = reversed_trajectory(transfer.trajectory, BACK_OUT_LEAD)
-        for trajectory in (backwards, None, transfer.trajectory):
-            if trajectory is None:
-                self.client.gripper(LET_GO_OPENING, 0.0)
-                continue
-            result = self.client.execute(trajectory, 60.0 * seconds(trajectory.points[-1]) + 120)
-            if result.error_code != 0:
-                log(f"putting it back: {result.error_string}")
+        self._move(reversed_trajectory(transfer.trajectory, BACK_OUT_LEAD), "putting it back")
+        self.client.gripper(LET_GO_OPENING, 0.0)
+        self._move(transfer.trajectory, "leaving the pile")
 
     def _grasp_problem(self, opening: float) -> str:
         """What the finger opening after a close says is wrong with the grasp, or ""."""
@@ -844,10 +839,14 @@ class ArmJob:
         """
         self.client.gripper(segment.gripper_position + LET_GO_OPENING, 0.0)
         if segment.trajectory.points:
-            backwards = reversed_trajectory(segment.trajectory, BACK_OUT_LEAD)
-            result = self.client.execute(backwards, 60.0 * seconds(backwards.points[-1]) + 120)
-            if result.error_code != 0:
-                log(f"backing out failed: {result.error_string}")
+            self._move(reversed_trajectory(segment.trajectory, BACK_OUT_LEAD), "backing out")
+
+    def _move(self, trajectory: JointTrajectory, what: str) -> None:
+        """Run ``trajectory`` off plan (a way back); a failure is logged, not raised: the
+        next plan starts from wherever the arm stopped."""
+        result = self.client.execute(trajectory, 60.0 * seconds(trajectory.points[-1]) + 120)
+        if result.error_code != 0:
+            log(f"{what} failed: {result.error_string}")
 
     # ------------------------------------------------------------------ checks
     def _settle(self, settle: float = 0.0) -> float:
