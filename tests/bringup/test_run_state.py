@@ -658,7 +658,7 @@ def test_a_domino_found_off_in_the_hand_above_its_slot_is_carried_again_from_the
         position=Point(x=release.position.x, y=release.position.y, z=release.position.z + 0.07),
         orientation=release.orientation,
     )
-    assert run._execute(planned, (1, above)) == (True, "")
+    assert run._execute(planned, (1, above, lying(0.55, -0.3))) == (True, "")
     assert run.client.looked_at == [above]
     held = run.client.held_requests
     assert run.client.openings == [0.04, 0.031 if placed_again else 0.034]  # let go once
@@ -667,6 +667,20 @@ def test_a_domino_found_off_in_the_hand_above_its_slot_is_carried_again_from_the
     if placed_again:
         assert held[0].holding and held[0].place_pose == run.releases[1]
         assert held[0].domino_pose.position.x == pytest.approx(run.releases[1].position.x + off)
+
+
+def test_a_fallen_run_domino_carried_again_is_no_obstacle_where_it_lay() -> None:
+    """S-curve seed 5 of ec6d172: the fallen 2nd, picked up and read 6° off in the hand,
+    was to be corrected, but its own pose where it had lain "overlapped" its slot: every
+    correction was refused, and the build stopped there. Other fallen ones still count."""
+    run = job()
+    run._remember_fallen(1, FALLEN, lying(0.45, 0.02), math.radians(80.0))
+    run._remember_fallen(2, FALLEN, lying(0.47, 0.09), math.radians(80.0))
+    run.client = HandCheckingClient(STANDING, 0.003, math.radians(6.0))
+    planned = [TrajectorySegment(label="transfer")]
+    assert run._execute(planned, (1, run.releases[1], run.state.fallen[1])) == (True, "")
+    (request,) = run.client.held_requests
+    assert request.standing_dominoes == [run.state.fallen[2]]
 
 
 def line_trajectory(start: float, end: float, duration: float) -> JointTrajectory:
@@ -700,7 +714,7 @@ def test_a_hold_that_can_neither_stand_nor_be_carried_again_goes_back_to_the_pil
         TrajectorySegment(label="place", gripper_after=OPEN, gripper_position=0.034),
         TrajectorySegment(label="retreat"),
     ]
-    executed, why = run._execute(planned, (1, run.releases[1]))
+    executed, why = run._execute(planned, (1, run.releases[1], lying(0.55, -0.3)))
     carried = [[p.positions[0] for p in t.points] for t in run.client.executed]
     if not put_back:
         assert (executed, why) == (True, "") and run.client.openings == [0.034]

@@ -166,9 +166,10 @@ class ArmJobSettings:
     in_hand_max_off: float = 0.012  # m
     # A hold leaning more than this whose correction the planner refused is not placed
     # (it would fall, at a safety gap onto standing neighbours: S-curve seed 3 of f457642's
-    # validation, 12.3°) but carried back over the pile and dropped there: 1° short of
-    # the ~8.9° at which a domino's weight leaves its foot (thickness over height).
-    put_back_lean: float = math.atan2(DOMINO_SIZE[2], DOMINO_SIZE[0]) - math.radians(1.0)
+    # validation, 12.3°) but carried back over the pile and dropped there: the ~8.9° at
+    # which a domino's weight leaves its foot (thickness over height). Not less: carried
+    # back, a loose hold read 8.3° slipped out over the run and felled four (ec6d172).
+    put_back_lean: float = math.atan2(DOMINO_SIZE[2], DOMINO_SIZE[0])
     grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
     # ... but not this much inside it: a flat hold stops 0.2-0.8 mm inside (the pads' give
     # at grip_force); 0.9 mm and more inside, the pads met an edge and the domino hangs
@@ -449,7 +450,7 @@ class ArmJob:
         turn = [s for s in plan.segments if s.label.startswith(REGRASP_PREFIX)]
         look_again = bool(turn) and candidate.run_index is None and not turned
         segments = turn if look_again else plan.segments
-        executed, why = self._execute(segments, (index, plan.held_above_place))
+        executed, why = self._execute(segments, (index, plan.held_above_place, candidate.pose))
         self._write_pick_record(record, why or ("turned in place only" if look_again else ""))
         if candidate.run_index is not None and (executed or why.startswith(PUT_BACK)):
             self.state.fallen.pop(candidate.run_index, None)  # carried away
@@ -720,7 +721,7 @@ class ArmJob:
     def _execute(
         self,
         segments: Sequence[TrajectorySegment],
-        slot: tuple[int, Pose] | None = None,
+        slot: tuple[int, Pose, Pose] | None = None,
         holds_domino: bool = True,
     ) -> tuple[bool, str]:
         """Run the segments and their gripper events.
@@ -728,8 +729,8 @@ class ArmJob:
         A close that should hold a domino is checked by where the fingers stopped (the
         strike closes them on nothing). When a grasp fails, the arm backs out the way it
         came before anything else is tried. ``slot``: the index of the slot the domino
-        goes to and where it should be held when "transfer" ends above it; it is looked
-        at in the hand there (``_carried_again``).
+        goes to, where it should be held when "transfer" ends above it, and where it was
+        picked; it is looked at in the hand there (``_carried_again``).
         """
         self.still_since = None
         for segment in segments:
@@ -765,7 +766,9 @@ class ArmJob:
                     return self._execute(again)
         return True, ""
 
-    def _carried_again(self, index: int, held_above: Pose) -> list[TrajectorySegment] | str | None:
+    def _carried_again(
+        self, index: int, held_above: Pose, picked: Pose
+    ) -> list[TrajectorySegment] | str | None:
         """The held domino straight above slot ``index`` (planned to be held at
         ``held_above``), seen by perception: when it turned or slid in the hand on the way
         (``in_hand_tolerance``), a plan from where it is held to its release pose (down
@@ -799,7 +802,13 @@ class ArmJob:
             PlanPlace.Request(
                 domino_pose=measured,
                 place_pose=release,
-                standing_dominoes=[*self.state.standing.values(), *self.state.fallen.values()],
+                # a fallen run domino being carried is no obstacle where it lay (S-curve
+                # seed 5 of ec6d172: its own pose "overlapped" its slot, every correction
+                # was refused, and the build stopped at that slot)
+                standing_dominoes=[
+                    *self.state.standing.values(),
+                    *(pose for pose in self.state.fallen.values() if pose is not picked),
+                ],
                 time_budget=self.settings.plan_budget,
                 holding=True,
             ),
