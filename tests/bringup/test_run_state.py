@@ -176,8 +176,7 @@ class RefusingClient:
 
     def __init__(self, codes: dict[float, int]) -> None:
         self.codes = codes  # detection x → refusal code
-        # (x, pile dominoes, any points, pads into the pile)
-        self.offered: list[tuple[float, int, bool, bool]] = []
+        self.offered: list[tuple[float, int, bool]] = []  # (x, pile dominoes, any points)
         self.places: list[Pose] = []
         self.strikes: list[PlanStrike.Request] = []  # strikes and sweeps asked for
 
@@ -198,8 +197,7 @@ class RefusingClient:
 
     def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
         x = request.domino_pose.position.x
-        pile, points = len(request.pile_dominoes), bool(request.pile_points)
-        self.offered.append((x, pile, points, request.pads_into_pile))
+        self.offered.append((x, len(request.pile_dominoes), bool(request.pile_points)))
         self.places.append(request.place_pose)
         return PlanPlace.Response(success=False, error_code=self.codes[x], message="refused")
 
@@ -215,41 +213,37 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
     run = job()
     run.client = RefusingClient(codes)
     success, why, spot, moved = run._attempt(0, failed := [], ignore_pile=True)
-    assert (success, why, spot, moved) == (False, "planning: 9 offers refused", None, False)
+    assert (success, why, spot, moved) == (False, "planning: 7 offers refused", None, False)
     # with their pile (all within 25 cm of each other), then the roomiest with their
-    # neighbours' cores (as points) for the pads, the boxes for the gripper body only, then
-    # with the boxes for the gripper body only, then ignoring the pile; not the one whose
-    # place was blocked (not offered again to this slot)
+    # neighbours' cores (as points) besides the boxes, then ignoring the pile; not the
+    # one whose place was blocked (not offered again to this slot)
     assert run.client.offered == [
-        *[(0.50, 2, False, False), (0.55, 2, False, False), (0.60, 2, False, False)],
-        *[(0.50, 2, True, True), (0.55, 2, True, True)],
-        *[(0.50, 2, False, True), (0.55, 2, False, True)],
-        *[(0.50, 0, False, False), (0.55, 0, False, False)],
+        *[(0.50, 2, False), (0.55, 2, False), (0.60, 2, False)],
+        *[(0.50, 2, True), (0.55, 2, True)],
+        *[(0.50, 0, False), (0.55, 0, False)],
     ]
     assert [c.tolist() for c in run.state.crowded] == [[0.50, -0.3], [0.55, -0.3]]
     assert [c.tolist() for c in run.state.unpickable] == [[0.50, -0.3], [0.55, -0.3]]
     assert [f.tolist() for f in failed] == [[0.60, -0.3]]
     run.client.offered.clear()
     run._attempt(1, [], ignore_pile=True)  # the next slot: only the one refused for its place
-    assert run.client.offered == [(0.60, 2, False, False)]
+    assert run.client.offered == [(0.60, 2, False)]
 
 
 def test_the_pile_is_ignored_only_when_putting_the_slot_off_cannot_help() -> None:
     """Ignoring its pile's detected dominoes, 6 of 12 picks failed (f611c37): their cores
-    are tried first, then their boxes for the gripper body only. After a refusal about
-    the slot (its place), other slots may go first; refusals about the dominoes would
-    recur at every slot."""
+    are tried first. After a refusal about the slot (its place), other slots may go
+    first; refusals about the dominoes would recur at every slot."""
     refused = PlanPlace.Response.GRASP_UNREACHABLE
     run = job()
     run.client = RefusingClient({0.50: refused, 0.55: refused})
     run._attempt(0, [], ignore_pile=False)
-    boxes, cores, body, ignoring = (
-        [(0.50, 1, False, False), (0.55, 1, False, False)],
-        [(0.50, 1, True, True), (0.55, 1, True, True)],
-        [(0.50, 1, False, True), (0.55, 1, False, True)],
-        [(0.50, 0, False, False), (0.55, 0, False, False)],
+    boxes, cores, ignoring = (
+        [(0.50, 1, False), (0.55, 1, False)],
+        [(0.50, 1, True), (0.55, 1, True)],
+        [(0.50, 0, False), (0.55, 0, False)],
     )
-    assert run.client.offered == boxes + cores + body + ignoring
+    assert run.client.offered == boxes + cores + ignoring
     assert run.client.strikes  # spreading the pile was asked for (and refused) before
     run = job()
     run.client = RefusingClient({0.50: refused, 0.55: PlanPlace.Response.PLACE_IN_COLLISION})
@@ -500,7 +494,7 @@ def test_flat_dominoes_are_offered_before_leaning_ones() -> None:
 
     run.client.detect = leaning_first
     run._attempt(0, [], ignore_pile=True)
-    assert [offer[0] for offer in run.client.offered] == [0.55, 0.50] * 4
+    assert [offer[0] for offer in run.client.offered] == [0.55, 0.50] * 3
 
 
 def test_the_summary_counts_dominoes_the_simulator_had_within_3_mm_and_3_degrees() -> None:
@@ -848,7 +842,7 @@ def test_a_crowded_pile_is_pushed_apart_before_it_is_ignored() -> None:
     assert 0.02 <= sweep.push_distance <= 0.05
     assert len(sweep.standing_dominoes) == 2  # kept clear of its neighbours
     assert run.client.detections == 2  # looked at again after the push
-    assert all(pile or points for _, pile, points, _ in run.client.offered)  # never ignored
+    assert all(pile or points for _, pile, points in run.client.offered)  # never ignored
     outcome = run.report.dominoes[0]
     assert outcome.attempts == 1 and len(outcome.spreads) == 1
     assert run.report.summary()["pile_spread"] == 1
@@ -861,7 +855,7 @@ def test_with_no_spreads_allowed_the_crowded_pile_is_ignored_as_before() -> None
     run._execute = lambda segments, *_, **__: (True, "")
     run._attempt(0, [], ignore_pile=True)
     assert run.client.strikes == []
-    assert run.client.offered[-1][1:] == (0, False, False)  # planned ignoring the pile
+    assert run.client.offered[-1][1:] == (0, False)  # planned ignoring the pile
 
 
 class GraspRecordingClient(RefusingClient):

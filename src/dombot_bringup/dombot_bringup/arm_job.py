@@ -38,7 +38,6 @@ from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
 from dombot_bringup.offers import (
     NEIGHBOUR_RADIUS,
-    PILE_BODY,
     PILE_BOXES,
     PILE_CORES,
     PILE_IGNORED,
@@ -70,7 +69,6 @@ SPREAD_TRIES = 2  # pushes of one pile domino offered to the planner (the shorte
 PILE_WORDS = {
     PILE_BOXES: "",
     PILE_CORES: " with its pile's cores",
-    PILE_BODY: " with only the gripper body clear of its pile",
     PILE_IGNORED: " ignoring its pile",
 }
 # What the in-hand check says when it cannot measure the held domino.
@@ -102,8 +100,8 @@ class ArmJobSettings:
     max_missed_picks: int = 8
     # Per attempt, dominoes offered to the planner with their pile until one plans, then
     # the roomiest with their pile's cores (the pads may reach into a neighbour's box but
-    # not its core; the gripper body keeps clear of the box), then (unless the slot can
-    # be put off instead) with only the gripper body clear of it, then ignoring it.
+    # not its core; the gripper body keeps clear of the box), then ignoring the pile
+    # (unless the slot can be put off instead).
     # Ignoring it, 6 of 12 picks failed (f611c37); replayed, each of the 6 had the pads'
     # path 3.3-7.7 mm deep in a detected neighbour, the 6 that held at most 2.9 mm.
     max_candidates: int = 16
@@ -387,9 +385,8 @@ class ArmJob:
         unless a refusal was about the slot and not ``ignore_pile`` (other slots may be
         built first; refusals about the dominoes would recur at every slot), a pile domino
         is pushed out of its crowd (``_spread``) and the attempt starts again from a fresh
-        look (up to max_spreads a slot); only then the roomiest with only the gripper
-        body clear of the pile, and then ignoring it (a miss is caught by the grasp check
-        and backed out of, and stirs the pile). A refusal
+        look (up to max_spreads a slot); only then the roomiest ignoring the pile (a miss
+        is caught by the grasp check and backed out of, and stirs the pile). A refusal
         costs a planning call, not an attempt: the arm has not moved (the last of the
         returned success, why, spot, moved says whether it did). Refusals and failed picks
         are remembered for the run (refused with the pile: not offered with it again;
@@ -415,8 +412,8 @@ class ArmJob:
             spreads = self.report.dominoes[index].spreads
             if len(spreads) < settings.max_spreads and self._spread(index, candidates):
                 return self._attempt(index, failed, ignore_pile, turned)
-            last_resort = [(c, tier) for tier in (PILE_BODY, PILE_IGNORED) for c in roomiest]
-            found, more = self._first_plan(index, last_resort, failed, slot_refusals)
+            ignoring = [(c, PILE_IGNORED) for c in roomiest]
+            found, more = self._first_plan(index, ignoring, failed, slot_refusals)
             refused += more
         if found is None:
             if refused:
@@ -619,10 +616,9 @@ class ArmJob:
                 # perception had within 1.2 mm of the truth
                 grasp_pose=candidate.grasp or Pose(),
                 pile_dominoes=candidate.neighbours if with_pile else [],
-                # with the cores, and in the last resort first, only the gripper body and
-                # arm keep clear of the boxes: in 4 of the 5 such picks that missed
-                # (4e6913a, ec6d172) the body was 6-9 mm inside one
-                pads_into_pile=pile in (PILE_CORES, PILE_BODY),
+                # with the cores, only the gripper body and arm keep clear of the boxes: in
+                # 2 of 3 such picks that missed (4e6913a), the body was 6-9 mm inside one
+                pads_into_pile=pile == PILE_CORES,
                 # unlike the pile's boxes, kept in the last resort too: it missed 8 of 11
                 # (58ee708), and a domino never detected is nothing the pads may push
                 pile_points=self._pile_points(candidate, pile),
