@@ -44,7 +44,7 @@ ACTIVITIES = {
     "/plan_strike": "planning",
     "/execute_trajectory": "motion",
     "/gripper_command": "gripper",
-    "simulated time": "waiting",  # for fresh camera frames, a domino to settle
+    "simulated time": "waiting",  # for a domino to settle, or a camera period
 }
 
 

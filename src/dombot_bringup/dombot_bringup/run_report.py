@@ -59,7 +59,7 @@ class DominoOutcome:
     simulated_s: float = 0.0
     wall_s: float = 0.0
     # ... of it waiting for each kind of answer (motion, planning, perception, gripper,
-    # waiting for fresh frames or a domino to settle): where the time goes
+    # waiting for a domino to settle or a camera period): where the time goes
     simulated_by_activity: dict[str, float] = field(default_factory=dict)
     # Per pick executed: how far the simulator had the nearest domino from the pose
     # perception gave the planner (to tell a misperceived domino from a missed grasp).
