@@ -40,6 +40,7 @@ from dombot_bringup.run_report import (
     plot_run,
     target_of,
 )
+from dombot_bringup.spread import STIR_DISTANCE
 from dombot_description import DOMINO_SIZE
 from dombot_description.pose_messages import duration_message, pose_matrix
 from dombot_msgs.action import ExecuteTrajectory
@@ -846,6 +847,41 @@ def test_a_crowded_pile_is_pushed_apart_before_it_is_ignored() -> None:
     outcome = run.report.dominoes[0]
     assert outcome.attempts == 1 and len(outcome.spreads) == 1
     assert run.report.summary()["pile_spread"] == 1
+
+
+class JammedClient(SpreadingClient):
+    """As SpreadingClient, but the planner refuses every push kept clear of the pile
+    neighbours (the pile is jammed); one through them plans."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.refused: list[PlanStrike.Request] = []
+
+    def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
+        if request.standing_dominoes:
+            self.refused.append(request)
+            code = PlanStrike.Response.PLACE_IN_COLLISION
+            return PlanStrike.Response(success=False, error_code=code, message="refused")
+        return super().plan_strike(request, timeout)
+
+
+def test_a_jammed_pile_is_stirred_through_its_neighbours_before_it_is_ignored() -> None:
+    """S-curve seeds 1 and 3 of 4b0c505: late in the build the pile's last dominoes lay
+    jammed, no push kept clear of the neighbours, and 6 of 7 picks ignoring the pile
+    failed. A domino is pushed through its neighbours instead (they move along), and the
+    pile looked at again: no attempt is spent."""
+    run = job()
+    run.client = JammedClient()
+    run._execute = lambda segments, *_, **__: (True, "")
+    assert run._place_with_retries(0, may_defer=False) == PLACED
+    assert len(run.client.refused) == run.settings.spread_plans
+    (stir,) = run.client.strikes
+    assert stir.push_distance == pytest.approx(STIR_DISTANCE)
+    assert stir.standing_dominoes == []  # only the run (none yet) is kept clear of
+    assert run.client.detections == 2
+    assert all(pile or points for _, pile, points in run.client.offered)  # never ignored
+    outcome = run.report.dominoes[0]
+    assert outcome.attempts == 1 and "through its neighbours" in outcome.spreads[0]
 
 
 def test_with_no_spreads_allowed_the_crowded_pile_is_ignored_as_before() -> None:

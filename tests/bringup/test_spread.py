@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dombot_bringup.debris import MAX_SWEEP
-from dombot_bringup.spread import spread_pushes, surfaces
+from dombot_bringup.spread import STIR_DISTANCE, spread_pushes, stir_pushes, surfaces
 
 CENTRE = np.array([0.55, -0.30])
 
@@ -92,3 +92,32 @@ def test_no_push_runs_the_domino_through_a_neighbour_it_does_not_touch() -> None
     # not towards it, even obliquely: the path would graze it
     assert not any(direction[1] > 0.1 for direction, _ in pushes_of(target, [neighbour]))
     assert pushes_of(target, [neighbour])  # the other ways are open
+
+
+def jam(x: float, end_gap: float) -> tuple[np.ndarray, list[np.ndarray]]:
+    """A domino at (x, -0.30) in the middle of five rows side by side 3 mm apart, each row
+    of dominoes end to end ``end_gap`` apart."""
+    target = flat(x, -0.30)
+    rows = [-0.30 + k * 0.027 for k in (-2, -1, 0, 1, 2)]
+    ends = [x + k * (0.048 + end_gap) for k in (-2, -1, 0, 1, 2)]
+    return target, [flat(e, y) for e in ends for y in rows if (e, y) != (x, -0.30)]
+
+
+def test_a_jammed_domino_is_pushed_through_its_neighbours_outwards_first() -> None:
+    """Every way out of the jam goes through a neighbour: no push frees the fingers. The
+    pusher has room only in the 40 mm between the rows' ends: the domino is pushed along
+    its row (or obliquely) STIR_DISTANCE, out of the pile first, never out of view."""
+    target, neighbours = jam(0.50, end_gap=0.04)
+    assert pushes_of(target, neighbours) == []
+    stirs = stir_pushes(target, neighbours, np.zeros((0, 3)), CENTRE, 0.12)
+    assert stirs and all(distance == STIR_DISTANCE for _, distance in stirs)
+    assert all(abs(direction[1]) < 0.5 and direction[2] == 0.0 for direction, _ in stirs)
+    assert stirs[0][0][0] == pytest.approx(-1.0)  # away from the pile's centre (+x of it)
+    ends = [target[:2, 3] + distance * direction[:2] for direction, distance in stirs]
+    assert all(np.linalg.norm(end - CENTRE) <= 0.12 for end in ends)
+    assert stir_pushes(target, neighbours, np.zeros((0, 3)), CENTRE, 0.01) == []
+
+
+def test_no_stir_where_the_pusher_cannot_come_down_beside_the_jammed_domino() -> None:
+    target, neighbours = jam(0.50, end_gap=0.003)  # packed: 3 mm between ends too
+    assert stir_pushes(target, neighbours, np.zeros((0, 3)), CENTRE, 0.12) == []

@@ -47,7 +47,7 @@ from dombot_bringup.offers import (
 )
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
-from dombot_bringup.spread import spread_pushes
+from dombot_bringup.spread import spread_pushes, stir_pushes
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.pose_messages import duration_message, pose_matrix, seconds_of
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
@@ -525,31 +525,46 @@ class ArmJob:
 
     def _spread(self, index: int, candidates: Sequence[Candidate]) -> bool:
         """Push one of the pile ``candidates`` (none of which planned; roomiest first) out of
-        its crowd (``spread.spread_pushes``), asking the planner at most spread_plans
-        times; True once the arm moved."""
-        settings, asked = self.settings, 0
-        for candidate in roomiest_first([c for c in candidates if c.run_index is None]):
-            seen = [pose_matrix(p) for p in (*candidate.neighbours, *self.state.standing.values())]
-            pushes = spread_pushes(
-                pose_matrix(candidate.pose),
-                seen,
-                np.array([(p.x, p.y, p.z) for p in candidate.points]),
-                np.asarray(settings.pile_center),
-                settings.spread_radius,
-                settings.spread_clearance,
-            )
-            what = f"pile domino at {candidate.spot().round(3).tolist()}"
-            obstacles = [*candidate.neighbours, *self.state.fallen.values()]
-            for direction, distance in pushes[:SPREAD_TRIES]:
-                if asked == settings.spread_plans:
-                    return False
-                asked += 1
-                spread = self._sweep(candidate.pose, obstacles, direction, distance, what)
-                if spread is not None:
-                    self.report.dominoes[index].spreads.append(spread)
-                    log(f"domino {index + 1}/{len(self.layout)}: spreading the pile: {spread}")
-                    return True
-        if not asked:
+        its crowd (``spread.spread_pushes``, the planner keeping it clear of its
+        neighbours), or when no such push plans, through them (``spread.stir_pushes``: the
+        pile is jammed), asking the planner at most spread_plans times for each; True once
+        the arm moved."""
+        settings, asked = self.settings, [0, 0]
+        pile = roomiest_first([c for c in candidates if c.run_index is None])
+        centre = np.asarray(settings.pile_center)
+        for jammed in (False, True):
+            for candidate in pile:
+                if asked[jammed] == settings.spread_plans:
+                    break
+                seen = [
+                    pose_matrix(p) for p in (*candidate.neighbours, *self.state.standing.values())
+                ]
+                points = np.array([(p.x, p.y, p.z) for p in candidate.points])
+                target = pose_matrix(candidate.pose)
+                if jammed:  # the neighbours are pushed along: only the run is an obstacle
+                    pushes = stir_pushes(target, seen, points, centre, settings.spread_radius)
+                    obstacles, how = list(self.state.fallen.values()), "through its neighbours"
+                else:
+                    pushes = spread_pushes(
+                        target,
+                        seen,
+                        points,
+                        centre,
+                        settings.spread_radius,
+                        settings.spread_clearance,
+                    )
+                    obstacles, how = [*candidate.neighbours, *self.state.fallen.values()], ""
+                what = f"pile domino at {candidate.spot().round(3).tolist()}"
+                for direction, distance in pushes[:SPREAD_TRIES]:
+                    if asked[jammed] == settings.spread_plans:
+                        break
+                    asked[jammed] += 1
+                    spread = self._sweep(candidate.pose, obstacles, direction, distance, what, how)
+                    if spread is not None:
+                        self.report.dominoes[index].spreads.append(spread)
+                        log(f"domino {index + 1}/{len(self.layout)}: spreading the pile: {spread}")
+                        return True
+        if not any(asked):
             log(f"domino {index + 1}/{len(self.layout)}: no push would spread the pile")
         return False
 

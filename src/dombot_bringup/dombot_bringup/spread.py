@@ -5,7 +5,11 @@ fingers. Picked ignoring the pile, 4 of 6 such picks closed on nothing (7500eb1)
 one of them is pushed out of the crowd with the planner's sweep (/plan_strike with a
 sweep direction: the closed pads push it low along the table), and the pile is looked at
 again. Here is which way and how far: where the pusher has room to come down behind it,
-and the shortest push after which the fingers have room beside it.
+and the shortest push after which the fingers have room beside it. When no such push
+exists (a jam: every push is blocked by a neighbour, or none frees the fingers within
+MAX_SWEEP), ``stir_pushes``: a fixed push through the neighbours, which move along.
+Picked ignoring the pile instead, 6 of 7 such picks failed (S-curve seeds 1 and 3 of
+4b0c505: 5 closed on nothing, 1 was held 7° off and felled a run domino when placed).
 """
 
 from __future__ import annotations
@@ -40,6 +44,9 @@ PUSHER_STEP = 0.005  # m between the pusher's spots checked along the push
 PUSHER_BELOW = _PLANNER.fine_obstacle_clearance  # m
 SWEEP_HEIGHT = _PLANNER.sweep_height
 FINGERS_END = 0.005  # m beyond its ends that the fingers' room must reach
+# m a jammed domino is pushed through its neighbours: a missed grasp in a jam moved them
+# 3-25 mm (replays of 4b0c505's misses), after which the next pick planned
+STIR_DISTANCE = 0.04
 
 
 def surfaces(poses: Sequence[np.ndarray]) -> np.ndarray:
@@ -71,9 +78,7 @@ def spread_pushes(
     away from ``centre``."""
     others = np.vstack([surfaces(neighbours), points.reshape(-1, 3)])
     corners = domino_corners(target)
-    low, high = corners[:, 2].min(), corners[:, 2].max()
-    above = others[others[:, 2] > low + SWEEP_HEIGHT * (high - low) - PUSHER_BELOW]
-    pusher_tree = cKDTree(above[:, :2]) if len(above) else None
+    pusher_tree = _pusher_obstacles(corners, others)
     start = target[:2, 3]
     length = target[:2, 0] / (np.linalg.norm(target[:2, 0]) or 1.0)  # body x, seen from above
     frame = np.array([length, [-length[1], length[0]]])  # rows: along, across
@@ -89,10 +94,7 @@ def spread_pushes(
         distance = _shortest_clear(seen, frame @ direction, free_low, free_high)
         if distance is None or np.linalg.norm(start + distance * direction - centre) > radius:
             continue
-        behind = start + ((corners[:, :2] - start) @ direction).min() * direction
-        pusher = behind - PUSHER_BEHIND * direction
-        travel = np.arange(0.0, PUSHER_STANDOFF + distance + 1e-9, PUSHER_STEP)
-        if not all(_room(pusher_tree, pusher + t * direction, PUSHER_ROOM) for t in travel):
+        if not _pusher_has_room(pusher_tree, corners, direction, distance):
             continue
         pushed = np.array([*direction, 0.0])
         near = [
@@ -103,6 +105,61 @@ def spread_pushes(
         if sweep_blocker(RigidTransform(target), pushed, distance, near) is None:
             pushes.append((pushed, distance))
     return sorted(pushes, key=lambda push: (push[1], -push[0][:2] @ outward))
+
+
+def stir_pushes(
+    target: np.ndarray,
+    neighbours: Sequence[np.ndarray],
+    points: np.ndarray,
+    centre: np.ndarray,
+    radius: float,
+) -> list[tuple[np.ndarray, float]]:
+    """(direction, STIR_DISTANCE) pushes of the jammed domino at ``target`` (4×4) through
+    its ``neighbours`` (4×4 poses; they are pushed along): only where the pusher has room
+    to come down behind it (``points``, N×3, seen on no domino, count too), and its
+    centre ends within ``radius`` of ``centre`` (x, y); those leading away from
+    ``centre`` first, out of the jam. The planner is to keep clear of the run only."""
+    others = np.vstack([surfaces(neighbours), points.reshape(-1, 3)])
+    corners = domino_corners(target)
+    pusher_tree = _pusher_obstacles(corners, others)
+    start = target[:2, 3]
+    outward = start - np.asarray(centre, dtype=float)
+    outward = outward / (np.linalg.norm(outward) or 1.0)
+    pushes = []
+    for angle in np.linspace(0.0, 2.0 * np.pi, SPREAD_DIRECTIONS, endpoint=False):
+        direction = np.array([np.cos(angle), np.sin(angle)])
+        end = start + STIR_DISTANCE * direction
+        if np.linalg.norm(end - centre) > radius:
+            continue
+        if _pusher_has_room(pusher_tree, corners, direction, 0.0, descent_only=True):
+            pushes.append((np.array([*direction, 0.0]), STIR_DISTANCE))
+    return sorted(pushes, key=lambda push: -push[0][:2] @ outward)
+
+
+def _pusher_obstacles(corners: np.ndarray, others: np.ndarray) -> cKDTree | None:
+    """What the pusher, its tips at SWEEP_HEIGHT of the domino with these ``corners``
+    (8×3), could meet of ``others`` (N×3), seen from above: the points above its tips."""
+    low, high = corners[:, 2].min(), corners[:, 2].max()
+    above = others[others[:, 2] > low + SWEEP_HEIGHT * (high - low) - PUSHER_BELOW]
+    return cKDTree(above[:, :2]) if len(above) else None
+
+
+def _pusher_has_room(
+    tree: cKDTree | None,
+    corners: np.ndarray,
+    direction: np.ndarray,
+    distance: float,
+    descent_only: bool = False,
+) -> bool:
+    """Whether the pusher can come down PUSHER_BEHIND behind the domino (``corners``,
+    8×3) pushed along ``direction`` (x, y, unit), and (unless ``descent_only``) follow it
+    ``distance`` without meeting anything of ``tree``."""
+    start = corners[:, :2].mean(axis=0)
+    behind = start + ((corners[:, :2] - start) @ direction).min() * direction
+    pusher = behind - PUSHER_BEHIND * direction
+    reach = 0.0 if descent_only else PUSHER_STANDOFF + distance
+    travel = np.arange(0.0, reach + 1e-9, PUSHER_STEP)
+    return all(_room(tree, pusher + t * direction, PUSHER_ROOM) for t in travel)
 
 
 def _shortest_clear(
