@@ -114,7 +114,9 @@ class ArmJobSettings:
     # before the pile is ignored: the shortest push after which nothing seen lies within
     # spread_clearance of its long sides (perception's scoring caps its clearance at
     # 15 mm), its centre within spread_radius of the pile's centre (the cameras see 0.16 m
-    # around it); the roomiest first, asking the planner at most spread_plans times.
+    # around it); the roomiest first, asking the planner at most spread_plans times; when
+    # none of those plans (the pile is jammed), a push through the neighbours
+    # (``spread.stir_pushes``), as many times at most.
     max_spreads: int = 2
     spread_clearance: float = 0.016  # m
     spread_radius: float = 0.13  # m

@@ -112,6 +112,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         type=int,
         default=2,
         help="when no pick plans even with the pile's cores, push a crowded domino apart "
+        "(through its neighbours when the pile is jammed) "
         "and look again, up to this often a slot, before ignoring the pile (2; 0..5)",
     )
     run.add_argument(
