@@ -94,7 +94,7 @@ def spread_pushes(
         distance = _shortest_clear(seen, frame @ direction, free_low, free_high)
         if distance is None or np.linalg.norm(start + distance * direction - centre) > radius:
             continue
-        if not _pusher_has_room(pusher_tree, corners, direction, distance):
+        if not _pusher_has_room(pusher_tree, corners, direction, PUSHER_STANDOFF + distance):
             continue
         pushed = np.array([*direction, 0.0])
         near = [
@@ -131,7 +131,7 @@ def stir_pushes(
         end = start + STIR_DISTANCE * direction
         if np.linalg.norm(end - centre) > radius:
             continue
-        if _pusher_has_room(pusher_tree, corners, direction, 0.0, descent_only=True):
+        if _pusher_has_room(pusher_tree, corners, direction, 0.0):  # it may push them
             pushes.append((np.array([*direction, 0.0]), STIR_DISTANCE))
     return sorted(pushes, key=lambda push: -push[0][:2] @ outward)
 
@@ -145,19 +145,14 @@ def _pusher_obstacles(corners: np.ndarray, others: np.ndarray) -> cKDTree | None
 
 
 def _pusher_has_room(
-    tree: cKDTree | None,
-    corners: np.ndarray,
-    direction: np.ndarray,
-    distance: float,
-    descent_only: bool = False,
+    tree: cKDTree | None, corners: np.ndarray, direction: np.ndarray, reach: float
 ) -> bool:
     """Whether the pusher can come down PUSHER_BEHIND behind the domino (``corners``,
-    8×3) pushed along ``direction`` (x, y, unit), and (unless ``descent_only``) follow it
-    ``distance`` without meeting anything of ``tree``."""
+    8×3) pushed along ``direction`` (x, y, unit), and go on ``reach`` along it (0: only
+    come down), without meeting anything of ``tree``."""
     start = corners[:, :2].mean(axis=0)
     behind = start + ((corners[:, :2] - start) @ direction).min() * direction
     pusher = behind - PUSHER_BEHIND * direction
-    reach = 0.0 if descent_only else PUSHER_STANDOFF + distance
     travel = np.arange(0.0, reach + 1e-9, PUSHER_STEP)
     return all(_room(tree, pusher + t * direction, PUSHER_ROOM) for t in travel)
 
