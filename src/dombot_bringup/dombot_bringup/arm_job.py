@@ -533,29 +533,11 @@ class ArmJob:
         the arm moved."""
         settings, asked = self.settings, [0, 0]
         pile = roomiest_first([c for c in candidates if c.run_index is None])
-        centre = np.asarray(settings.pile_center)
         for jammed in (False, True):
             for candidate in pile:
                 if asked[jammed] == settings.spread_plans:
                     break
-                seen = [
-                    pose_matrix(p) for p in (*candidate.neighbours, *self.state.standing.values())
-                ]
-                points = np.array([(p.x, p.y, p.z) for p in candidate.points])
-                target = pose_matrix(candidate.pose)
-                if jammed:  # the neighbours are pushed along: only the run is an obstacle
-                    pushes = stir_pushes(target, seen, points, centre, settings.spread_radius)
-                    obstacles, how = list(self.state.fallen.values()), "through its neighbours"
-                else:
-                    pushes = spread_pushes(
-                        target,
-                        seen,
-                        points,
-                        centre,
-                        settings.spread_radius,
-                        settings.spread_clearance,
-                    )
-                    obstacles, how = [*candidate.neighbours, *self.state.fallen.values()], ""
+                pushes, obstacles, how = self._pushes(candidate, jammed)
                 what = f"pile domino at {candidate.spot().round(3).tolist()}"
                 for direction, distance in pushes[:SPREAD_TRIES]:
                     if asked[jammed] == settings.spread_plans:
@@ -569,6 +551,24 @@ class ArmJob:
         if not any(asked):
             log(f"domino {index + 1}/{len(self.layout)}: no push would spread the pile")
         return False
+
+    def _pushes(
+        self, candidate: Candidate, jammed: bool
+    ) -> tuple[list[tuple[np.ndarray, float]], list[Pose], str]:
+        """The pushes of pile ``candidate`` to ask for (out of its crowd, or ``jammed``:
+        through it), what the planner keeps it clear of, and how the log says it went."""
+        settings = self.settings
+        seen = [pose_matrix(p) for p in (*candidate.neighbours, *self.state.standing.values())]
+        points = np.array([(p.x, p.y, p.z) for p in candidate.points])
+        target, centre = pose_matrix(candidate.pose), np.asarray(settings.pile_center)
+        fallen = list(self.state.fallen.values())
+        if jammed:  # the neighbours are pushed along: only the run is an obstacle
+            pushes = stir_pushes(target, seen, points, centre, settings.spread_radius)
+            return pushes, fallen, "through its neighbours"
+        pushes = spread_pushes(
+            target, seen, points, centre, settings.spread_radius, settings.spread_clearance
+        )
+        return pushes, [*candidate.neighbours, *fallen], ""
 
     def _sweep(
         self,
