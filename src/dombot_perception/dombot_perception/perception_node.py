@@ -24,13 +24,14 @@ from geometry_msgs.msg import Point, PoseArray, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.exceptions import ParameterUninitializedException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
 
 from dombot_description import tilt_from_vertical
+from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_description.pose_messages import pose_matrix, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
@@ -559,9 +560,8 @@ def main(args: list[str] | None = None) -> None:
     executor = MultiThreadedExecutor(num_threads=2)
     executor.add_node(node)
     try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        with stop_quietly_on_shutdown():
+            executor.spin()
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

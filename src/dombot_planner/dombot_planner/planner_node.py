@@ -24,11 +24,12 @@ import rclpy
 from geometry_msgs.msg import Pose, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_description.pose_messages import duration_message, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
@@ -299,11 +300,10 @@ def main(args: list[str] | None = None) -> None:
     rclpy.init(args=args)
     executor = MultiThreadedExecutor(num_threads=4)
     try:
-        node = PlannerNode()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        with stop_quietly_on_shutdown():
+            node = PlannerNode()
+            executor.add_node(node)
+            executor.spin()
     finally:
         executor.shutdown()
         if rclpy.ok():

@@ -35,6 +35,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_description.pose_messages import pose_message, seconds_of, time_message
 from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoState, DominoStateArray
@@ -650,9 +651,8 @@ def main(args: list[str] | None = None) -> int:
     spinner.start()
     stop = threading.Event()
     try:
-        node.run(stop)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        with stop_quietly_on_shutdown():
+            node.run(stop)
     finally:
         stop.set()
         executor.shutdown(timeout_sec=2.0)
