@@ -86,8 +86,7 @@ def spread_pushes(
     room = np.array([FINGERS_END, clearance])
     free_low, free_high = extent.min(axis=0) - room, extent.max(axis=0) + room
     seen = (others[:, :2] - start) @ frame.T  # relative to the start, in its frame
-    outward = start - np.asarray(centre, dtype=float)
-    outward = outward / (np.linalg.norm(outward) or 1.0)
+    outward = _outward(start, centre)
     pushes = []
     for angle in np.linspace(0.0, 2.0 * np.pi, SPREAD_DIRECTIONS, endpoint=False):
         direction = np.array([np.cos(angle), np.sin(angle)])
@@ -123,8 +122,7 @@ def stir_pushes(
     corners = domino_corners(target)
     pusher_tree = _pusher_obstacles(corners, others)
     start = target[:2, 3]
-    outward = start - np.asarray(centre, dtype=float)
-    outward = outward / (np.linalg.norm(outward) or 1.0)
+    outward = _outward(start, centre)
     pushes = []
     for angle in np.linspace(0.0, 2.0 * np.pi, SPREAD_DIRECTIONS, endpoint=False):
         direction = np.array([np.cos(angle), np.sin(angle)])
@@ -134,6 +132,13 @@ def stir_pushes(
         if _pusher_has_room(pusher_tree, corners, direction, 0.0):  # it may push them
             pushes.append((np.array([*direction, 0.0]), STIR_DISTANCE))
     return sorted(pushes, key=lambda push: -push[0][:2] @ outward)
+
+
+def _outward(start: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Unit vector (x, y) from the pile's ``centre`` to ``start``: pushes along it lead
+    out of the pile (zero at the centre itself)."""
+    outward = start - np.asarray(centre, dtype=float)
+    return outward / (np.linalg.norm(outward) or 1.0)
 
 
 def _pusher_obstacles(corners: np.ndarray, others: np.ndarray) -> cKDTree | None:
