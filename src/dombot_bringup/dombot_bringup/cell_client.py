@@ -13,6 +13,9 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 
 from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory, GripperCommand
+from control_msgs.msg import GripperCommand as GripperGoal
+from control_msgs.msg import JointTolerance
 from geometry_msgs.msg import Pose
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
@@ -22,10 +25,12 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from dombot_description.pose_messages import time_message
-from dombot_msgs.action import ExecuteTrajectory, GripperCommand
-from dombot_msgs.msg import DominoStateArray, JointTolerance
+from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
 
+# The arm's and gripper's controllers, at ros2_control's names (a real cell's too).
+TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
+GRIPPER_ACTION = "/gripper_controller/gripper_cmd"
 SERVICES = {
     "/sim/reset": ResetSim,
     "/perception/detect": DetectDominoes,
@@ -52,8 +57,8 @@ ACTIVITIES = {
     "/perception/check_placement": "perception",
     "/plan_place": "planning",
     "/plan_strike": "planning",
-    "/execute_trajectory": "motion",
-    "/gripper_command": "gripper",
+    TRAJECTORY_ACTION: "motion",
+    GRIPPER_ACTION: "gripper",
     "simulated time": "waiting",  # for a domino to settle, or a camera period
 }
 
@@ -117,8 +122,8 @@ class CellClient:
         # per service: its server's restart count and request readers when last sent to
         self._sent_to: dict[str, tuple[int, frozenset[bytes]]] = {}
         self._clients = {n: self.node.create_client(t, n) for n, t in SERVICES.items()}
-        self._trajectory = SerialActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
-        self._gripper = SerialActionClient(self.node, GripperCommand, "/gripper_command")
+        self._trajectory = SerialActionClient(self.node, FollowJointTrajectory, TRAJECTORY_ACTION)
+        self._gripper = SerialActionClient(self.node, GripperCommand, GRIPPER_ACTION)
         self._lock = threading.Lock()
         self._joint_state: JointState | None = None
         self._truth: DominoStateArray | None = None
@@ -271,10 +276,10 @@ class CellClient:
     # ------------------------------------------------------------------ actions
     def execute(
         self, trajectory: JointTrajectory, timeout: float, goal_tolerance: float = 0.0
-    ) -> ExecuteTrajectory.Result:
+    ) -> FollowJointTrajectory.Result:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
-        point (0: the simulator's default) within a second."""
-        goal = ExecuteTrajectory.Goal(
+        point (0: the controller's default) within a second."""
+        goal = FollowJointTrajectory.Goal(
             trajectory=trajectory,
             goal_tolerance=[
                 JointTolerance(name=name, position=goal_tolerance)
@@ -282,11 +287,16 @@ class CellClient:
             ],
             goal_time_tolerance=Duration(sec=1),
         )
-        return self._run_action(self._trajectory, goal, timeout, "/execute_trajectory")
+        return self._run_action(self._trajectory, goal, timeout, TRAJECTORY_ACTION)
 
-    def gripper(self, position: float, max_effort: float, timeout: float = 180.0):
-        goal = GripperCommand.Goal(position=float(position), max_effort=float(max_effort))
-        return self._run_action(self._gripper, goal, timeout, "/gripper_command")
+    def gripper(
+        self, position: float, max_effort: float, timeout: float = 180.0
+    ) -> GripperCommand.Result:
+        """Move the fingers to the opening ``position`` [m] (the gap between them)."""
+        command = GripperGoal(position=float(position), max_effort=float(max_effort))
+        return self._run_action(
+            self._gripper, GripperCommand.Goal(command=command), timeout, GRIPPER_ACTION
+        )
 
     def _run_action(self, client: ActionClient, goal, timeout: float, name: str):
         if not client.wait_for_server(timeout_sec=10.0):
