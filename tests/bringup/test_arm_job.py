@@ -17,6 +17,7 @@ from ament_index_python.packages import get_package_prefix
 
 from dombot_bringup.bringup import main as bringup_main
 from dombot_bringup.process_group import ProcessGroup
+from support.planning_clock import UNHURRIED
 
 BRINGUP = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
 LINE = [
@@ -35,6 +36,8 @@ LINE = [
     "1",
     "--real-time-factor",
     "0",
+    "--plan-budget",  # a refusal is the planner's search, never a loaded machine's clock
+    str(UNHURRIED),
 ]
 
 
