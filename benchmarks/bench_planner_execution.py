@@ -6,8 +6,12 @@ neighbours are put in the simulated cell, the plan is made from the arm's simula
 state, and every segment is tracked by the simulated arm (a cubic Hermite spline through
 the published samples, as a robot driver would interpolate), followed by its gripper
 event. Measured: the held domino against the place pose just before release (≤ 1 mm,
-≤ 0.5° wanted), where it stands once everything has settled (≤ 2 mm, ≤ 2°), and how far
-the standing neighbours moved. Prints one JSON object on stdout (progress on stderr).
+≤ 0.5° wanted) and how far it slipped in the hand on the way there (its hold in the TCP
+against the plan's), where it stands once everything has settled (≤ 2 mm, ≤ 2°), and
+how far the standing neighbours moved. The simulation runs in simulated time, unpaced,
+and a found plan does not depend on the time it took: the figures repeat bit for bit on
+a machine (the planner's time budget only decides whether a pair is planned). Prints one
+JSON object on stdout (progress on stderr).
 """
 
 from __future__ import annotations
@@ -67,16 +71,20 @@ def gripper_event(world: CellWorld, segment: SampledSegment, force: float) -> bo
 
 
 def execute(world: CellWorld, plan, period: float) -> dict:
-    """Run every segment and gripper event; the held domino's error just before release."""
-    before_release = None
+    """Run every segment and gripper event; the held domino and its hold in the TCP just
+    before release."""
+    before_release = {}
     holding = False
     for segment in plan.sampled(period):
         track(world, segment)
         if segment.gripper_after == GRIPPER_OPEN and holding:
-            before_release = domino_pose(world, PICKED)
+            before_release = {
+                "domino": domino_pose(world, PICKED),
+                "hold": RigidTransform(world.domino_in_tcp(PICKED)),
+            }
         if gripper_event(world, segment, plan_force(plan, segment.label)):
             holding = segment.gripper_after == GRIPPER_CLOSE
-    return {"before_release": before_release}
+    return before_release
 
 
 def wait_for_gripper(world: CellWorld) -> None:
@@ -115,7 +123,8 @@ def run_case(world: CellWorld, planner: PickPlacePlanner, case) -> dict:
     began = time.perf_counter()
     result = execute(world, plan, planner.settings.sample_period)
     world.settle(FINAL_SETTLE)
-    held = place_error(result["before_release"], request.place_pose)
+    held = place_error(result["domino"], request.place_pose)
+    slip = place_error(result["hold"], plan.held_in_tcp)
     final = place_error(domino_pose(world, PICKED), request.place_pose)
     moved = [
         np.linalg.norm(domino_pose(world, i + 1).translation() - p.translation())
@@ -128,6 +137,8 @@ def run_case(world: CellWorld, planner: PickPlacePlanner, case) -> dict:
         "regrasped": plan.regrasped,
         "before_release_mm": held[0] * 1000,
         "before_release_deg": math.degrees(held[1]),
+        "slip_in_hand_mm": slip[0] * 1000,
+        "slip_in_hand_deg": math.degrees(slip[1]),
         "after_release_mm": final[0] * 1000,
         "after_release_deg": math.degrees(final[1]),
         "neighbours_moved_mm": max(moved, default=0.0) * 1000,
@@ -167,6 +178,8 @@ def main() -> None:
                     for key in (
                         "before_release_mm",
                         "before_release_deg",
+                        "slip_in_hand_mm",
+                        "slip_in_hand_deg",
                         "after_release_mm",
                         "after_release_deg",
                         "neighbours_moved_mm",

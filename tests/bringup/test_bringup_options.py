@@ -15,6 +15,7 @@ from dombot_bringup.layouts import LayoutError
         ("--in-hand-tolerance", "-1", r"--in-hand-tolerance must be 0\.\.3 mm"),
         ("--place-lead", "4", r"--place-lead must be 0\.\.3 mm"),
         ("--spreads", "-1", r"--spreads must be 0\.\.5"),
+        ("--plan-budget", "0", r"--plan-budget must be 0\.\.3600 s, not 0"),
         ("--pile", "5", r"a run of 10 needs at least as many dominoes"),
     ],
 )

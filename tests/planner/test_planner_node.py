@@ -1,11 +1,11 @@
 """planner_node over real DDS: good and bad /plan_place and /plan_strike requests, the
-start state from /joint_states, bad requests answered while another one is being planned,
-parameters validated."""
+start state from /joint_states, bad requests answered while others are being planned,
+parameters validated. The node plans with a budget no search uses up (``UNHURRIED``): an
+unreachable domino is proven so by its search, not cut short by a loaded machine."""
 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -21,6 +21,7 @@ from dombot_description.scenario import load_scenario
 from dombot_msgs.msg import TrajectorySegment
 from dombot_msgs.srv import PlanPlace, PlanStrike
 from dombot_planner.errors import ErrorCode
+from support.planning_clock import UNHURRIED
 from support.ros_processes import installed_node, spin_until
 
 SCENARIO = load_scenario()
@@ -84,7 +85,8 @@ class Client:
 @pytest.fixture(scope="module")
 def client():
     rclpy.init()
-    with installed_node("dombot_planner", "planner_node") as process:
+    budget = f"default_time_budget:={UNHURRIED}"
+    with installed_node("dombot_planner", "planner_node", "--ros-args", "-p", budget) as process:
         client = Client()
         for service in (client.plan, client.strike):
             assert spin_until(client.node, service.service_is_ready, timeout=60), process.poll()
@@ -127,7 +129,7 @@ def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> N
     times = [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in approach.points]
     assert np.all(np.diff(times) > 0)
     assert approach.points[-1].velocities == pytest.approx([0.0] * 7, abs=1e-6)
-    assert 0.0 < response.planning_time < 30.0
+    assert response.planning_time > 0.0
 
 
 @pytest.mark.parametrize(
@@ -211,7 +213,7 @@ def test_good_strike_request_closes_the_gripper_then_pushes(client: Client) -> N
     ]
     first = response.segments[1].trajectory.points[0].positions
     assert first == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
-    assert 0.0 < response.planning_time < 30.0
+    assert response.planning_time > 0.0
 
 
 def test_a_sweep_pushes_a_fallen_domino_along_the_direction_given(client: Client) -> None:
@@ -292,17 +294,22 @@ def test_empty_start_state_uses_joint_states(client: Client) -> None:
     assert start == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
 
 
-def test_bad_request_is_answered_while_another_is_planned(client: Client) -> None:
-    slow = client.call_async(plan_request(place_pose=pose_message(upright_pose(0.33, 0.0, 1.57))))
-    time.sleep(0.2)  # the slow one is being planned
+def test_bad_requests_are_answered_while_others_are_planned(client: Client) -> None:
+    """Two unreachable places (each searched to the end) sent first: one is planned, the
+    other waits for the planner; bad requests sent after them are checked before they
+    would wait, so they are answered while at least one of the two is still unanswered
+    (it needs the other's whole search and its own)."""
+    unreachable = plan_request(place_pose=pose_message(upright_pose(0.33, 0.0, 1.57)))
+    slow = [client.call_async(unreachable) for _ in range(2)]
     bad = client.call_async(plan_request(time_budget=-1.0))
     bad_strike = client.call_async(strike_request(push_speed=-1.0))
-    assert spin_until(client.node, lambda: bad.done() and bad_strike.done(), timeout=30)
+    assert spin_until(client.node, lambda: bad.done() and bad_strike.done(), timeout=60)
     assert bad.result().error_code == PlanPlace.Response.INVALID_REQUEST
     assert bad_strike.result().error_code == PlanStrike.Response.INVALID_REQUEST
-    assert not slow.done(), "the slow request should still be planning"
-    assert spin_until(client.node, slow.done, timeout=60)
-    assert slow.result().error_code == PlanPlace.Response.PLACE_UNREACHABLE
+    assert not all(s.done() for s in slow), "the bad requests waited for the planner"
+    assert spin_until(client.node, lambda: all(s.done() for s in slow), timeout=600)
+    for answer in slow:
+        assert answer.result().error_code == PlanPlace.Response.PLACE_UNREACHABLE
 
 
 def test_wrong_parameter_value_is_refused(client: Client) -> None:

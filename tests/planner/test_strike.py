@@ -18,9 +18,10 @@ from dombot_planner.request import StrikeRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.strike import StrikePlanner
 from dombot_planner.verify import StrikeChecker
+from support.planning_clock import UNHURRIED, jump_clock
 
 SCENARIO = load_scenario()
-SETTINGS = PlannerSettings()
+SETTINGS = PlannerSettings(default_time_budget=UNHURRIED)
 SPACING = 0.6 * DOMINO_SIZE[0]
 OPEN = release_opening(DOMINO_SIZE[1])  # as a place leaves the fingers
 
@@ -180,7 +181,6 @@ TILTED = RigidTransform(
         ),
         ({"push_distance": 0.03}, ErrorCode.PLACE_IN_COLLISION),  # reaches the next domino
         ({"start": np.array([0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0])}, ErrorCode.INVALID_REQUEST),
-        ({"time_budget": 1e-4}, ErrorCode.TIMEOUT),
     ],
     ids=[
         "negative_budget",
@@ -195,13 +195,19 @@ TILTED = RigidTransform(
         "domino_behind",
         "push_reaches_next",
         "start_in_collision",
-        "timeout",
     ],
 )
 def test_bad_requests_get_their_error_code(planner, changes, code) -> None:
     error = failure(planner, request(**changes))
     assert error.code == code, error
     assert error.message
+
+
+def test_a_used_up_budget_gives_timeout(planner, monkeypatch) -> None:
+    jump_clock(monkeypatch)
+    error = failure(planner, request(time_budget=0.5))
+    assert error.code == ErrorCode.TIMEOUT
+    assert "time budget of 0.50 s used up" in error.message
 
 
 HEADING = 0.3
@@ -268,7 +274,13 @@ def test_bad_sweeps_get_their_error_code(planner, changes, code) -> None:
     assert error.message
 
 
-def test_planner_keeps_working_after_failures(planner) -> None:
-    for bad in ({"time_budget": -1.0}, {"time_budget": 1e-4}, {"push_distance": 0.03}):
-        failure(planner, request(**bad))
+def test_planner_keeps_working_after_failures(planner, monkeypatch) -> None:
+    with monkeypatch.context() as patched:
+        jump_clock(patched)
+        assert failure(planner, request(time_budget=0.5)).code == ErrorCode.TIMEOUT
+    for bad, code in (
+        ({"time_budget": -1.0}, ErrorCode.INVALID_REQUEST),
+        ({"push_distance": 0.03}, ErrorCode.PLACE_IN_COLLISION),
+    ):
+        assert failure(planner, request(**bad)).code == code
     assert planner.plan(request()).segments

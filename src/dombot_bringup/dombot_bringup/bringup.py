@@ -125,6 +125,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
     cell.add_argument("--seed", type=int, default=0, help="pile seed (default 0)")
     cell.add_argument("--real-time-factor", type=float, default=1.0, help="0: as fast as possible")
+    cell.add_argument(
+        "--plan-budget",
+        type=float,
+        default=5.0,
+        help="[s] of wall-clock time per planner request, after which it is TIMEOUT and the "
+        "job offers another domino (5; up to 3600: never on a slow or loaded machine)",
+    )
     cell.add_argument("--visual", action="store_true", help="show the cell in Meshcat")
     layer = parser.add_argument_group("layer job")
     layer.add_argument("--sweep", type=float, default=270.0, help="arc angle [deg] (270)")
@@ -177,6 +184,8 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--pile-core-shrink must be 0..12 mm: {args.pile_core_shrink}")
     if not 0 <= args.spreads <= 5:
         raise layouts.LayoutError(f"--spreads must be 0..5: {args.spreads}")
+    if not 0.0 < args.plan_budget <= 3600.0:
+        raise layouts.LayoutError(f"--plan-budget must be 0..3600 s, not 0: {args.plan_budget}")
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -194,6 +203,7 @@ def run_arm(args: argparse.Namespace) -> int:
         max_spreads=args.spreads,
         pile_center=tuple(scenario.pile_center),
         real_time_factor=args.real_time_factor,
+        plan_budget=args.plan_budget,
         meshcat=args.visual,
         record_picks=args.out / "picks" if args.record_picks else None,
     )
