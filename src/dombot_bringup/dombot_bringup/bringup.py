@@ -32,6 +32,7 @@ from dombot_bringup.arm_job import ArmJobSettings, run_arm_job
 from dombot_bringup.cell_client import CallFailedError
 from dombot_bringup.layer_job import PathRejectedError, run_layer_job
 from dombot_bringup.process_group import NodeDiedError
+from dombot_bringup.recording import FOXGLOVE_MISSING, foxglove_available
 from dombot_description.scenario import ScenarioError, load_scenario
 
 
@@ -125,7 +126,34 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     cell.add_argument("--pile", type=int, default=30, help="dominoes poured (default 30)")
     cell.add_argument("--seed", type=int, default=0, help="pile seed (default 0)")
     cell.add_argument("--real-time-factor", type=float, default=1.0, help="0: as fast as possible")
-    cell.add_argument("--visual", action="store_true", help="show the cell in Meshcat")
+    cell.add_argument(
+        "--visual",
+        action="store_true",
+        help="show the cell in Meshcat (URL in the log); on a terminal the page stays up "
+        "at the end until Enter",
+    )
+    view = parser.add_argument_group("arm job: recording and live view")
+    view.add_argument(
+        "--record",
+        action="store_true",
+        help="write every topic to OUT/run.mcap (Foxglove, replay) and Meshcat's "
+        "recording to OUT/scene.html",
+    )
+    view.add_argument(
+        "--record-image-rate",
+        type=float,
+        default=1.0,
+        help="[Hz] raw camera images kept per topic in run.mcap (1; 0: none; the rest in full)",
+    )
+    view.add_argument(
+        "--foxglove",
+        type=int,
+        nargs="?",
+        const=8765,
+        metavar="PORT",
+        help="serve every topic live to the Foxglove app at ws://127.0.0.1:PORT (8765; "
+        "needs pip install foxglove-sdk)",
+    )
     layer = parser.add_argument_group("layer job")
     layer.add_argument("--sweep", type=float, default=270.0, help="arc angle [deg] (270)")
     layer.add_argument("--speed", type=float, default=0.2, help="vehicle speed [m/s] (0.2)")
@@ -177,6 +205,10 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--pile-core-shrink must be 0..12 mm: {args.pile_core_shrink}")
     if not 0 <= args.spreads <= 5:
         raise layouts.LayoutError(f"--spreads must be 0..5: {args.spreads}")
+    if not 0.0 <= args.record_image_rate <= 100.0:
+        raise layouts.LayoutError(
+            f"--record-image-rate must be 0..100 Hz: {args.record_image_rate}"
+        )
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -195,6 +227,9 @@ def run_arm(args: argparse.Namespace) -> int:
         pile_center=tuple(scenario.pile_center),
         real_time_factor=args.real_time_factor,
         meshcat=args.visual,
+        record=args.record,
+        record_image_rate=args.record_image_rate,
+        foxglove_port=args.foxglove,
         record_picks=args.out / "picks" if args.record_picks else None,
     )
     return run_arm_job(args.out, placements, args.layout, settings, node_command)
@@ -215,6 +250,9 @@ def run_layer(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if args.foxglove is not None and not foxglove_available():
+        print(f"bringup: {FOXGLOVE_MISSING}", file=sys.stderr)
+        return 2
     try:
         return run_arm(args) if args.job == "arm" else run_layer(args)
     except layouts.LayoutError as error:

@@ -52,6 +52,7 @@ class ManagedProcess:
     name: str
     command: Sequence[str]
     env: dict[str, str] | None = None
+    on_line: Callable[[str], None] | None = None  # sees each output line (e.g. a URL)
     process: subprocess.Popen[str] | None = None
     tail: collections.deque[str] = field(
         default_factory=lambda: collections.deque(maxlen=TAIL_LINES)
@@ -78,6 +79,8 @@ class ManagedProcess:
         for raw in self.process.stdout:
             line = raw.rstrip("\n")
             self.tail.append(line)
+            if self.on_line is not None:
+                self.on_line(line)
             with lock:
                 sink.write(f"[{self.name}] {line}\n")
                 sink.flush()
@@ -114,9 +117,13 @@ class ProcessGroup:
         self.processes: list[ManagedProcess] = []
 
     def start(
-        self, name: str, command: Sequence[str], env: dict[str, str] | None = None
+        self,
+        name: str,
+        command: Sequence[str],
+        env: dict[str, str] | None = None,
+        on_line: Callable[[str], None] | None = None,
     ) -> ManagedProcess:
-        managed = ManagedProcess(name=name, command=command, env=env)
+        managed = ManagedProcess(name=name, command=command, env=env, on_line=on_line)
         managed.start(self._sink, self._lock)
         self.processes.append(managed)
         return managed
