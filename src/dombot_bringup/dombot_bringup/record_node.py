@@ -4,7 +4,8 @@ Finds topics as they appear (every 0.5 s) and subscribes to each with its type a
 publishers' QoS (transient local for ``/tf_static`` or ``/robot_description``, best
 effort for sensor-data cameras), taking messages raw: they go into the file as
 published, with the complete message definition of their type as the schema, so
-Foxglove and ``mcap_ros2`` decode them. Raw images are thinned to ``--image-rate``.
+Foxglove and ``mcap_ros2`` decode them. Raw images are thinned to ``--image-rate`` (by
+their stamps).
 Hidden topics (actions' internals) are left out, as rosbag2 does by default.
 
     ros2 run dombot_bringup record -o run.mcap [--image-rate 1] [--duration 5]
@@ -46,6 +47,7 @@ from dombot_bringup.recording import (
     McapSink,
     Sink,
     Throttle,
+    header_stamp,
     message_definition,
 )
 from dombot_description.node_shutdown import stop_quietly_on_shutdown
@@ -121,8 +123,10 @@ class Recorder(Node):
 
     def _on_message(self, topic: str, data: bytes) -> None:
         now = self.get_clock().now().nanoseconds
-        if topic in self._throttled and not self._throttle.keep(topic, now):
-            return
+        if topic in self._throttled:
+            stamp = header_stamp(data)
+            if not self._throttle.keep(topic, now if stamp is None else stamp):
+                return
         for sink in self._sinks:
             sink.write(topic, data, now, now)
 
@@ -152,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.foxglove_port is not None:
             sinks.append(FoxgloveSink(port=args.foxglove_port))
-            print(f"[record] Foxglove: open {sinks[-1].url} in the Foxglove app", flush=True)
+            print(f"record: Foxglove: open {sinks[-1].url} in the Foxglove app", flush=True)
         if args.output is not None:
             sinks.append(McapSink(args.output))
     except (RuntimeError, OSError) as error:
@@ -171,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         node.destroy_node()
         rclpy.try_shutdown()
     if args.output is not None:
-        print(f"[record] wrote {args.output}", flush=True)
+        print(f"record: wrote {args.output}", flush=True)
     return 0
 
 

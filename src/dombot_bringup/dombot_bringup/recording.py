@@ -6,13 +6,15 @@ What rosbag2's MCAP storage does, in the pieces a recorder and a player need:
   (its .msg text, then every type it uses, each after a line of 80 ``=`` and
   ``MSG: pkg/msg/Type``), the schema Foxglove and ``mcap_ros2`` decode messages with;
 * ``McapSink``: raw CDR messages as they came off the wire, one channel per topic;
-* ``Throttle``: raw images thinned to a rate (a run's full-rate cameras are GBs);
+* ``Throttle``, ``header_stamp``: raw images thinned to a rate by their stamps (a run's
+  full-rate cameras are GBs);
 * ``recorded_messages``: a file's messages in log-time order, for a player.
 """
 
 from __future__ import annotations
 
 import re
+import struct
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -80,8 +82,20 @@ def message_definition(type_name: str, share_dir: ShareDir) -> str:
     )
 
 
+def header_stamp(data: bytes) -> int | None:
+    """The header stamp [ns] of a CDR message whose first field is a ``std_msgs/Header``
+    (images, camera infos), read without decoding the rest; None if too short."""
+    if len(data) < 12:
+        return None
+    order = "<" if data[1] & 1 else ">"  # encapsulation: CDR_LE or CDR_BE
+    sec, nanosec = struct.unpack_from(f"{order}iI", data, 4)
+    return sec * 10**9 + nanosec
+
+
 class Throttle:
-    """Keeps at most one message of a topic per period of log time (0 Hz: none)."""
+    """Keeps at most one message of a topic per period (0 Hz: none) of the times given:
+    the messages' stamps, which are exact where receive times jitter (2 Hz frames thinned
+    to 1 Hz by receive time kept two in three seconds)."""
 
     def __init__(self, rate_hz: float) -> None:
         if not rate_hz >= 0.0:

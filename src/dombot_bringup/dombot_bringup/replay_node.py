@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
             node.play_once()
             while args.loop and rclpy.ok():
                 node.play_once()
-            print(f"[replay] published {node.published} messages", flush=True)
+            print(f"replay: published {node.published} messages", flush=True)
             time.sleep(TAIL)  # reliable messages still in flight reach their subscribers
     finally:
         node.destroy_node()
