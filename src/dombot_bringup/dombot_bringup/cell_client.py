@@ -19,10 +19,10 @@ from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image, JointState
 from trajectory_msgs.msg import JointTrajectory
 
+from dombot_bringup.record_node import matching_qos
 from dombot_description.pose_messages import seconds_of, time_message
 from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoStateArray, JointTolerance
@@ -136,15 +136,19 @@ class CellClient:
 
     def color_frame(self, camera: str, not_before: float, timeout: float = 30.0) -> np.ndarray:
         """An RGB frame (height x width x 3) of ``camera`` stamped at or after ``not_before``
-        [s simulated]. Subscribes on first use (sensor-data QoS: a best-effort camera
-        driver's frames arrive too): the bring-up wants a few pictures, not a stream."""
+        [s simulated]. Subscribes on first use (the bring-up wants a few pictures, not a
+        stream), with the QoS the camera offers: in a run at load 17-20 a best-effort
+        reader of sim_node's reliable camera got no frame for 30 s after the strike."""
         topic = f"/{camera}/color/image_raw"
-        with self._lock:
-            if topic not in self._images:
+        if topic not in self._images:
+            publishers = self._wait(
+                lambda: self.node.get_publishers_info_by_topic(topic) or None, timeout, topic
+            )
+            with self._lock:
                 self._images[topic] = None
-                self.node.create_subscription(
-                    Image, topic, lambda m: self._on_image(topic, m), qos_profile_sensor_data
-                )
+            self.node.create_subscription(
+                Image, topic, lambda m: self._on_image(topic, m), matching_qos(publishers, 2)
+            )
 
         def fresh() -> Image | None:
             with self._lock:

@@ -61,6 +61,21 @@ def message_class(type_name: str) -> type:
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
 
 
+def matching_qos(publishers: list, depth: int) -> QoSProfile:
+    """The subscription QoS that gets the most from these publishers (rosbag2's choice):
+    transient local if all offer it (a late subscriber still gets /tf_static), reliable if
+    all are (a best-effort subscriber would drop a large image whenever one of its
+    fragments is lost; a reliable one would not match a best-effort camera at all)."""
+    durable = all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers)
+    reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in publishers)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+    )
+
+
 def is_hidden(topic: str) -> bool:
     return any(part.startswith("_") for part in topic.split("/"))
 
@@ -98,19 +113,12 @@ class Recorder(Node):
         except DefinitionNotFoundError as error:  # recorded all the same, as rosbag2 does
             self.get_logger().warning(f"{topic}: {error}; recorded without it")
             definition = ""
-        durable = all(
-            p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers
-        )
-        reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in publishers)
-        qos = QoSProfile(
-            history=HistoryPolicy.KEEP_LAST,
-            depth=100,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
-            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        )
+        qos = matching_qos(publishers, depth=100)
         metadata = {
-            DURABILITY: TRANSIENT_LOCAL if durable else VOLATILE,
-            RELIABILITY: RELIABLE if reliable else BEST_EFFORT,
+            DURABILITY: (
+                TRANSIENT_LOCAL if qos.durability == DurabilityPolicy.TRANSIENT_LOCAL else VOLATILE
+            ),
+            RELIABILITY: RELIABLE if qos.reliability == ReliabilityPolicy.RELIABLE else BEST_EFFORT,
         }
         for sink in self._sinks:
             sink.add_channel(topic, type_name, definition, metadata)
