@@ -5,6 +5,7 @@ types and plays back to a subscriber, message for message."""
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -116,10 +117,12 @@ class Listener:
 
 
 @pytest.fixture(scope="module")
-def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node]]:
+def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Path]]:
     """5 s of a live sim_node (cameras at 2 Hz, images kept at 1 Hz) and a transient local
-    topic published once before the recorder started; the live graph's types."""
-    path = tmp_path_factory.mktemp("record") / "run.mcap"
+    topic published once before the recorder started; the live graph's types; and the
+    file of a second recorder (every image) stopped by SIGINT as the bring-up stops it."""
+    folder = tmp_path_factory.mktemp("record")
+    path, interrupted = folder / "run.mcap", folder / "interrupted.mcap"
     rclpy.init()
     probe = Node("record_probe")
     latch = Node("latch")
@@ -129,12 +132,16 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node]]:
         images = []
         probe.create_subscription(Image, "/camera_2/color/image_raw", images.append, 2)
         assert spin_until(probe, lambda: bool(images), 120), sim.poll()
-        with installed_node(
-            "dombot_bringup", "record", "-o", str(path), "--duration", "5", "--image-rate", "1"
-        ) as recorder:
+        record = ("dombot_bringup", "record", "-o")
+        with (
+            installed_node(*record, str(interrupted), "--image-rate", "100") as stopped,
+            installed_node(*record, str(path), "--duration", "5", "--image-rate", "1") as recorder,
+        ):
             assert spin_until(probe, lambda: recorder.poll() is not None, 120)
             output = recorder.stdout.read()
             assert recorder.returncode == 0, output
+            stopped.send_signal(signal.SIGINT)
+            assert stopped.wait(timeout=60) == 0, stopped.stdout.read()
         live = {
             topic: types[0]
             for topic, types in probe.get_topic_names_and_types()
@@ -142,13 +149,13 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node]]:
         }
         assert sim.poll() is None, "sim_node died"
     latch.destroy_node()
-    yield path, live, probe
+    yield path, live, probe, interrupted
     probe.destroy_node()
     rclpy.shutdown()
 
 
 def test_recording_has_every_topic_with_the_live_types(recording) -> None:
-    path, live, _ = recording
+    path, live, _, _ = recording
     channels = {topic: kind for topic, (kind, _) in recorded_channels(path).items()}
     for topic in ("/clock", "/joint_states", "/camera_0/color/image_raw", "/latched"):
         assert topic in channels, f"{topic} not recorded: {sorted(channels)}"
@@ -167,7 +174,7 @@ def test_recording_has_every_topic_with_the_live_types(recording) -> None:
 
 
 def test_every_message_decodes_from_its_recorded_schema(recording) -> None:
-    path, _, _ = recording
+    path, _, _, _ = recording
     seen = {}
     for message in read_ros2_messages(str(path)):
         seen[message.channel.topic] = message.ros_msg
@@ -178,7 +185,7 @@ def test_every_message_decodes_from_its_recorded_schema(recording) -> None:
 
 
 def test_replay_publishes_the_recorded_messages(recording) -> None:
-    path, _, probe = recording
+    path, _, probe, _ = recording
     recorded = {
         m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
         for m in (msg.ros_msg for msg in read_ros2_messages(str(path), topics=["/joint_states"]))
@@ -193,6 +200,12 @@ def test_replay_publishes_the_recorded_messages(recording) -> None:
     stamps = {m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in received}
     assert stamps <= recorded  # the recorded messages, nothing else
     assert [m.data for m in listener.received["/latched"]] == ["published once"]
+
+
+def test_a_recorder_stopped_by_sigint_leaves_a_readable_file(recording) -> None:
+    _, _, _, interrupted = recording
+    topics = {m.topic for m in recorded_messages(interrupted)}  # reads every chunk
+    assert {"/joint_states", "/camera_2/color/image_raw"} <= topics
 
 
 def test_replay_refuses_what_is_not_a_recording(tmp_path: Path) -> None:

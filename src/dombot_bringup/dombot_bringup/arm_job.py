@@ -1256,9 +1256,11 @@ def run_arm_job(
                 f"from a pile of {settings.pile} (seed {settings.seed})"
             )
             job = ArmJob(client, layout, layout_name, settings)
+            if settings.record:  # written when the nodes stop, whatever happens
+                job.report.files |= {"recording": RECORDING_FILE, "meshcat_scene": SCENE_FILE}
             report = job.run()
             group.check()
-            status = finish_report(report, out_dir, job.pictures, settings)
+            status = finish_report(report, out_dir, job.pictures)
             if settings.meshcat and meshcat_urls:
                 hold_viewer(meshcat_urls[0])
         except NodeDiedError as error:
@@ -1291,12 +1293,8 @@ def recorder_command(out_dir: Path, settings: ArmJobSettings, node_command: Node
     return command[:1] + options + command[1:]
 
 
-def finish_report(
-    report: RunReport, out_dir: Path, pictures: dict[str, np.ndarray], settings: ArmJobSettings
-) -> int:
+def finish_report(report: RunReport, out_dir: Path, pictures: dict[str, np.ndarray]) -> int:
     """Write the report, print its summary; the exit status (0 only on full success)."""
-    if settings.record:
-        report.files |= {"recording": RECORDING_FILE, "meshcat_scene": SCENE_FILE}
     json_path, png_path = write_report(report, out_dir, pictures)
     summary = report.summary()
     log(

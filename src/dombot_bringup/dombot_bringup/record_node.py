@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 import time
 from functools import partial
 from pathlib import Path
@@ -33,6 +35,7 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
+from rclpy.signals import SignalHandlerOptions
 
 from dombot_bringup.recording import (
     BEST_EFFORT,
@@ -50,7 +53,6 @@ from dombot_bringup.recording import (
     header_stamp,
     message_definition,
 )
-from dombot_description.node_shutdown import stop_quietly_on_shutdown
 
 DISCOVERY_PERIOD = 0.5  # s wall
 
@@ -170,13 +172,17 @@ def main(argv: list[str] | None = None) -> int:
     except (RuntimeError, OSError) as error:
         print(f"record: {error}", file=sys.stderr)
         return 2
-    rclpy.init(args=argv)
+    # Ctrl-C and the supervisor's SIGINT/SIGTERM only ask the loop to stop: raised inside
+    # a write, KeyboardInterrupt left a half-written record in the file (unreadable chunk)
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
     node = Recorder(sinks, args.image_rate)
     deadline = time.monotonic() + args.duration if args.duration > 0 else None
     try:
-        with stop_quietly_on_shutdown():
-            while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
-                rclpy.spin_once(node, timeout_sec=0.1)
+        while not stop.is_set() and (deadline is None or time.monotonic() < deadline):
+            rclpy.spin_once(node, timeout_sec=0.1)
     finally:
         for sink in sinks:
             sink.close()
