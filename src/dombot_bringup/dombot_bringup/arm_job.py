@@ -1225,8 +1225,9 @@ def run_arm_job(
         "real_time_factor": settings.real_time_factor,
         "camera_rate": settings.camera_rate,
         "meshcat": settings.meshcat or settings.record,
-        "meshcat_recording_path": str((out_dir / SCENE_FILE).resolve()) if settings.record else "",
     }
+    if settings.record:  # (an empty value is no parameter rule rcl can parse)
+        sim_parameters["meshcat_recording_path"] = str((out_dir / SCENE_FILE).resolve())
     meshcat_urls: list[str] = []
     # writing scene.html and closing run.mcap take a few seconds after the stop signal
     with ProcessGroup(stop_timeout=60.0 if settings.record else 5.0) as group:
