@@ -22,6 +22,8 @@ setup(
     entry_points={
         "console_scripts": [
             "bringup = dombot_bringup.bringup:main",
+            "record = dombot_bringup.record_node:main",
+            "replay = dombot_bringup.replay_node:main",
         ],
     },
 )

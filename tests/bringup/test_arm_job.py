@@ -9,14 +9,16 @@ import math
 import os
 import signal
 import subprocess
-import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
+import numpy as np
 import pytest
 from ament_index_python.packages import get_package_prefix
 
 from dombot_bringup.bringup import main as bringup_main
 from dombot_bringup.process_group import ProcessGroup
+from dombot_bringup.recording import header_stamp, recorded_channels, recorded_messages
 from support.planning_clock import UNHURRIED
 
 BRINGUP = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
@@ -42,11 +44,18 @@ LINE = [
 
 
 def bringup(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(BRINGUP), *args], capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(  # no terminal: --visual must not wait for Enter
+        [str(BRINGUP), *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> None:
-    result = bringup("--out", str(tmp_path), *LINE)
+    recording = ["--record", "--record-image-rate", "0.5", "--visual"]
+    result = bringup("--out", str(tmp_path), *LINE, *recording)
     output = result.stdout[-4000:] + result.stderr[-4000:]
     assert result.returncode == 0, output
     report = json.loads((tmp_path / "run_report.json").read_text())
@@ -73,6 +82,27 @@ def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> 
     assert sum(by_activity.values()) == pytest.approx(mean, abs=0.05)
     for node in ("[sim_node]", "[perception_node]", "[planner_node]"):
         assert node in result.stdout
+    assert "[bringup] Meshcat: http://" in result.stdout
+    assert_recorded(tmp_path, report["files"])
+
+
+def assert_recorded(folder: Path, files: dict[str, str]) -> None:
+    """camera_2's pictures, the MCAP recording and Meshcat's scene, as the report names them."""
+    assert set(files) == {"before_strike", "after_strike", "recording", "meshcat_scene"}
+    for name in ("before_strike", "after_strike"):
+        assert plt.imread(folder / files[name]).shape[:2] == (480, 640)
+    channels = {
+        topic: kind for topic, (kind, _) in recorded_channels(folder / files["recording"]).items()
+    }
+    assert channels["/camera_2/color/image_raw"] == "sensor_msgs/msg/Image"
+    assert channels["/joint_states"] == "sensor_msgs/msg/JointState"
+    stamps = [
+        header_stamp(m.data)
+        for m in recorded_messages(folder / files["recording"])
+        if m.topic == "/camera_2/color/image_raw"
+    ]
+    assert len(stamps) >= 2 and np.all(np.diff(stamps) > 1.999e9)  # --record-image-rate 0.5
+    assert "set_animation" in (folder / files["meshcat_scene"]).read_text()
 
 
 @pytest.mark.parametrize(

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import io
+
 import pytest
 
-from dombot_bringup.bringup import parse_args, run_arm
+from dombot_bringup.arm_job import ArmJobSettings, hold_viewer, recorder_command
+from dombot_bringup.bringup import main, parse_args, run_arm
 from dombot_bringup.layouts import LayoutError
 
 
@@ -16,9 +19,55 @@ from dombot_bringup.layouts import LayoutError
         ("--place-lead", "4", r"--place-lead must be 0\.\.3 mm"),
         ("--spreads", "-1", r"--spreads must be 0\.\.5"),
         ("--plan-budget", "0", r"--plan-budget must be 0\.\.3600 s, not 0"),
+        ("--record-image-rate", "-1", r"--record-image-rate must be 0\.\.100 Hz"),
         ("--pile", "5", r"a run of 10 needs at least as many dominoes"),
     ],
 )
 def test_a_bad_option_value_is_refused_with_its_name(option: str, value: str, message: str) -> None:
     with pytest.raises(LayoutError, match=message):
         run_arm(parse_args([option, value]))
+
+
+def test_foxglove_without_the_sdk_says_how_to_install_it(capsys, monkeypatch) -> None:
+    monkeypatch.setattr("dombot_bringup.bringup.foxglove_available", lambda: False)
+    assert main(["--foxglove"]) == 2
+    assert "pip install foxglove-sdk" in capsys.readouterr().err
+
+
+def test_record_and_foxglove_start_the_recorder_with_their_options(tmp_path) -> None:
+    def command(package: str, executable: str, parameters: dict) -> list[str]:
+        return [
+            f"{package}/{executable}",
+            "--ros-args",
+            *(f"{k}:={v}" for k, v in parameters.items()),
+        ]
+
+    assert recorder_command(tmp_path, ArmJobSettings(), command) == []
+    settings = ArmJobSettings(record=True, record_image_rate=0.5, foxglove_port=9000)
+    assert recorder_command(tmp_path, settings, command) == [
+        "dombot_bringup/record",
+        "-o",
+        str(tmp_path / "run.mcap"),
+        "--image-rate",
+        "0.5",
+        "--foxglove-port",
+        "9000",
+        "--ros-args",
+        "use_sim_time:=True",
+    ]
+
+
+def test_the_viewer_is_held_only_on_a_terminal(capsys) -> None:
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    hold_viewer("http://localhost:7000", io.StringIO("\n"))  # a pipe: no wait, no prompt
+    assert "press Enter" not in capsys.readouterr().out
+    terminal = Terminal("\n")
+    hold_viewer("http://localhost:7000", terminal)
+    assert (
+        "[bringup] Meshcat stays at http://localhost:7000; press Enter" in capsys.readouterr().out
+    )
+    assert terminal.tell() == 1  # the Enter was read
+    hold_viewer("http://localhost:7000", Terminal(""))  # end of input counts as Enter

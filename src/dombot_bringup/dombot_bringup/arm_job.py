@@ -20,13 +20,16 @@ checks that every domino fell. The simulator's ground truth goes into the report
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import re
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 import rclpy
@@ -58,6 +61,9 @@ BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto i
 LET_GO_OPENING = 0.04  # m the fingers open to, around a 24 mm domino, to let go of it
 PUT_BACK = "put back on the pile"  # how an attempt whose hold could not be placed ended
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
+RECORDING_FILE, SCENE_FILE = "run.mcap", "scene.html"  # in the report folder, --record
+MESHCAT_URL = re.compile(r"Meshcat: (\S+)")  # sim_node's log line
+REPORT_CAMERA = "camera_2"  # its frames of the run before and after the strike go in the report
 DETECT_TRIES = 5
 POINTS_RADIUS = 0.12  # m: seen points farther from a pick than this cannot meet the pads
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
@@ -186,7 +192,12 @@ class ArmJobSettings:
     max_sweeps: int = 2
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
-    meshcat: bool = False
+    meshcat: bool = False  # show the cell in Meshcat; keep it up at the end until Enter
+    # --record: every topic into OUT/run.mcap (raw images thinned to this rate, Hz) and
+    # Meshcat's recording into OUT/scene.html
+    record: bool = False
+    record_image_rate: float = 1.0
+    foxglove_port: int | None = None  # serve the topics live to Foxglove here
     # a folder for each executed pick's record: what was offered and planned, and the
     # simulator's truth then (benchmarks/replay_pick.py replays it); None: not recorded
     record_picks: Path | None = None
@@ -274,6 +285,7 @@ class ArmJob:
         # Simulated time since which nothing has moved (the arm at rest after a placement
         # check): the pile cameras' frames from then on are fresh for the next look too.
         self.still_since: float | None = None
+        self.pictures: dict[str, np.ndarray] = {}  # REPORT_CAMERA's frames, for the report
 
     # ------------------------------------------------------------------ the run
     def run(self) -> RunReport:
@@ -318,6 +330,7 @@ class ArmJob:
             queue = [i for i in empty if i not in queue] + queue
         self.report.built = len(self.state.standing) == len(self.layout)
         self._record_truth(before_strike=True)
+        self._take_picture("before_strike", self.client.sim_time)
         if self.report.built:
             self._strike()
         self._record_truth(before_strike=False)
@@ -980,10 +993,18 @@ class ArmJob:
             return
         self.report.struck = True
         fresh = self._settle(self.settings.topple_wait)
+        self._take_picture("after_strike", fresh)
         answer = self.client.check_placement(self.targets, not_before=fresh)
         fallen = [s != CheckPlacement.Response.STANDING for s in answer.status]
         self.report.toppled_by_perception = answer.success and all(fallen)
         log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")
+
+    def _take_picture(self, name: str, not_before: float) -> None:
+        """REPORT_CAMERA's view for the report (for people; nothing acts on it)."""
+        try:
+            self.pictures[name] = self.client.color_frame(REPORT_CAMERA, not_before)
+        except CallFailedError as error:
+            log(f"no picture {name} for the report: {error}")
 
     def _truth(self) -> list[tuple[str, np.ndarray]]:
         """The simulator's dominoes now, names and 4x4 poses: for the report only."""
@@ -1208,10 +1229,21 @@ def run_arm_job(
         "domino_count": 0,  # the job's reset pours the pile
         "real_time_factor": settings.real_time_factor,
         "camera_rate": settings.camera_rate,
-        "meshcat": settings.meshcat,
+        "meshcat": settings.meshcat or settings.record,
     }
-    with ProcessGroup() as group:
-        group.start("sim_node", node_command("dombot_sim", "sim_node", sim_parameters))
+    if settings.record:  # (an empty value is no parameter rule rcl can parse)
+        sim_parameters["meshcat_recording_path"] = str((out_dir / SCENE_FILE).resolve())
+    meshcat_urls: list[str] = []
+    # writing scene.html and closing run.mcap take a few seconds after the stop signal
+    with ProcessGroup(stop_timeout=60.0 if settings.record else 5.0) as group:
+        recorder = recorder_command(out_dir, settings, node_command)
+        if recorder:
+            group.start("record", recorder)
+        group.start(
+            "sim_node",
+            node_command("dombot_sim", "sim_node", sim_parameters),
+            on_line=lambda line: meshcat_urls.extend(MESHCAT_URL.findall(line)),
+        )
         on_sim_time = {"use_sim_time": True}  # frame ages and timers in simulated seconds
         on_demand = on_sim_time | {"continuous": False}  # the job asks; no CPU spent otherwise
         # perception and planner answer from the request and the scene: one that dies is
@@ -1231,27 +1263,55 @@ def run_arm_job(
         job = None
         try:
             group.wait_until(lambda: client.ready(NEEDED_SERVICES), 600.0, "the nodes to be ready")
+            if settings.meshcat and meshcat_urls:
+                log(f"Meshcat: {meshcat_urls[0]}")
             log(
                 f"nodes ready; building '{layout_name}' ({len(layout)} dominoes) "
                 f"from a pile of {settings.pile} (seed {settings.seed})"
             )
             job = ArmJob(client, layout, layout_name, settings)
+            if settings.record:  # written when the nodes stop, whatever happens
+                job.report.files |= {"recording": RECORDING_FILE, "meshcat_scene": SCENE_FILE}
             report = job.run()
             group.check()
             report.node_restarts = restarted(group)
+            status = finish_report(report, out_dir, job.pictures)
+            if settings.meshcat and meshcat_urls:
+                hold_viewer(meshcat_urls[0])
         except NodeDiedError as error:
             if job is not None:  # what was built so far, for the user to see
                 job.report.node_restarts = restarted(group)
                 job.report.message = (
                     f"stopped: node '{error.name}' died (exit code {error.returncode})"
                 )
-                json_path, png_path = write_report(job.report, out_dir)
+                json_path, png_path = write_report(job.report, out_dir, job.pictures)
                 log(f"{job.report.message}; partial report: {json_path}  picture: {png_path}")
             raise
         finally:
             client.close()
             rclpy.try_shutdown()
-    json_path, png_path = write_report(report, out_dir)
+    if settings.record:
+        log(f"recording: {out_dir / RECORDING_FILE}  Meshcat scene: {out_dir / SCENE_FILE}")
+    return status
+
+
+def recorder_command(out_dir: Path, settings: ArmJobSettings, node_command: NodeCommand):
+    """argv of the recorder for --record and --foxglove (empty: neither), on simulated time."""
+    options = []
+    if settings.record:
+        options += ["-o", str(out_dir / RECORDING_FILE)]
+        options += ["--image-rate", str(settings.record_image_rate)]
+    if settings.foxglove_port is not None:
+        options += ["--foxglove-port", str(settings.foxglove_port)]
+    if not options:
+        return []
+    command = node_command("dombot_bringup", "record", {"use_sim_time": True})
+    return command[:1] + options + command[1:]
+
+
+def finish_report(report: RunReport, out_dir: Path, pictures: dict[str, np.ndarray]) -> int:
+    """Write the report, print its summary; the exit status (0 only on full success)."""
+    json_path, png_path = write_report(report, out_dir, pictures)
     summary = report.summary()
     log(
         f"{summary['placed']}/{summary['dominoes']} placed "
@@ -1264,5 +1324,16 @@ def run_arm_job(
     print(
         "SUCCESS" if report.success else "FAILED",
         file=sys.stderr if not report.success else sys.stdout,
+        flush=True,
     )
     return 0 if report.success else 1
+
+
+def hold_viewer(url: str, stdin: TextIO = sys.stdin) -> None:
+    """On a terminal, keep the nodes (and Meshcat's page) up until the user presses Enter;
+    elsewhere (CI, a pipe) go on at once."""
+    if not stdin.isatty():
+        return
+    log(f"Meshcat stays at {url}; press Enter to stop")
+    with contextlib.suppress(EOFError):
+        stdin.readline()

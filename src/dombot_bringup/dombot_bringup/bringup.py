@@ -32,6 +32,7 @@ from dombot_bringup.arm_job import ArmJobSettings, run_arm_job
 from dombot_bringup.cell_client import CallFailedError
 from dombot_bringup.layer_job import PathRejectedError, run_layer_job
 from dombot_bringup.process_group import NodeDiedError
+from dombot_bringup.recording import FOXGLOVE_MISSING, foxglove_available
 from dombot_description.scenario import ScenarioError, load_scenario
 
 
@@ -132,7 +133,34 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="[s] of wall-clock time per planner request, after which it is TIMEOUT and the "
         "job offers another domino (5; up to 3600: never on a slow or loaded machine)",
     )
-    cell.add_argument("--visual", action="store_true", help="show the cell in Meshcat")
+    cell.add_argument(
+        "--visual",
+        action="store_true",
+        help="show the cell in Meshcat (URL in the log); on a terminal the page stays up "
+        "at the end until Enter",
+    )
+    view = parser.add_argument_group("arm job: recording and live view")
+    view.add_argument(
+        "--record",
+        action="store_true",
+        help="write every topic to OUT/run.mcap (Foxglove, replay) and Meshcat's "
+        "recording to OUT/scene.html",
+    )
+    view.add_argument(
+        "--record-image-rate",
+        type=float,
+        default=1.0,
+        help="[Hz] raw camera images kept per topic in run.mcap (1; 0: none; the rest in full)",
+    )
+    view.add_argument(
+        "--foxglove",
+        type=int,
+        nargs="?",
+        const=8765,
+        metavar="PORT",
+        help="serve every topic live to the Foxglove app at ws://127.0.0.1:PORT (8765; "
+        "needs pip install foxglove-sdk)",
+    )
     layer = parser.add_argument_group("layer job")
     layer.add_argument("--sweep", type=float, default=270.0, help="arc angle [deg] (270)")
     layer.add_argument("--speed", type=float, default=0.2, help="vehicle speed [m/s] (0.2)")
@@ -186,6 +214,10 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(f"--spreads must be 0..5: {args.spreads}")
     if not 0.0 < args.plan_budget <= 3600.0:
         raise layouts.LayoutError(f"--plan-budget must be 0..3600 s, not 0: {args.plan_budget}")
+    if not 0.0 <= args.record_image_rate <= 100.0:
+        raise layouts.LayoutError(
+            f"--record-image-rate must be 0..100 Hz: {args.record_image_rate}"
+        )
     if args.pile < len(placements):
         raise layouts.LayoutError(
             f"a run of {len(placements)} needs at least as many dominoes in the pile "
@@ -205,6 +237,9 @@ def run_arm(args: argparse.Namespace) -> int:
         real_time_factor=args.real_time_factor,
         plan_budget=args.plan_budget,
         meshcat=args.visual,
+        record=args.record,
+        record_image_rate=args.record_image_rate,
+        foxglove_port=args.foxglove,
         record_picks=args.out / "picks" if args.record_picks else None,
     )
     return run_arm_job(args.out, placements, args.layout, settings, node_command)
@@ -225,6 +260,9 @@ def run_layer(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if args.foxglove is not None and not foxglove_available():
+        print(f"bringup: {FOXGLOVE_MISSING}", file=sys.stderr)
+        return 2
     try:
         return run_arm(args) if args.job == "arm" else run_layer(args)
     except layouts.LayoutError as error:

@@ -12,6 +12,7 @@ from collections import defaultdict
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 
+import numpy as np
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from control_msgs.msg import GripperCommand as GripperGoal
@@ -21,10 +22,11 @@ from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Image, JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from dombot_description.pose_messages import time_message
+from dombot_bringup.record_node import matching_qos
+from dombot_description.pose_messages import seconds_of, time_message
 from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
 
@@ -127,6 +129,7 @@ class CellClient:
         self._lock = threading.Lock()
         self._joint_state: JointState | None = None
         self._truth: DominoStateArray | None = None
+        self._images: dict[str, Image | None] = {}  # latest frame of each camera asked for
         self._sim_time = 0.0
         self._received = 0  # joint states so far
         # simulated seconds that passed while waiting for each kind of answer (ACTIVITIES)
@@ -157,6 +160,39 @@ class CellClient:
     def _on_truth(self, message: DominoStateArray) -> None:
         with self._lock:
             self._truth = message
+
+    def _on_image(self, topic: str, message: Image) -> None:
+        with self._lock:
+            self._images[topic] = message
+
+    def color_frame(self, camera: str, not_before: float, timeout: float = 30.0) -> np.ndarray:
+        """An RGB frame (height x width x 3) of ``camera`` stamped at or after ``not_before``
+        [s simulated]. Subscribes on first use (the bring-up wants a few pictures, not a
+        stream), with the QoS the camera offers: in a run at load 17-20 a best-effort
+        reader of sim_node's reliable camera got no frame for 30 s after the strike."""
+        topic = f"/{camera}/color/image_raw"
+        if topic not in self._images:
+            publishers = self._wait(
+                lambda: self.node.get_publishers_info_by_topic(topic) or None, timeout, topic
+            )
+            with self._lock:
+                self._images[topic] = None
+            self.node.create_subscription(
+                Image, topic, lambda m: self._on_image(topic, m), matching_qos(publishers, 2)
+            )
+
+        def fresh() -> Image | None:
+            with self._lock:
+                image = self._images[topic]
+            if image is None or seconds_of(image.header.stamp) < not_before:
+                return None
+            return image
+
+        image = self._wait(fresh, timeout, topic)
+        if image.encoding != "rgb8":
+            raise CallFailedError(f"{topic} sends {image.encoding}, not rgb8")
+        rows = np.frombuffer(bytes(image.data), np.uint8).reshape(image.height, image.step)
+        return rows[:, : 3 * image.width].reshape(image.height, image.width, 3)
 
     def joint_state(self) -> JointState:
         """The latest /joint_states (arm and fingers)."""

@@ -58,6 +58,7 @@ class ManagedProcess:
     env: dict[str, str] | None = None
     restartable: bool = False
     restarts: int = 0
+    on_line: Callable[[str], None] | None = None  # sees each output line (e.g. a URL)
     process: subprocess.Popen[str] | None = None
     tail: collections.deque[str] = field(
         default_factory=lambda: collections.deque(maxlen=TAIL_LINES)
@@ -84,6 +85,8 @@ class ManagedProcess:
         for raw in self.process.stdout:
             line = raw.rstrip("\n")
             self.tail.append(line)
+            if self.on_line is not None:
+                self.on_line(line)
             with lock:
                 sink.write(f"[{self.name}] {line}\n")
                 sink.flush()
@@ -125,8 +128,11 @@ class ProcessGroup:
         command: Sequence[str],
         env: dict[str, str] | None = None,
         restartable: bool = False,
+        on_line: Callable[[str], None] | None = None,
     ) -> ManagedProcess:
-        managed = ManagedProcess(name=name, command=command, env=env, restartable=restartable)
+        managed = ManagedProcess(
+            name=name, command=command, env=env, restartable=restartable, on_line=on_line
+        )
         managed.start(self._sink, self._lock)
         self.processes.append(managed)
         return managed

@@ -83,6 +83,9 @@ class RunReport:
     simulated_s: float = 0.0
     wall_s: float = 0.0
     node_restarts: dict[str, int] = field(default_factory=dict)  # nodes started again
+    # what else the run wrote into the report folder (file names in it): camera pictures
+    # before and after the strike, the recording, Meshcat's scene
+    files: dict[str, str] = field(default_factory=dict)
 
     @property
     def success(self) -> bool:
@@ -137,8 +140,14 @@ def _within_tolerance(outcome: DominoOutcome) -> bool:
     return built is not None and built.error_mm <= millimetres and built.tilt_deg <= degrees
 
 
-def write_report(report: RunReport, folder: Path) -> tuple[Path, Path]:
+def write_report(
+    report: RunReport, folder: Path, pictures: dict[str, np.ndarray] | None = None
+) -> tuple[Path, Path]:
+    """run_report.json and run.png; each of ``pictures`` (RGB arrays) as NAME.png."""
     folder.mkdir(parents=True, exist_ok=True)
+    for name, rgb in (pictures or {}).items():
+        plt.imsave(folder / f"{name}.png", rgb)
+        report.files[name] = f"{name}.png"
     json_path, png_path = folder / "run_report.json", folder / "run.png"
     content = {"summary": report.summary(), **asdict(report)}
     json_path.write_text(json.dumps(content, indent=2, allow_nan=False, default=str))

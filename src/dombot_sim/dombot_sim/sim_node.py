@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TypeVar
 
 import numpy as np
@@ -70,6 +71,7 @@ RESTART_PARAMETERS = (
     "contact_approximation",
     "cameras",
     "meshcat",
+    "meshcat_recording_path",
     "sleeping",
 )
 
@@ -135,6 +137,8 @@ class SimNode(Node):
         self.world.trouble_listener = self.get_logger().warning
         if self.world.meshcat_url():
             self.get_logger().info(f"Meshcat: {self.world.meshcat_url()}")
+            if self._param("meshcat_recording_path"):
+                self.world.start_meshcat_recording()
         self._make_interfaces()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._reset(self._param("domino_count"), self._param("seed"))
@@ -153,6 +157,8 @@ class SimNode(Node):
             "ground_truth_rate": 2.0,
             "cameras": True,
             "meshcat": False,
+            # with meshcat: record what Meshcat shows, written here as HTML on shutdown
+            "meshcat_recording_path": "",
             "sleeping": True,
             "log_moved_mm": 1.0,  # 0: no log of the dominoes that moved during a goal
         }
@@ -192,6 +198,8 @@ class SimNode(Node):
             problems.append(
                 f"log_moved_mm must be a finite distance >= 0, got {values['log_moved_mm']}"
             )
+        if values.get("meshcat_recording_path") and not values.get("meshcat", True):
+            problems.append("meshcat_recording_path needs meshcat:=true")
         if "domino_count" in values and not 0 <= values["domino_count"] <= MAX_DOMINOES:
             problems.append(f"domino_count must be 0..{MAX_DOMINOES}, got {values['domino_count']}")
         return problems
@@ -220,6 +228,18 @@ class SimNode(Node):
                 current[RATE_FIELDS[parameter.name]] = parameter.value
         self.rates = Rates(**current)
         return SetParametersResult(successful=True)
+
+    def save_meshcat_recording(self) -> None:
+        """Write Meshcat's recording to ``meshcat_recording_path`` (if asked for)."""
+        path = self._param("meshcat_recording_path")
+        if not path or self.world.meshcat is None:
+            return
+        try:
+            with self._lock:
+                self.world.save_meshcat_recording(Path(path))
+            self.get_logger().info(f"Meshcat recording written to {path}")
+        except OSError as error:
+            self.get_logger().error(f"could not write the Meshcat recording {path}: {error}")
 
     # ------------------------------------------------------------------ interfaces
     def _make_interfaces(self) -> None:
@@ -680,6 +700,7 @@ def main(args: list[str] | None = None) -> int:
         stop.set()
         executor.shutdown(timeout_sec=2.0)
         spinner.join(timeout=2.0)
+        node.save_meshcat_recording()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
