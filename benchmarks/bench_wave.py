@@ -3,12 +3,15 @@
 Straight runs of ``--count`` upright dominoes (the 48 × 24 × 7.5 mm set and a 44 × 22 × 7
 mm one) at centre spacings d/ℓ = 0.2 … 0.9 of the height ℓ, in the simulator sim_node
 runs (dombot_sim.world.CellWorld: its 1 ms step, contact model and sleeping unless told
-otherwise). The first domino is set turning about its front bottom edge at the rate the
-bring-up's strike gives it (the planner's push speed over its push height). Each
+otherwise). The first domino is set turning about its front bottom edge at 6 rad/s (the
+physics tests' push): the bring-up's strike tilts it at 2.8 rad/s (push speed over push
+height) but keeps pushing for 15 mm, which a spin at that rate alone does not, and at
+d/ℓ ≤ 0.3 such a spin stalls on the second domino in the simulator and the model. Each
 domino's time to pass a 2° tilt is recorded; the wave speed is the pitch over the slope
 of a straight-line fit of those times over the middle half of the run. The model
 (dombot_sim.wave_model: van Leeuwen, Am. J. Phys. 78, 721 (2010)) gets the same row, the
-simulator's domino–domino friction and the same strike.
+simulator's domino–domino friction and the same start; its steady speed does not depend
+on the start (tests/sim/test_wave_model.py).
 
 Prints one JSON object on stdout (progress on stderr); ``--figure`` also plots
 v/√(gℓ) against d/ℓ. ``--quick``: 4 spacings of the 48 mm set, 20 dominoes.
@@ -26,8 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
-from dombot_planner.settings import PlannerSettings
-from dombot_sim.physics_checks import push_over, stand_line, tilt_crossings
+from dombot_sim.physics_checks import PUSH_SPIN, push_over, stand_line, tilt_crossings
 from dombot_sim.sleeping import SleepSettings
 from dombot_sim.wave_model import GRAVITY, Row, wave
 from dombot_sim.world import CellWorld, WorldConfig
@@ -45,13 +47,6 @@ def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def strike_rate(height: float) -> float:
-    """Tilt rate [rad/s] the bring-up's push gives the first domino: push speed over the
-    height the fingertips push at (docs/PLANNER.md)."""
-    settings = PlannerSettings()
-    return settings.push_speed / (settings.strike_height * height)
-
-
 def fitted_speed(crossings: np.ndarray, pitch: float) -> float | None:
     """Pitch over the slope of crossing time against index, over the middle half."""
     count = crossings.size
@@ -67,21 +62,35 @@ def simulate(world: CellWorld, count: int, ratio: float) -> dict:
     pitch = ratio * height
     start = np.array([RUN_X, -(count - 1) * pitch / 2])
     direction = stand_line(world, count, pitch, start, math.pi / 2)
-    push_over(world, direction, strike_rate(height))
+    edges = _pivot_edges(world, count)
+    push_over(world, direction, PUSH_SPIN)
     began = time.perf_counter()
-    limit = 1.0 + 0.2 * count  # s simulated: far beyond the slowest wave
-    crossings = tilt_crossings(world, count, THRESHOLD, limit)
+    crossings = tilt_crossings(world, count, THRESHOLD, limit=0.2 * count)
     world.advance(0.3)  # the last ones land
     tilts = [math.degrees(d) for d in _tilts(world, count)]
     fallen = int(np.sum(~np.isnan(crossings)))
+    middle = slice(count // 4, count - count // 4)
+    slip = ((_pivot_edges(world, count) - edges) @ direction)[middle]  # + forward
     return {
         "speed": fitted_speed(crossings, pitch),
         "passed_threshold": fallen,
         "all_fell": bool(min(tilts) > 45.0),
         "smallest_final_tilt_deg": round(min(tilts), 1),
+        "pivot_slip_mm_median_max": [
+            round(float(np.median(slip)) * 1e3, 2),
+            round(float(slip[np.argmax(np.abs(slip))]) * 1e3, 2),
+        ],
         "crossings": [None if math.isnan(t) else round(float(t), 4) for t in crossings],
         "wall_s": round(time.perf_counter() - began, 1),
     }
+
+
+def _pivot_edges(world: CellWorld, count: int) -> np.ndarray:
+    """Where each domino's front bottom edge (its pivot while it falls) is, world (count × 3);
+    the model assumes it does not slip."""
+    height, _, thickness = world.config.domino_size
+    edge = np.array([-height / 2, 0.0, thickness / 2, 1.0])
+    return np.array([(d.X_WD @ edge)[:3] for d in world.domino_truth()[:count]])
 
 
 def _tilts(world: CellWorld, count: int) -> list[float]:
@@ -91,7 +100,7 @@ def _tilts(world: CellWorld, count: int) -> list[float]:
 def model_speed(size: tuple[float, float, float], ratio: float, mu: float) -> float | None:
     height, _, thickness = size
     try:
-        return wave(Row(height, thickness, ratio * height, mu), strike_rate(height)).speed
+        return wave(Row(height, thickness, ratio * height, mu), PUSH_SPIN).speed
     except (RuntimeError, ValueError):
         return None  # no wave in the model at this spacing
 

@@ -86,18 +86,21 @@ def topple_line(world: CellWorld, count: int, spacing_ratio: float) -> np.ndarra
 
 
 def tilt_crossings(
-    world: CellWorld, count: int, threshold: float, limit: float, sample: float = 0.001
+    world: CellWorld, count: int, threshold: float, limit: float, stall: float = 1.0
 ) -> np.ndarray:
-    """Advance until all ``count`` dominoes passed ``threshold`` tilt [rad] or for ``limit``
-    s; each one's crossing time (linear between samples; NaN: never), from now."""
+    """Advance until all ``count`` dominoes passed ``threshold`` tilt [rad], for at most
+    ``limit`` s, or until none passed it for ``stall`` s (the wave stopped); each one's
+    crossing time from now (linear between steps; NaN: never)."""
     start, crossed = world.time, np.full(count, np.nan)
-    before = np.zeros(count)
-    while world.time - start < limit and np.isnan(crossed).any():
-        world.advance(sample)
+    step, before, last = world.config.time_step, np.zeros(count), 0.0
+    while world.time - start < min(limit, last + stall) and np.isnan(crossed).any():
+        world.advance(step)
         tilts = np.array([tilt_from_vertical(d.X_WD) for d in world.domino_truth()[:count]])
         new = np.isnan(crossed) & (tilts >= threshold)
-        fraction = (threshold - before[new]) / np.maximum(tilts[new] - before[new], 1e-12)
-        crossed[new] = world.time - start - sample * (1.0 - fraction)
+        if new.any():
+            fraction = (threshold - before[new]) / np.maximum(tilts[new] - before[new], 1e-12)
+            crossed[new] = world.time - start - step * (1.0 - fraction)
+            last = world.time - start
         before = tilts
     return crossed
 
