@@ -123,7 +123,7 @@ def case(world: CellWorld, name: str, count: int, ratio: float) -> dict:
     if sim["speed"] and model[MU_DOMINO]:
         row["error_percent"] = round(100.0 * (sim["speed"] / model[MU_DOMINO] - 1.0), 1)
     log(
-        f"{name} d/l={ratio:.1f}: sim {row['sim_v']} m/s, model {row['model_v']} m/s "
+        f"{name} d/l={ratio:.2f}: sim {row['sim_v']} m/s, model {row['model_v']} m/s "
         f"({row['error_percent']} %), fell {sim['passed_threshold']}/{count}, "
         f"{sim['wall_s']} s wall"
     )
@@ -141,7 +141,7 @@ def plot(rows: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(figsize=(7, 4.5))
-    ratios = np.linspace(0.2, 0.95, 31)
+    ratios = np.arange(0.25, 0.951, 0.05)
     for mu, style in ((0.0, ":"), (0.2, "--"), (MU_DOMINO, "-")):
         curve = [model_speed(DOMINO_SIZE, r, mu) for r in ratios]
         scaled = [np.nan if v is None else v / math.sqrt(GRAVITY * DOMINO_SIZE[0]) for v in curve]
