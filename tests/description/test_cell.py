@@ -72,6 +72,18 @@ def test_domino_size_mass_and_inertia(cell) -> None:
     assert [plant.GetModelInstanceName(d) for d in dominoes] == ["domino_0", "domino_1"]
 
 
+def test_another_domino_set_keeps_the_density_and_gets_its_box() -> None:
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.001)
+    size = (0.044, 0.022, 0.007)
+    body = plant.GetBodyByName("domino", add_dominoes(plant, 1, size)[0])
+    plant.Finalize()
+    assert body.default_mass() == pytest.approx(DOMINO_MASS * np.prod(size) / np.prod(DOMINO_SIZE))
+    inspector = scene_graph.model_inspector()
+    shapes = [inspector.GetShape(g) for g in plant.GetCollisionGeometriesForBody(body)]
+    assert [(s.width(), s.depth(), s.height()) for s in shapes] == [size]
+
+
 def test_each_camera_sees_what_it_looks_at_in_the_middle_of_the_image() -> None:
     for camera in SCENARIO.cameras:
         target = np.array([*camera.look_at, 1.0])

@@ -11,9 +11,20 @@ import pytest
 from pydrake.math import RigidTransform
 from pydrake.multibody.math import SpatialVelocity
 
-from dombot_description import DOMINO_SIZE
-from dombot_sim.physics_checks import grip_and_swing, stand_upright, topple_line, upright_rotation
+from dombot_bringup.layouts import DEFAULT_SPACING_RATIO
+from dombot_description import DOMINO_SIZE, tilt_from_vertical
+from dombot_planner.settings import PlannerSettings
+from dombot_sim.physics_checks import (
+    grip_and_swing,
+    push_over,
+    stand_line,
+    stand_upright,
+    tilt_crossings,
+    topple_line,
+    upright_rotation,
+)
 from dombot_sim.sleeping import SleepSettings
+from dombot_sim.wave_model import Row, wave
 from dombot_sim.world import CellWorld, WorldConfig
 
 CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * (
@@ -69,6 +80,29 @@ def test_a_line_of_10_at_60_percent_spacing_topples_completely(sleeping: bool) -
     tilts = np.degrees(topple_line(world_for(10, sleeping), count=10, spacing_ratio=0.6))
     assert tilts.size == 10
     assert tilts.min() > 60.0, f"tilts from vertical: {np.round(tilts, 1)}"
+
+
+def test_a_run_of_10_at_the_default_spacing_topples_in_the_time_the_wave_model_predicts() -> None:
+    """issue 27: van Leeuwen's model (dombot_sim.wave_model) with the simulator's domino
+    friction (0.4) and the bring-up's strike; simulated time, ±25 %."""
+    height, _, thickness = DOMINO_SIZE
+    pitch = DEFAULT_SPACING_RATIO * height
+    settings = PlannerSettings()
+    spin = settings.push_speed / (settings.strike_height * height)  # the strike's tilt rate
+    threshold = np.radians(2.0)
+    world = world_for(10)
+    push_over(world, stand_line(world, 10, pitch, np.array([0.65, -0.13]), np.pi / 2), spin)
+
+    crossed = tilt_crossings(world, 10, threshold, limit=3.0)
+    world.advance(0.3)
+
+    predicted = wave(Row(height, thickness, pitch, mu=0.4), spin, 10, threshold).crossings
+    assert not np.isnan(crossed).any(), f"never tipped: {np.flatnonzero(np.isnan(crossed))}"
+    assert crossed[-1] == pytest.approx(predicted[-1], rel=0.25), (
+        f"last domino tipped {crossed[-1]:.3f} s after the strike, model {predicted[-1]:.3f} s"
+    )
+    tilts = [np.degrees(tilt_from_vertical(d.X_WD)) for d in world.domino_truth()]
+    assert min(tilts) > 60.0, f"tilts from vertical: {np.round(tilts, 1)}"
 
 
 def test_a_gripped_domino_does_not_slip_during_a_1_m_per_s_move() -> None:

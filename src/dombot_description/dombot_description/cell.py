@@ -19,7 +19,7 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
 from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import DiagramBuilder
 
-from dombot_description import DOMINO_SIZE, PACKAGE_DIR
+from dombot_description import DOMINO_MASS, DOMINO_SIZE, PACKAGE_DIR
 from dombot_description.scenario import Scenario
 
 DOMINO_FILE = PACKAGE_DIR / "models" / "domino.sdf"
@@ -53,11 +53,14 @@ def add_cell(plant: MultibodyPlant, scenario: Scenario) -> CellModels:
     )
 
 
-def add_dominoes(plant: MultibodyPlant, count: int) -> list[ModelInstanceIndex]:
-    """``count`` free dominoes named domino_0 … (bodies named 'domino')."""
+def add_dominoes(
+    plant: MultibodyPlant, count: int, size: tuple[float, float, float] = DOMINO_SIZE
+) -> list[ModelInstanceIndex]:
+    """``count`` free dominoes named domino_0 … (bodies named 'domino'), ``size`` (length,
+    width, thickness) at the model's density and contact properties."""
     parser = make_parser(plant)
     parser.SetAutoRenaming(True)
-    text = DOMINO_FILE.read_text()
+    text = _domino_model(size)
     instances = []
     for index in range(count):
         instance = parser.AddModelsFromString(
@@ -65,6 +68,22 @@ def add_dominoes(plant: MultibodyPlant, count: int) -> list[ModelInstanceIndex]:
         )[0]
         instances.append(instance)
     return instances
+
+
+def _domino_model(size: tuple[float, float, float]) -> str:
+    """domino.sdf, resized: same density, the box's inertia."""
+    text = DOMINO_FILE.read_text()
+    if tuple(size) == DOMINO_SIZE:
+        return text
+    mass = DOMINO_MASS * float(np.prod(size) / np.prod(DOMINO_SIZE))
+    x, y, z = size
+    inertia = mass / 12.0 * np.array([y * y + z * z, x * x + z * z, x * x + y * y])
+    box = " ".join(f"{v:g}" for v in size)
+    text = text.replace(" ".join(f"{v:g}" for v in DOMINO_SIZE), box)
+    text = text.replace(f"<mass>{DOMINO_MASS:g}</mass>", f"<mass>{mass:.6g}</mass>")
+    start, end = text.index("<ixx>"), text.index("<ixy>")
+    diagonal = "".join(f"<i{a}{a}>{v:.6g}</i{a}{a}>" for a, v in zip("xyz", inertia, strict=True))
+    return text[:start] + diagonal + "\n          " + text[end:]
 
 
 def weld_fingers(plant: MultibodyPlant, scenario: Scenario, opening: float) -> None:

@@ -48,26 +48,61 @@ def stand_upright(world: CellWorld, seconds: float) -> Standing:
     )
 
 
-def topple_line(world: CellWorld, count: int, spacing_ratio: float) -> np.ndarray:
-    """A straight run at ``spacing_ratio`` × height; push the first over; tilts [rad] after 2 s."""
-    heading = 0.3
+def stand_line(
+    world: CellWorld, count: int, pitch: float, start: np.ndarray, heading: float
+) -> np.ndarray:
+    """Stand ``count`` dominoes ``pitch`` apart from ``start`` (x, y) along ``heading`` and
+    let them settle for 1 s; returns the run's direction (unit, world)."""
+    height = world.config.domino_size[0]
     direction = np.array([np.cos(heading), np.sin(heading), 0.0])
-    start = np.array([0.42, 0.05, HEIGHT / 2])
-    spacing = spacing_ratio * HEIGHT
+    first = np.array([start[0], start[1], height / 2])
     world.set_domino_poses(
         {
-            i: RigidTransform(upright_rotation(heading), start + i * spacing * direction)
+            i: RigidTransform(upright_rotation(heading), first + i * pitch * direction)
             for i in range(count)
         }
     )
     world.advance(1.0)
     if max(tilt_from_vertical(d.X_WD) for d in world.domino_truth() if d.in_use) > np.radians(1):
         raise RuntimeError("the run did not stand still before the push")
-    axis = np.cross([0.0, 0.0, 1.0], direction)  # spin about the front bottom edge
-    lever = np.array([*(THICKNESS / 2 * direction[:2]), HEIGHT / 2])
-    world.kick_domino(0, SpatialVelocity(PUSH_SPIN * axis, PUSH_SPIN * np.cross(axis, lever)))
+    return direction
+
+
+def push_over(world: CellWorld, direction: np.ndarray, spin: float) -> None:
+    """Set domino 0 turning at ``spin`` rad/s about its front bottom edge (tipping it along
+    ``direction``)."""
+    height, _, thickness = world.config.domino_size
+    axis = np.cross([0.0, 0.0, 1.0], direction)
+    lever = np.array([*(thickness / 2 * direction[:2]), height / 2])  # edge to centre
+    world.kick_domino(0, SpatialVelocity(spin * axis, spin * np.cross(axis, lever)))
+
+
+def topple_line(world: CellWorld, count: int, spacing_ratio: float) -> np.ndarray:
+    """A straight run at ``spacing_ratio`` × height; push the first over; tilts [rad] after 2 s."""
+    direction = stand_line(world, count, spacing_ratio * HEIGHT, np.array([0.42, 0.05]), 0.3)
+    push_over(world, direction, PUSH_SPIN)
     world.advance(2.0)
     return np.array([tilt_from_vertical(d.X_WD) for d in world.domino_truth() if d.in_use])
+
+
+def tilt_crossings(
+    world: CellWorld, count: int, threshold: float, limit: float, stall: float = 1.0
+) -> np.ndarray:
+    """Advance until all ``count`` dominoes passed ``threshold`` tilt [rad], for at most
+    ``limit`` s, or until none passed it for ``stall`` s (the wave stopped); each one's
+    crossing time from now (linear between steps; NaN: never)."""
+    start, crossed = world.time, np.full(count, np.nan)
+    step, before, last = world.config.time_step, np.zeros(count), 0.0
+    while world.time - start < min(limit, last + stall) and np.isnan(crossed).any():
+        world.advance(step)
+        tilts = np.array([tilt_from_vertical(d.X_WD) for d in world.domino_truth()[:count]])
+        new = np.isnan(crossed) & (tilts >= threshold)
+        if new.any():
+            fraction = (threshold - before[new]) / np.maximum(tilts[new] - before[new], 1e-12)
+            crossed[new] = world.time - start - step * (1.0 - fraction)
+            last = world.time - start
+        before = tilts
+    return crossed
 
 
 @dataclass(frozen=True)

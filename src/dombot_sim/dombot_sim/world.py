@@ -41,6 +41,7 @@ from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.trajectories import PiecewisePolynomial
 
+from dombot_description import DOMINO_SIZE
 from dombot_description.cell import add_cell, add_dominoes, build_shadow_plant
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_lookup, render
@@ -79,6 +80,8 @@ class WorldConfig:
     cameras: bool = True
     meshcat: bool = False
     domino_capacity: int = 30  # bodies in the plant; a larger reset rebuilds it
+    # length, width, thickness [m]; another set (the wave benchmark's) keeps the density
+    domino_size: tuple[float, float, float] = DOMINO_SIZE
     settle_limit: float = 10.0  # s simulated: a pile still moving after this is reported
     pour_wave_size: int = 6
     sleep: SleepSettings = field(default_factory=SleepSettings)
@@ -97,6 +100,8 @@ class WorldConfig:
             raise ValueError(
                 f"contact_model must be one of {sorted(CONTACT_MODELS)}, got {self.contact_model!r}"
             )
+        if len(self.domino_size) != 3 or not all(0.0 < x < 1.0 for x in self.domino_size):
+            raise ValueError(f"domino_size must be 3 lengths in (0, 1) m, got {self.domino_size}")
         if self.domino_capacity < 0 or self.pour_wave_size < 1:
             raise ValueError("domino_capacity must be >= 0 and pour_wave_size >= 1")
 
@@ -165,7 +170,7 @@ class CellWorld:
         )
         plant.set_contact_model(CONTACT_MODELS[config.contact_model])
         models = add_cell(plant, scenario)
-        domino_models = add_dominoes(plant, capacity)
+        domino_models = add_dominoes(plant, capacity, config.domino_size)
         # GetJointActuatorIndices(model_instance) is empty before Finalize: filter all of them.
         for actuator_index in plant.GetJointActuatorIndices():
             actuator = plant.get_mutable_joint_actuator(actuator_index)
