@@ -23,6 +23,17 @@ class WorkRegion:
     min_height: float = 0.0015  # m above the table: below this is the table itself
     max_height: float = 0.07  # m: above this is the arm, not the pile
 
+    def outline(self, sides: int = 32) -> np.ndarray:
+        """Corners (2*sides x 3, world) of a prism around the cylinder: it holds the region."""
+        angles = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+        radius = self.radius / np.cos(np.pi / sides)
+        ring = np.column_stack(
+            [self.center[0] + radius * np.cos(angles), self.center[1] + radius * np.sin(angles)]
+        )
+        return np.vstack(
+            [np.column_stack([ring, np.full(sides, z)]) for z in (self.min_height, self.max_height)]
+        )
+
     def contains(self, points: np.ndarray) -> np.ndarray:
         with np.errstate(invalid="ignore"):
             radial = np.hypot(points[..., 0] - self.center[0], points[..., 1] - self.center[1])
@@ -39,10 +50,13 @@ def valid_depth(depth: np.ndarray, depth_range: tuple[float, float]) -> np.ndarr
         return np.isfinite(depth) & (depth > depth_range[0]) & (depth < depth_range[1])
 
 
-def backproject(depth: np.ndarray, intrinsics: np.ndarray, camera_pose: np.ndarray) -> np.ndarray:
-    """HxWx3 world points for every pixel (NaN where the depth is NaN)."""
+def backproject(
+    depth: np.ndarray, intrinsics: np.ndarray, camera_pose: np.ndarray, top: int = 0, left: int = 0
+) -> np.ndarray:
+    """HxWx3 world points for every pixel of ``depth`` (NaN where the depth is NaN);
+    ``depth`` may be a window of the image whose first pixel is (``top``, ``left``)."""
     height, width = depth.shape
-    v, u = np.mgrid[0:height, 0:width]
+    v, u = np.mgrid[top : top + height, left : left + width]
     z = depth.astype(np.float64)
     z[~np.isfinite(z)] = np.nan  # inf would turn into NaN with a warning below
     x = z * (u - intrinsics[0, 2]) / intrinsics[0, 0]
@@ -102,18 +116,38 @@ def organised_cloud(
 ) -> OrganisedCloud | None:
     """Back-project ``view``, keep the bounding window of pixels ``inside`` the work region.
 
-    None when no pixel sees the region.
+    Only the pixels within the region's projected outline are back-projected (the pile
+    covers a fraction of the image). None when no pixel sees the region.
     """
-    points = backproject(view.depth, view.K, view.X_WC)
-    seen = valid_depth(view.depth, depth_range) & region.contains(points)
+    height, width = view.depth.shape
+    first, last = _projected_window(region, view)
+    depth = view.depth[first[0] : last[0], first[1] : last[1]]
+    points = backproject(depth, view.K, view.X_WC, first[0], first[1])
+    seen = valid_depth(depth, depth_range) & region.contains(points)
     rows, cols = np.nonzero(seen)
     if rows.size == 0:
         return None
-    height, width = seen.shape
+    rows, cols = rows + first[0], cols + first[1]
     top, bottom = max(rows.min() - 1, 0), min(rows.max() + 2, height)
     left, right = max(cols.min() - 1, 0), min(cols.max() + 2, width)
-    points = points[top:bottom, left:right]
+    window = np.s_[top - first[0] : bottom - first[0], left - first[1] : right - first[1]]
+    points = points[window]
     normals = image_normals(points, view.X_WC[:3, 3])
-    valid = seen[top:bottom, left:right] & np.isfinite(normals[..., 0])
+    valid = seen[window] & np.isfinite(normals[..., 0])
     pixel_size = np.where(valid, view.depth[top:bottom, left:right], 0.0) / view.K[0, 0]
     return OrganisedCloud(int(top), int(left), width, points, normals, valid, pixel_size)
+
+
+def _projected_window(region: WorkRegion, view: CameraView) -> tuple[tuple[int, int], ...]:
+    """(top, left) and (bottom, right) of the pixels that can see ``region``, with a
+    pixel of margin beyond (the crop keeps one around what it sees); the whole image when
+    part of the region lies behind the camera."""
+    height, width = view.depth.shape
+    local = (region.outline() - view.X_WC[:3, 3]) @ view.X_WC[:3, :3]
+    if np.any(local[:, 2] <= 0.0):
+        return (0, 0), (height, width)
+    pixels = local[:, :2] / local[:, 2:] * np.diag(view.K)[:2] + view.K[:2, 2]
+    low, high = np.floor(pixels.min(axis=0)) - 1, np.ceil(pixels.max(axis=0)) + 2
+    left, top = np.clip(low, 0, [width, height]).astype(int)
+    right, bottom = np.clip(high, 0, [width, height]).astype(int)
+    return (top, left), (max(bottom, top), max(right, left))

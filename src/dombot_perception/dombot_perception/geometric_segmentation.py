@@ -34,6 +34,7 @@ MAX_SPLIT_DEPTH = 3  # a part of a split region may be split again this often
 SPLIT_FIT_POINTS = 600  # points of a region used to fit the boxes that split it
 SPLIT_GOOD_FIT = 0.9  # share of a region's points on their part's box that ends the search
 ON_BOX_DISTANCE = 0.002  # m
+SPLIT_FIT = BoxFitConfig(max_fit_points=120, iterations=8, passes=1)  # quick: only to split
 
 
 @dataclass(frozen=True)
@@ -170,9 +171,10 @@ def _best_split(
     tried and the best kept.
     """
     best: tuple[float, np.ndarray, int] | None = None
+    distances: dict[bytes, np.ndarray] = {}  # a part found again by another start: same box
     for parts, start in ((count, seed), (count, seed + 1), (count, seed + 2), (count + 1, seed)):
         _, initial = kmeans2(points - points.mean(axis=0), parts, minit="++", seed=start)
-        assignment, on_box = _assign_to_boxes(points, normals, initial, parts)
+        assignment, on_box = _assign_to_boxes(points, normals, initial, parts, distances)
         if best is None or on_box > best[0]:
             best = (on_box, assignment, parts)
         if on_box >= SPLIT_GOOD_FIT:
@@ -181,27 +183,30 @@ def _best_split(
 
 
 def _assign_to_boxes(
-    points: np.ndarray, normals: np.ndarray, assignment: np.ndarray, count: int
+    points: np.ndarray,
+    normals: np.ndarray,
+    assignment: np.ndarray,
+    count: int,
+    fitted: dict[bytes, np.ndarray],
 ) -> tuple[np.ndarray, float]:
     """Refine a k-means split with the domino's shape: fit a box to each part, give each
     point to the box whose surface it lies on, repeat until nothing moves. Also returns
     the share of points within 2 mm of their box.
 
     k-means cuts between centroids; dominoes side by side are cut along their edges.
+    ``fitted`` holds each part's point distances to its box, by the part's points, for the
+    parts that stay as they were between rounds and starts.
     """
-    config = BoxFitConfig(max_fit_points=120, iterations=8, passes=1)
     stride = max(1, points.shape[0] // SPLIT_FIT_POINTS)  # fit on a subset, assign all
     for _ in range(SPLIT_ROUNDS):
         distances = np.full((count, points.shape[0]), np.inf)
         for k in range(count):
             part = np.flatnonzero(assignment == k)[::stride]
-            if part.size < 10:
-                continue
-            try:
-                pose = fit_domino_box(points[part], normals[part], config).X_WD
-            except BoxFitError:
-                continue
-            distances[k] = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
+            if part.size >= 10:
+                key = part.tobytes()
+                if key not in fitted:
+                    fitted[key] = _box_distances(points, normals, part)
+                distances[k] = fitted[key]
         nearest = distances.min(axis=0)
         if not np.all(np.isfinite(nearest)):
             return assignment, 0.0
@@ -211,6 +216,16 @@ def _assign_to_boxes(
             break
         assignment = updated
     return assignment, on_box
+
+
+def _box_distances(points: np.ndarray, normals: np.ndarray, part: np.ndarray) -> np.ndarray:
+    """Distance of every point to the surface of the box fitted to the ``part`` (indices);
+    inf when no box fits."""
+    try:
+        pose = fit_domino_box(points[part], normals[part], SPLIT_FIT).X_WD
+    except BoxFitError:
+        return np.full(points.shape[0], np.inf)
+    return np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
 
 
 def _too_big(points: np.ndarray, margin: float) -> bool:

@@ -145,9 +145,12 @@ def best_grasp(
     ]
     if not feasible:
         return GraspChoice(candidates[0], -1.0)
-    choices = []
+    choices, clearances = [], {}
     for grasp in feasible:
-        choice = GraspChoice(grasp, grasp_clearance(grasp, obstacles, config.approach_distance))
+        key = _pad_space(grasp)
+        if key not in clearances:  # a finger-swapped twin's pads pass through the same space
+            clearances[key] = grasp_clearance(grasp, obstacles, config.approach_distance)
+        choice = GraspChoice(grasp, clearances[key])
         if choice.clearance >= config.min_clearance:
             return choice
         choices.append(choice)
@@ -160,6 +163,28 @@ def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: floa
     obstacle point; ``FREE_SPACE`` when nothing is nearer."""
     paths = grasp.pad_paths(approach_distance, VERTICAL)
     return nearest_distance(paths, obstacles, cap=FREE_SPACE)
+
+
+def _pad_space(grasp: Grasp) -> tuple:
+    """The open and the closed pads as unordered sets of boxes (centre, axes up to sign),
+    rounded to 1 nm: grasps with the same key have the same ``pad_paths``."""
+
+    def boxes(opening: float) -> tuple:
+        return tuple(
+            sorted(
+                tuple(
+                    np.round(
+                        np.concatenate(
+                            [box.pose.translation(), np.abs(box.pose.rotation().matrix()).ravel()]
+                        ),
+                        9,
+                    )
+                )
+                for box in grasp.pad_boxes(opening)
+            )
+        )
+
+    return boxes(grasp.pregrasp_opening), boxes(grasp.closed_opening)
 
 
 def pads_above_table(grasp: Grasp, min_height: float) -> bool:

@@ -72,12 +72,14 @@ class PipelineConfig:
 @dataclass
 class PipelineResult:
     detections: list[Detection]  # best grasp first
-    timings: dict[str, float]  # s per stage
+    timings: dict[str, float]  # s per stage, wall
     masks: dict[str, list[np.ndarray]]  # per camera, for debug images
     rejected: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     # scene points on no detected domino (N×3, world): obstacles a planner has no box for
     unexplained: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # s of this process's CPU per stage: what the wall time is with a core to itself
+    cpu_timings: dict[str, float] = field(default_factory=dict)
 
 
 class PerceptionPipeline:
@@ -88,7 +90,7 @@ class PerceptionPipeline:
     def run(self, views: list[CameraView]) -> PipelineResult:
         """Detect dominoes in ``views`` (one frame per camera, same instant)."""
         timings = dict.fromkeys(STAGES, 0.0)
-        result = PipelineResult([], timings, {})
+        result = PipelineResult([], timings, {}, cpu_timings=dict.fromkeys(STAGES, 0.0))
         usable = []
         for view in views:
             problem = view.check()
@@ -99,26 +101,26 @@ class PerceptionPipeline:
         if not usable:
             result.warnings.append("no usable camera view")
             return result
-        with _timed(timings, "backprojection"):
+        with _timed(result, "backprojection"):
             clouds = {
                 view.name: organised_cloud(view, self.config.region, self.config.depth_range)
                 for view in usable
             }
-        with _timed(timings, "segmentation"):
+        with _timed(result, "segmentation"):
             result.masks = {
                 view.name: self.segmenter.segment(view, clouds[view.name]) for view in usable
             }
-        with _timed(timings, "backprojection"):
+        with _timed(result, "backprojection"):
             mask_clouds = self._mask_clouds(clouds, result.masks)
             scene = self._scene_points(clouds)
         if not mask_clouds:
             result.warnings.append("no domino-like surface above the table in the work region")
             return result
-        with _timed(timings, "fusion"):
+        with _timed(result, "fusion"):
             fused = fuse(mask_clouds, self.config.fusion)
-        with _timed(timings, "box_fit"):
+        with _timed(result, "box_fit"):
             detections = self._fit(fused, usable, result.rejected)
-        with _timed(timings, "scoring"):
+        with _timed(result, "scoring"):
             result.detections = score_detections(detections, scene, self.config.scoring)
             result.unexplained = unexplained_points(
                 scene, detections, self.config.unexplained_margin
@@ -275,21 +277,29 @@ class PerceptionPipeline:
 def unexplained_points(
     points: np.ndarray, detections: list[Detection], margin: float
 ) -> np.ndarray:
-    """The ``points`` farther than ``margin`` from every detected box."""
-    nearest = np.full(points.shape[0], np.inf)
+    """The ``points`` farther than ``margin`` from every detected box (only the points
+    within the box's circumscribed sphere + ``margin`` of its centre can be nearer)."""
+    if not detections or not points.shape[0]:
+        return points
+    tree = cKDTree(points)
+    reach = float(np.linalg.norm(DOMINO_SIZE)) / 2.0 + margin
+    explained = np.zeros(points.shape[0], dtype=bool)
     for detection in detections:
-        local = (points - detection.X_WD[:3, 3]) @ detection.X_WD[:3, :3]
-        nearest = np.minimum(nearest, box_signed_distance(local))
-    return points[nearest > margin]
+        near = np.asarray(tree.query_ball_point(detection.X_WD[:3, 3], reach), dtype=int)
+        local = (points[near] - detection.X_WD[:3, 3]) @ detection.X_WD[:3, :3]
+        explained[near[box_signed_distance(local) <= margin]] = True
+    return points[~explained]
 
 
 @contextmanager
-def _timed(timings: dict[str, float], stage: str) -> Iterator[None]:
-    start = time.perf_counter()
+def _timed(result: PipelineResult, stage: str) -> Iterator[None]:
+    """Add the wall and CPU time of the block to ``stage`` in ``result``."""
+    start, cpu_start = time.perf_counter(), time.process_time()
     try:
         yield
     finally:
-        timings[stage] += time.perf_counter() - start
+        result.timings[stage] += time.perf_counter() - start
+        result.cpu_timings[stage] += time.process_time() - cpu_start
 
 
 def config_for_scenario(scenario: Scenario) -> PipelineConfig:
