@@ -21,7 +21,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "bringup = dombot_bringup.bringup:main",
+            "bringup = dombot_bringup.entry_points:bringup",
         ],
     },
 )

@@ -21,8 +21,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "layer_node = dombot_layer.layer_node:main",
-            "vehicle_sim_node = dombot_layer.vehicle_sim_node:main",
+            "layer_node = dombot_layer.entry_points:layer_node",
+            "vehicle_sim_node = dombot_layer.entry_points:vehicle_sim_node",
         ],
     },
 )

@@ -21,7 +21,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "perception_node = dombot_perception.perception_node:main",
+            "perception_node = dombot_perception.entry_points:perception_node",
         ],
     },
 )

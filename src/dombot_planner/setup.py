@@ -20,6 +20,6 @@ setup(
     ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": ["planner_node = dombot_planner.planner_node:main"],
+        "console_scripts": ["planner_node = dombot_planner.entry_points:planner_node"],
     },
 )

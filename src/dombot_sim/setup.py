@@ -21,8 +21,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "sim_node = dombot_sim.sim_node:main",
-            "snapshot = dombot_sim.snapshot:main",
+            "sim_node = dombot_sim.entry_points:sim_node",
+            "snapshot = dombot_sim.entry_points:snapshot",
         ],
     },
 )
