@@ -79,3 +79,35 @@ def test_ctrl_c_during_start_up_leaves_no_traceback(
     text = output.decode(errors="replace")
     assert "Traceback" not in text and "KeyboardInterrupt" not in text, text
     assert child.returncode in (0, INTERRUPTED), text
+
+
+@pytest.mark.parametrize(
+    ("package", "executable", "started"),
+    [
+        ("dombot_layer", "layer_node", "ready:"),
+        ("dombot_layer", "vehicle_sim_node", "simulating"),
+    ],
+)
+def test_ctrl_c_while_a_node_spins_leaves_no_traceback(
+    package: str, executable: str, started: str
+) -> None:
+    """SIGINT shuts rclpy's context down under the spinning executor, whose next wait then
+    fails ('the given context is not valid'): that is a normal stop too."""
+    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    child = subprocess.Popen(
+        [str(path)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+        lines = []
+        while not any(started in line for line in lines):
+            line = child.stdout.readline()
+            assert line, f"{executable} ended before it started: {''.join(lines)}"
+            lines.append(line)
+        child.send_signal(signal.SIGINT)
+        output, _ = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert "Traceback" not in output, output
+    assert child.returncode in (0, INTERRUPTED), output
