@@ -285,6 +285,9 @@ def main(argv: list[str] | None = None) -> int:
         return dispatch(args)
     except KeyboardInterrupt:
         return 0
+    except BrokenPipeError:  # output piped into head & co., which stopped reading
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (LookupError, RuntimeError, ValueError) as error:
         print(error, file=sys.stderr)
         return 1
