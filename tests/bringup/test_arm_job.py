@@ -1,6 +1,6 @@
 """The arm job end to end over DDS with real node processes: the paper's test (three
 dominoes in a line) built and knocked down; bad layouts refused before anything starts;
-a node killed mid-run named in the error."""
+perception and planner killed mid-run started again; a killed simulator stops the job."""
 
 from __future__ import annotations
 
@@ -98,32 +98,64 @@ def test_bad_layouts_are_refused_before_any_node_starts(
     assert not (tmp_path / "run_report.json").exists()
 
 
-def test_a_node_killed_mid_run_is_reported_by_name(tmp_path: Path) -> None:
+def test_perception_and_planner_killed_mid_run_are_restarted_and_the_run_completes(
+    tmp_path: Path,
+) -> None:
+    """Each is killed while the job needs it: the planner as the first pick is about to be
+    planned, perception just after the first placement; both are started again, the
+    requests they lost are sent again and the run is built and knocked down."""
     process = subprocess.Popen(
         [str(BRINGUP), "--out", str(tmp_path), *LINE],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
-    planner = None
+    kills = {"nodes ready": "planner_node", "placed (attempt": "perception_node"}
     try:
-        deadline = time.monotonic() + 600
+        for line in process.stdout:
+            cue = next((cue for cue in kills if cue in line), None)
+            if cue is not None:
+                package = "dombot_planner" if kills[cue] == "planner_node" else "dombot_perception"
+                node = _child_process(process.pid, package, kills.pop(cue))
+                assert node is not None, f"no {package} process to kill"
+                os.kill(node, signal.SIGKILL)
+        _, stderr = process.communicate(timeout=900)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert not kills, f"the run never reached {list(kills)}"
+    assert process.returncode == 0, stderr[-4000:]
+    assert "Traceback" not in stderr, stderr[-4000:]
+    report = json.loads((tmp_path / "run_report.json").read_text())
+    assert report["node_restarts"] == {"perception_node": 1, "planner_node": 1}
+    assert report["summary"]["placed"] == 3 and report["toppled_by_truth"]
+
+
+def test_a_dead_simulator_stops_the_job_with_a_report(tmp_path: Path) -> None:
+    """The simulator's state cannot be restored: the job stops and says what it built."""
+    process = subprocess.Popen(
+        [str(BRINGUP), "--out", str(tmp_path), *LINE],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    sim = None
+    try:
         for line in process.stdout:
             if "nodes ready" in line:
-                planner = _child_process(process.pid, "dombot_planner", "planner_node")
+                sim = _child_process(process.pid, "dombot_sim", "sim_node")
                 break
-            assert time.monotonic() < deadline, "the nodes never became ready"
-        assert planner is not None, "planner_node process not found"
-        os.kill(planner, signal.SIGKILL)
+        assert sim is not None, "sim_node process not found"
+        os.kill(sim, signal.SIGKILL)
         _, stderr = process.communicate(timeout=300)
     finally:
         if process.poll() is None:
             process.kill()
     assert process.returncode == 1
-    assert "node 'planner_node' died with exit code -9" in stderr
+    assert "node 'sim_node' died with exit code -9" in stderr
     assert "Traceback" not in stderr
     report = json.loads((tmp_path / "run_report.json").read_text())  # what was done so far
-    assert report["message"] == "stopped: node 'planner_node' died (exit code -9)"
+    assert report["message"] == "stopped: node 'sim_node' died (exit code -9)"
     assert not report["built"] and (tmp_path / "run.png").exists()
 
 

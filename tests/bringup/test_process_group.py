@@ -1,4 +1,4 @@
-"""The bring-up's process supervisor: prefixed logs, death reports, clean stop."""
+"""The bring-up's process supervisor: prefixed logs, death reports, restarts, clean stop."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from dombot_bringup.process_group import NodeDiedError, ProcessGroup
+from dombot_bringup.process_group import MAX_RESTARTS, NodeDiedError, ProcessGroup
 
 SLEEPER = "import time, sys\nprint('ready', flush=True)\nwhile True: time.sleep(0.1)"
 CRASHER = "import sys\nfor i in range(30): print(f'line {i}', flush=True)\nsys.exit(3)"
@@ -43,6 +43,29 @@ def test_a_dead_node_is_reported_with_exit_code_and_last_lines() -> None:
     assert died.value.tail[-1] == "line 29"
     assert len(died.value.tail) == 20
     assert "exit code 3" in str(died.value)
+
+
+def test_a_restartable_node_that_dies_is_started_again_until_it_used_its_restarts() -> None:
+    sink = io.StringIO()
+    with ProcessGroup(sink=sink) as group:
+        sleeper = group.start("sleeper", python(SLEEPER), restartable=True)
+        for restart in range(1, MAX_RESTARTS + 1):
+            group.wait_until(lambda: sleeper.returncode is None, timeout=20, what="a start")
+            killed = sleeper.process.pid
+            sleeper.signal(9)
+            sleeper.wait(timeout=20)
+            group.check()
+            assert sleeper.process.pid != killed
+            assert group.restarts() == {"sleeper": restart}
+        sleeper.signal(9)
+        sleeper.wait(timeout=20)
+        with pytest.raises(NodeDiedError) as died:
+            group.check()
+    assert died.value.name == "sleeper" and died.value.returncode == -9
+    assert (
+        f"node 'sleeper' died with exit code -9; starting it again (restart 1 of {MAX_RESTARTS})"
+        in (sink.getvalue())
+    )
 
 
 def test_stop_escalates_past_a_process_that_ignores_sigint() -> None:

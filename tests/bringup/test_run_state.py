@@ -11,6 +11,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from control_msgs.action import FollowJointTrajectory
 from geometry_msgs.msg import Point, Pose, Quaternion
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -43,7 +44,6 @@ from dombot_bringup.run_report import (
 from dombot_bringup.spread import STIR_DISTANCE
 from dombot_description import DOMINO_SIZE
 from dombot_description.pose_messages import duration_message, pose_matrix
-from dombot_msgs.action import ExecuteTrajectory
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike
 
@@ -614,7 +614,7 @@ class HandCheckingClient:
 
     def execute(self, trajectory: JointTrajectory, timeout: float, tolerance: float = 0.0):
         self.executed.append(trajectory)
-        return ExecuteTrajectory.Result(error_code=0)
+        return FollowJointTrajectory.Result(error_code=0)
 
 
 @pytest.mark.parametrize(

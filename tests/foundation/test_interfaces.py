@@ -7,13 +7,11 @@ import math
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 
-from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import (
     DominoDetection,
     DominoDetectionArray,
     DominoState,
     DominoStateArray,
-    JointTolerance,
     TrajectorySegment,
     WheelVelocities,
 )
@@ -41,7 +39,6 @@ MESSAGES = [
     DominoDetectionArray(detections=[sample_detection(), DominoDetection(id=4)]),
     DominoState(name="domino_7", upright=True),
     DominoStateArray(dominoes=[DominoState(name="domino_0")]),
-    JointTolerance(name="iiwa_joint_1", position=0.01, velocity=-1.0),
     sample_segment(),
     WheelVelocities(left=3.5, right=4.0, wheel_speed_ratio=0.875, message="ok"),
     PlanPlace.Request(grasp_width=0.0075, time_budget=2.0),
@@ -52,12 +49,6 @@ MESSAGES = [
     DetectDominoes.Response(success=True, message="2 dominoes"),
     ResetSim.Request(domino_count=30, seed=-7),
     ResetSim.Response(success=True, settle_time=1.25),
-    ExecuteTrajectory.Goal(goal_tolerance=[JointTolerance(name="iiwa_joint_2")]),
-    ExecuteTrajectory.Result(error_code=ExecuteTrajectory.Result.PATH_TOLERANCE_VIOLATED),
-    ExecuteTrajectory.Feedback(joint_names=["iiwa_joint_1"]),
-    GripperCommand.Goal(position=0.0, max_effort=40.0),
-    GripperCommand.Result(position=0.0074, stalled=True),
-    GripperCommand.Feedback(effort=39.0),
 ]
 
 
@@ -90,15 +81,3 @@ def test_error_codes_are_distinct_and_named() -> None:
     codes = [getattr(PlanPlace.Response, name) for name in names]
     assert codes[0] == 0
     assert len(set(codes)) == len(codes)
-
-
-def test_action_semantics_match_control_msgs() -> None:
-    result = ExecuteTrajectory.Result
-    assert (result.SUCCESSFUL, result.INVALID_GOAL, result.INVALID_JOINTS) == (0, -1, -2)
-    assert (result.PATH_TOLERANCE_VIOLATED, result.GOAL_TOLERANCE_VIOLATED) == (-4, -5)
-    assert set(GripperCommand.Result.get_fields_and_field_types()) == {
-        "position",
-        "effort",
-        "stalled",
-        "reached_goal",
-    }

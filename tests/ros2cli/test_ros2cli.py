@@ -176,7 +176,7 @@ def test_interface_show_our_service_and_list() -> None:
     text = ros2("interface", "show", "dombot_msgs/srv/PlanPlace").stdout
     assert "uint8 PLACE_IN_COLLISION=6" in text and "\n---\n" in text
     listing = ros2("interface", "list").stdout
-    assert "    dombot_msgs/action/ExecuteTrajectory" in listing.split("Actions:")[1]
+    assert "    control_msgs/action/FollowJointTrajectory" in listing.split("Actions:")[1]
     assert "dombot_msgs/msg/WheelVelocities" in ros2("interface", "package", "dombot_msgs").stdout
 
 

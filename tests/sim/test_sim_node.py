@@ -1,28 +1,35 @@
-"""sim_node over real DDS: images with the right encodings and intrinsics, a trajectory
-that moves the arm, a gripper that closes, resets that change the pile, and clear errors
-for bad goals, requests and parameters while the node keeps running."""
+"""sim_node over real DDS: images with the right encodings and intrinsics, the arm and
+gripper driven as a ros2_control client would (control_msgs actions at the controllers'
+names), resets that change the pile, and clear errors for bad goals, requests and
+parameters while the node keeps running."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import rclpy
+from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory, GripperCommand
+from control_msgs.msg import GripperCommand as GripperGoal
+from control_msgs.msg import JointTolerance
 from rcl_interfaces.srv import SetParameters
-from rclpy.action import ActionClient
+from rclpy.action import ActionClient, get_action_names_and_types
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_description.scenario import load_scenario
-from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import ResetSim
 from support.ros_processes import installed_node, spin_until
 
 SCENARIO = load_scenario()
 ARM = list(SCENARIO.arm_joints)
+FINGERS = ["wsg_left_finger_joint", "wsg_right_finger_joint"]
+TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
+GRIPPER_ACTION = "/gripper_controller/gripper_cmd"
 
 
 class Probe:
@@ -41,8 +48,8 @@ class Probe:
             self.node.create_subscription(
                 kind, topic, lambda msg, topic=topic: self.latest.__setitem__(topic, msg), 5
             )
-        self.trajectory = ActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
-        self.gripper = ActionClient(self.node, GripperCommand, "/gripper_command")
+        self.trajectory = ActionClient(self.node, FollowJointTrajectory, TRAJECTORY_ACTION)
+        self.gripper = ActionClient(self.node, GripperCommand, GRIPPER_ACTION)
         self.reset = self.node.create_client(ResetSim, "/sim/reset")
 
     def fresh(self, topic: str, timeout: float = 30.0):
@@ -50,19 +57,30 @@ class Probe:
         assert spin_until(self.node, lambda: topic in self.latest, timeout), f"nothing on {topic}"
         return self.latest[topic]
 
-    def arm_position(self) -> np.ndarray:
+    def positions(self, names: list[str]) -> np.ndarray:
         state = self.fresh("/joint_states")
-        return np.array([state.position[state.name.index(n)] for n in ARM])
+        return np.array([state.position[state.name.index(n)] for n in names])
 
-    def run_action(self, client: ActionClient, goal, timeout: float = 60.0):
+    def arm_position(self) -> np.ndarray:
+        return self.positions(ARM)
+
+    def send(self, client: ActionClient, goal, feedback=None):
+        """The accepted goal's handle."""
         assert client.wait_for_server(timeout_sec=30)
-        sent = client.send_goal_async(goal)
+        sent = client.send_goal_async(goal, feedback_callback=feedback)
         assert spin_until(self.node, sent.done, 10)
         handle = sent.result()
         assert handle.accepted
+        return handle
+
+    def outcome(self, handle, timeout: float = 60.0):
+        """(status, result) of an accepted goal."""
         result = handle.get_result_async()
         assert spin_until(self.node, result.done, timeout)
-        return result.result().result
+        return result.result().status, result.result().result
+
+    def run_action(self, client: ActionClient, goal, timeout: float = 60.0):
+        return self.outcome(self.send(client, goal), timeout)[1]
 
     def call_reset(self, count: int, seed: int) -> ResetSim.Response:
         assert self.reset.wait_for_service(timeout_sec=30)
@@ -94,8 +112,8 @@ def probe():
     rclpy.shutdown()
 
 
-def trajectory_goal(names, points) -> ExecuteTrajectory.Goal:
-    goal = ExecuteTrajectory.Goal()
+def trajectory_goal(names, points) -> FollowJointTrajectory.Goal:
+    goal = FollowJointTrajectory.Goal()
     goal.trajectory = JointTrajectory(joint_names=names)
     for seconds, positions in points:
         goal.trajectory.points.append(
@@ -125,50 +143,133 @@ def test_cameras_publish_rgb8_and_32fc1_with_the_scenario_intrinsics(probe: Prob
     assert probe.fresh("/camera_1/depth/image_raw").encoding == "32FC1"
 
 
-def test_a_trajectory_moves_the_arm_and_the_joint_states_follow(probe: Probe) -> None:
+def gripper_goal(position: float, max_effort: float = 0.0) -> GripperCommand.Goal:
+    return GripperCommand.Goal(command=GripperGoal(position=position, max_effort=max_effort))
+
+
+def test_the_actions_are_served_at_ros2_control_names_with_control_msgs_types(
+    probe: Probe,
+) -> None:
+    expected = {
+        TRAJECTORY_ACTION: ["control_msgs/action/FollowJointTrajectory"],
+        GRIPPER_ACTION: ["control_msgs/action/GripperCommand"],
+    }
+
+    def served() -> dict[str, list[str]]:
+        return {n: t for n, t in get_action_names_and_types(probe.node) if n in expected}
+
+    assert spin_until(probe.node, lambda: served() == expected, 30), served()
+
+
+def test_a_trajectory_moves_the_arm_to_its_goal_with_feedback(probe: Probe) -> None:
     start = probe.arm_position()
     goal = start + np.array([0.3, -0.1, 0.0, 0.2, 0.0, -0.2, 0.4])
-    result = probe.run_action(probe.trajectory, trajectory_goal(ARM, [(1.5, goal)]))
-    assert result.error_code == ExecuteTrajectory.Result.SUCCESSFUL, result.error_string
-    assert result.max_tracking_error < 0.01
-    assert probe.arm_position() == pytest.approx(goal, abs=2e-3)
+    feedback: list[FollowJointTrajectory.Feedback] = []
+    handle = probe.send(
+        probe.trajectory,
+        trajectory_goal(ARM, [(1.5, goal)]),
+        feedback=lambda message: feedback.append(message.feedback),
+    )
+    status, result = probe.outcome(handle)
+    assert status == GoalStatus.STATUS_SUCCEEDED
+    assert result.error_code == FollowJointTrajectory.Result.SUCCESSFUL, result.error_string
+    assert "goal reached; largest tracking error" in result.error_string
+    # within the default goal tolerance, 0.01 rad, read from /joint_states
+    assert probe.arm_position() == pytest.approx(goal, abs=0.01)
+    assert feedback, "no feedback during the goal"
+    for message in feedback:
+        assert list(message.joint_names) == ARM
+        actual, desired = np.array(message.actual.positions), np.array(message.desired.positions)
+        assert np.array(message.error.positions) == pytest.approx(actual - desired, abs=1e-12)
+        assert np.abs(actual - desired).max() < 0.05  # it tracks the trajectory on the way
     # Back again, with the joints in another order.
     order = ARM[::-1]
     back = [start[ARM.index(name)] for name in order]
     result = probe.run_action(probe.trajectory, trajectory_goal(order, [(1.5, back)]))
-    assert result.error_code == ExecuteTrajectory.Result.SUCCESSFUL, result.error_string
-    assert probe.arm_position() == pytest.approx(start, abs=2e-3)
+    assert result.error_code == FollowJointTrajectory.Result.SUCCESSFUL, result.error_string
+    assert probe.arm_position() == pytest.approx(start, abs=0.01)
 
 
 @pytest.mark.parametrize(
     ("names", "points", "code", "words"),
     [
-        ([*ARM[:6], "elbow"], [(1.0, [0.0] * 7)], -2, "unknown joints"),
+        ([*ARM[:6], "elbow"], [(1.0, [0.0] * 7)], -2, "unknown joints ['elbow']"),
+        (ARM[:6], [(1.0, [0.0] * 6)], -2, "joints ['iiwa_joint_7'] are missing"),
+        ([*ARM[:6], ARM[0]], [(1.0, [0.0] * 7)], -2, "named twice"),
         (ARM, [(1.0, [0.0] * 7), (0.5, [0.1] * 7)], -1, "strictly increase"),
-        (ARM, [(1.0, [3.0] + [0.0] * 6)], -1, "outside its limits"),
+        (ARM, [(1.0, [3.0] + [0.0] * 6)], -1, "iiwa_joint_1 = 3.0000 rad is outside its limits"),
         (ARM, [(0.05, [1.0, 0.35, 0.0, -1.75, 0.0, 1.05, 0.0])], -1, "over its limit"),
         (ARM, [(1.0, [float("nan")] * 7)], -1, "finite"),
+        (ARM, [], -1, "no points"),
     ],
-    ids=["unknown-joint", "time-goes-back", "beyond-limit", "too-fast", "nan"],
+    ids=[
+        "unknown-joint",
+        "missing-joint",
+        "twice",
+        "time-goes-back",
+        "beyond-limit",
+        "too-fast",
+        "nan",
+        "empty",
+    ],
 )
 def test_bad_trajectories_are_refused_with_a_code_and_a_reason(
     probe: Probe, names, points, code, words
 ) -> None:
     before = probe.arm_position()
-    result = probe.run_action(probe.trajectory, trajectory_goal(names, points))
+    status, result = probe.outcome(probe.send(probe.trajectory, trajectory_goal(names, points)))
+    assert status == GoalStatus.STATUS_ABORTED
     assert result.error_code == code
     assert words in result.error_string
     assert probe.arm_position() == pytest.approx(before, abs=1e-3)
 
 
-def test_the_gripper_closes_and_opens(probe: Probe) -> None:
-    result = probe.run_action(probe.gripper, GripperCommand.Goal(position=0.03, max_effort=10.0))
+def test_a_multi_dof_trajectory_is_refused_as_invalid_joints(probe: Probe) -> None:
+    goal = trajectory_goal(ARM, [(1.0, probe.arm_position())])
+    goal.multi_dof_trajectory.joint_names = ["base"]
+    result = probe.run_action(probe.trajectory, goal)
+    assert result.error_code == FollowJointTrajectory.Result.INVALID_JOINTS
+    assert "multi_dof_trajectory names ['base']" in result.error_string
+
+
+def test_a_path_tolerance_tighter_than_the_tracking_aborts_the_goal(probe: Probe) -> None:
+    start = probe.arm_position()
+    goal = trajectory_goal(ARM, [(1.0, start + np.array([0.4, 0, 0, 0, 0, 0, 0]))])
+    goal.path_tolerance = [JointTolerance(name="iiwa_joint_1", position=1e-7)]
+    status, result = probe.outcome(probe.send(probe.trajectory, goal))
+    assert status == GoalStatus.STATUS_ABORTED
+    assert result.error_code == FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED
+    assert "path tolerance violated on iiwa_joint_1" in result.error_string
+    assert probe.run_action(probe.trajectory, trajectory_goal(ARM, [(1.0, start)])).error_code == 0
+
+
+def test_a_newer_goal_preempts_the_running_one(probe: Probe) -> None:
+    start = probe.arm_position()
+    slow = trajectory_goal(ARM, [(600.0, start + 0.3)])  # far longer than the test
+    feedback: list[FollowJointTrajectory.Feedback] = []
+    first = probe.send(probe.trajectory, slow, feedback=feedback.append)
+    assert spin_until(probe.node, lambda: bool(feedback), 30), "the first goal never ran"
+    second = probe.send(probe.trajectory, trajectory_goal(ARM, [(1.0, start)]))
+    status, result = probe.outcome(first)
+    assert status == GoalStatus.STATUS_ABORTED
+    assert "preempted by a newer goal" in result.error_string
+    status, result = probe.outcome(second)
+    assert status == GoalStatus.STATUS_SUCCEEDED, result.error_string
+    assert probe.arm_position() == pytest.approx(start, abs=0.01)
+
+
+def test_the_gripper_reaches_the_commanded_opening(probe: Probe) -> None:
+    result = probe.run_action(probe.gripper, gripper_goal(0.03, max_effort=10.0))
     assert result.reached_goal and result.position == pytest.approx(0.03, abs=1e-3)
-    result = probe.run_action(probe.gripper, GripperCommand.Goal(position=0.5))
-    assert not result.reached_goal  # beyond the stroke: refused, fingers stay
-    assert result.position == pytest.approx(0.03, abs=1e-3)
-    result = probe.run_action(probe.gripper, GripperCommand.Goal(position=0.1))
+    # the opening is the gap between the fingers: the sum of their joint positions
+    assert probe.positions(FINGERS).sum() == pytest.approx(0.03, abs=1e-3)
+    status, result = probe.outcome(probe.send(probe.gripper, gripper_goal(0.5)))
+    assert status == GoalStatus.STATUS_ABORTED  # beyond the 0.11 m stroke: refused
+    assert not result.reached_goal
+    assert result.position == pytest.approx(0.03, abs=1e-3)  # the fingers stayed
+    result = probe.run_action(probe.gripper, gripper_goal(0.1))
     assert result.reached_goal
+    assert probe.positions(FINGERS).sum() == pytest.approx(0.1, abs=1e-3)
 
 
 def test_reset_pours_the_pile_the_seed_asks_for(probe: Probe) -> None:

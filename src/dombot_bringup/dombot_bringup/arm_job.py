@@ -1191,6 +1191,11 @@ def check_words(status: int, error: float, tilt: float) -> str:
     return f"{name}, {error * 1e3:.1f} mm and {math.degrees(tilt):.1f}° from the target"
 
 
+def restarted(group: ProcessGroup) -> dict[str, int]:
+    """The nodes started again during the job, and how often."""
+    return {name: count for name, count in group.restarts().items() if count}
+
+
 def run_arm_job(
     out_dir: Path,
     layout: Sequence[DominoPlacement],
@@ -1209,12 +1214,20 @@ def run_arm_job(
         group.start("sim_node", node_command("dombot_sim", "sim_node", sim_parameters))
         on_sim_time = {"use_sim_time": True}  # frame ages and timers in simulated seconds
         on_demand = on_sim_time | {"continuous": False}  # the job asks; no CPU spent otherwise
+        # perception and planner answer from the request and the scene: one that dies is
+        # started again and asked again; the simulator's state cannot be restored
         group.start(
-            "perception_node", node_command("dombot_perception", "perception_node", on_demand)
+            "perception_node",
+            node_command("dombot_perception", "perception_node", on_demand),
+            restartable=True,
         )
-        group.start("planner_node", node_command("dombot_planner", "planner_node", on_sim_time))
+        group.start(
+            "planner_node",
+            node_command("dombot_planner", "planner_node", on_sim_time),
+            restartable=True,
+        )
         rclpy.init()
-        client = CellClient(watchdog=group.check)
+        client = CellClient(watchdog=group.check, restarts=group.restarts)
         job = None
         try:
             group.wait_until(lambda: client.ready(NEEDED_SERVICES), 600.0, "the nodes to be ready")
@@ -1225,8 +1238,10 @@ def run_arm_job(
             job = ArmJob(client, layout, layout_name, settings)
             report = job.run()
             group.check()
+            report.node_restarts = restarted(group)
         except NodeDiedError as error:
             if job is not None:  # what was built so far, for the user to see
+                job.report.node_restarts = restarted(group)
                 job.report.message = (
                     f"stopped: node '{error.name}' died (exit code {error.returncode})"
                 )

@@ -9,10 +9,13 @@ from __future__ import annotations
 import threading
 import time
 from collections import defaultdict
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 
 from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory, GripperCommand
+from control_msgs.msg import GripperCommand as GripperGoal
+from control_msgs.msg import JointTolerance
 from geometry_msgs.msg import Pose
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
@@ -22,10 +25,12 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from dombot_description.pose_messages import time_message
-from dombot_msgs.action import ExecuteTrajectory, GripperCommand
-from dombot_msgs.msg import DominoStateArray, JointTolerance
+from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
 
+# The arm's and gripper's controllers, at ros2_control's names (a real cell's too).
+TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
+GRIPPER_ACTION = "/gripper_controller/gripper_cmd"
 SERVICES = {
     "/sim/reset": ResetSim,
     "/perception/detect": DetectDominoes,
@@ -33,6 +38,16 @@ SERVICES = {
     "/plan_place": PlanPlace,
     "/plan_strike": PlanStrike,
 }
+
+# The node that serves each service: its answer is asked again when it was restarted.
+SERVERS = {
+    "/sim/reset": "sim_node",
+    "/perception/detect": "perception_node",
+    "/perception/check_placement": "perception_node",
+    "/plan_place": "planner_node",
+    "/plan_strike": "planner_node",
+}
+RESTART_TIMEOUT = 600.0  # s for a restarted server to come back (the planner builds plants)
 
 
 # What simulated time spent waiting for each answer is counted as.
@@ -42,10 +57,13 @@ ACTIVITIES = {
     "/perception/check_placement": "perception",
     "/plan_place": "planning",
     "/plan_strike": "planning",
-    "/execute_trajectory": "motion",
-    "/gripper_command": "gripper",
+    TRAJECTORY_ACTION: "motion",
+    GRIPPER_ACTION: "gripper",
     "simulated time": "waiting",  # for a domino to settle, or a camera period
 }
+
+
+_RESTARTED = object()  # a call's server was started again before it answered
 
 
 class CallFailedError(RuntimeError):
@@ -87,15 +105,25 @@ class CellClient:
     """Blocking access to sim, perception and planner; ``close()`` when done.
 
     ``watchdog`` is called while waiting for any answer; the bring-up passes its process
-    group's check, so a node that dies mid-call is reported at once, by name.
+    group's check, so a node that dies mid-call is reported at once, by name, or
+    started again. ``restarts`` says how often each node was started again: a request
+    whose server was restarted while it waited is sent again to the new one.
     """
 
-    def __init__(self, name: str = "bringup", watchdog: Callable[[], None] = lambda: None) -> None:
+    def __init__(
+        self,
+        name: str = "bringup",
+        watchdog: Callable[[], None] = lambda: None,
+        restarts: Callable[[], Mapping[str, int]] = dict,
+    ) -> None:
         self.node = Node(name, parameter_overrides=[Parameter("use_sim_time", value=False)])
         self._watchdog = watchdog
+        self._restarts = restarts
+        # per service: its server's restart count and request readers when last sent to
+        self._sent_to: dict[str, tuple[int, frozenset[bytes]]] = {}
         self._clients = {n: self.node.create_client(t, n) for n, t in SERVICES.items()}
-        self._trajectory = SerialActionClient(self.node, ExecuteTrajectory, "/execute_trajectory")
-        self._gripper = SerialActionClient(self.node, GripperCommand, "/gripper_command")
+        self._trajectory = SerialActionClient(self.node, FollowJointTrajectory, TRAJECTORY_ACTION)
+        self._gripper = SerialActionClient(self.node, GripperCommand, GRIPPER_ACTION)
         self._lock = threading.Lock()
         self._joint_state: JointState | None = None
         self._truth: DominoStateArray | None = None
@@ -113,7 +141,10 @@ class CellClient:
         self._spinner.start()
 
     def close(self) -> None:
-        self._executor.shutdown(timeout_sec=1.0)
+        # the spinner leaves its wait before the node goes: destroying the node under a
+        # waiting executor raises in the spin thread (seen on a loaded machine)
+        self._executor.shutdown(timeout_sec=5.0)
+        self._spinner.join(timeout=5.0)
         self.node.destroy_node()
 
     # ------------------------------------------------------------------ topics
@@ -174,12 +205,51 @@ class CellClient:
 
     # ------------------------------------------------------------------ services
     def call(self, name: str, request, timeout: float):
+        """``request``'s answer; sent again (up to the restarts allowed) when its server
+        was restarted before it answered: every server here answers from the request and
+        the scene as it is now, so nothing else needs restoring."""
         client = self._clients[name]
-        if not client.wait_for_service(timeout_sec=min(timeout, 10.0)):
-            raise CallFailedError(f"{name} is not available")
         with self._spending(name):
-            future = client.call_async(request)
-            return self._wait(lambda: future.result() if future.done() else None, timeout, name)
+            while True:
+                started = self._server_restarts(name)
+                self._await_server(name, timeout)
+                future = client.call_async(request)
+
+                def answer_or_restart(future=future, started=started):
+                    if future.done():
+                        return future.result()
+                    return _RESTARTED if self._server_restarts(name) != started else None
+
+                answer = self._wait(answer_or_restart, timeout, name)
+                if answer is not _RESTARTED:
+                    return answer
+
+    def _server_restarts(self, name: str) -> int:
+        return self._restarts().get(SERVERS[name], 0)
+
+    def _await_server(self, name: str, timeout: float) -> None:
+        """Wait until ``name`` is served, after a restart by the new server.
+
+        A killed server's endpoints stay in the DDS graph until its lease runs out, and a
+        request sent to them alone is lost: after a restart, wait for a request reader
+        that was not there when this client last sent (and give the restarted node time
+        to come back: the planner builds its plants first).
+        """
+        client = self._clients[name]
+        generation = self._server_restarts(name)
+        last_generation, last_readers = self._sent_to.get(name, (generation, frozenset()))
+        old = last_readers if last_generation != generation else frozenset()
+        self._wait(
+            lambda: (client.service_is_ready() and bool(self._request_readers(name) - old)) or None,
+            RESTART_TIMEOUT if old else min(timeout, 10.0),
+            f"{name} (not available)",
+        )
+        self._sent_to[name] = (generation, self._request_readers(name))
+
+    def _request_readers(self, name: str) -> frozenset[bytes]:
+        """The DDS readers of ``name``'s requests (one per server process)."""
+        readers = self.node.get_subscriptions_info_by_topic(f"rq{name}Request", no_mangle=True)
+        return frozenset(bytes(reader.endpoint_gid) for reader in readers)
 
     def reset(self, count: int, seed: int) -> ResetSim.Response:
         return self.call("/sim/reset", ResetSim.Request(domino_count=count, seed=seed), 600.0)
@@ -206,10 +276,10 @@ class CellClient:
     # ------------------------------------------------------------------ actions
     def execute(
         self, trajectory: JointTrajectory, timeout: float, goal_tolerance: float = 0.0
-    ) -> ExecuteTrajectory.Result:
+    ) -> FollowJointTrajectory.Result:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
-        point (0: the simulator's default) within a second."""
-        goal = ExecuteTrajectory.Goal(
+        point (0: the controller's default) within a second."""
+        goal = FollowJointTrajectory.Goal(
             trajectory=trajectory,
             goal_tolerance=[
                 JointTolerance(name=name, position=goal_tolerance)
@@ -217,11 +287,16 @@ class CellClient:
             ],
             goal_time_tolerance=Duration(sec=1),
         )
-        return self._run_action(self._trajectory, goal, timeout, "/execute_trajectory")
+        return self._run_action(self._trajectory, goal, timeout, TRAJECTORY_ACTION)
 
-    def gripper(self, position: float, max_effort: float, timeout: float = 180.0):
-        goal = GripperCommand.Goal(position=float(position), max_effort=float(max_effort))
-        return self._run_action(self._gripper, goal, timeout, "/gripper_command")
+    def gripper(
+        self, position: float, max_effort: float, timeout: float = 180.0
+    ) -> GripperCommand.Result:
+        """Move the fingers to the opening ``position`` [m] (the gap between them)."""
+        command = GripperGoal(position=float(position), max_effort=float(max_effort))
+        return self._run_action(
+            self._gripper, GripperCommand.Goal(command=command), timeout, GRIPPER_ACTION
+        )
 
     def _run_action(self, client: ActionClient, goal, timeout: float, name: str):
         if not client.wait_for_server(timeout_sec=10.0):

@@ -4,7 +4,10 @@
 so the bring-up starts its nodes with this small supervisor: each child gets its
 own process group, its output is forwarded line by line with a ``[name]`` prefix,
 the last lines are kept for the report when a node dies, and stopping sends
-SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses. On Linux each
+SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses. A process
+started ``restartable`` (a stateless server: perception, planner) is started again
+when it dies, like launch's ``respawn``; the caller sees its ``restarts`` count grow
+and sends again what it had asked of it. On Linux each
 child also gets SIGTERM from the kernel if the supervisor dies without stopping it
 (``PR_SET_PDEATHSIG``), so a killed bring-up leaves no orphaned nodes behind.
 """
@@ -25,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import TextIO
 
 TAIL_LINES = 20
+MAX_RESTARTS = 3  # per process: one that keeps dying is reported, not restarted forever
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
@@ -52,6 +56,8 @@ class ManagedProcess:
     name: str
     command: Sequence[str]
     env: dict[str, str] | None = None
+    restartable: bool = False
+    restarts: int = 0
     process: subprocess.Popen[str] | None = None
     tail: collections.deque[str] = field(
         default_factory=lambda: collections.deque(maxlen=TAIL_LINES)
@@ -114,20 +120,42 @@ class ProcessGroup:
         self.processes: list[ManagedProcess] = []
 
     def start(
-        self, name: str, command: Sequence[str], env: dict[str, str] | None = None
+        self,
+        name: str,
+        command: Sequence[str],
+        env: dict[str, str] | None = None,
+        restartable: bool = False,
     ) -> ManagedProcess:
-        managed = ManagedProcess(name=name, command=command, env=env)
+        managed = ManagedProcess(name=name, command=command, env=env, restartable=restartable)
         managed.start(self._sink, self._lock)
         self.processes.append(managed)
         return managed
 
     def check(self) -> None:
-        """Raise NodeDiedError for the first process that has exited."""
+        """Restart a restartable process that has exited; raise NodeDiedError for any other
+        (or for one that has used its MAX_RESTARTS)."""
         for managed in self.processes:
             code = managed.returncode
-            if code is not None:
-                managed.wait(timeout=2.0)
+            if code is None:
+                continue
+            managed.wait(timeout=2.0)
+            if not managed.restartable or managed.restarts >= MAX_RESTARTS:
                 raise NodeDiedError(managed.name, code, managed.tail)
+            managed.restarts += 1
+            self._say(
+                f"node '{managed.name}' died with exit code {code}; starting it again "
+                f"(restart {managed.restarts} of {MAX_RESTARTS})"
+            )
+            managed.start(self._sink, self._lock)
+
+    def restarts(self) -> dict[str, int]:
+        """How often each process has been started again."""
+        return {managed.name: managed.restarts for managed in self.processes}
+
+    def _say(self, line: str) -> None:
+        with self._lock:
+            self._sink.write(f"[bringup] {line}\n")
+            self._sink.flush()
 
     def wait_until(self, ready: Callable[[], bool], timeout: float, what: str) -> None:
         """Poll ``ready`` while checking that no node died; TimeoutError names ``what``."""

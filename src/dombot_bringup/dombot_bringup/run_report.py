@@ -82,6 +82,7 @@ class RunReport:
     message: str = ""
     simulated_s: float = 0.0
     wall_s: float = 0.0
+    node_restarts: dict[str, int] = field(default_factory=dict)  # nodes started again
 
     @property
     def success(self) -> bool:

@@ -1,8 +1,9 @@
 """sim_node: the simulated DOM-BOT cell exposed over ROS 2 as a real cell would be.
 
 Publishes ``/clock``, ``/joint_states``, per camera colour, depth and camera_info, and
-``/sim/domino_ground_truth`` (evaluation only); serves ``/execute_trajectory``
-(FollowJointTrajectory semantics), ``/gripper_command`` (GripperCommand semantics) and
+``/sim/domino_ground_truth`` (evaluation only); serves the arm and gripper actions at
+ros2_control's names (``control_msgs`` FollowJointTrajectory at ``TRAJECTORY_ACTION``,
+GripperCommand at ``GRIPPER_ACTION``, its position the finger opening) and
 ``/sim/reset``. The simulation runs in the main thread, paced to ``real_time_factor``;
 ROS callbacks run on a multi-threaded executor and reach the world under one lock.
 After each trajectory and gripper goal it logs the dominoes that moved ``log_moved_mm``
@@ -23,6 +24,7 @@ from typing import TypeVar
 
 import numpy as np
 import rclpy
+from control_msgs.action import FollowJointTrajectory, GripperCommand
 from geometry_msgs.msg import Twist
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -37,17 +39,20 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 
 from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_description.pose_messages import pose_message, seconds_of, time_message
-from dombot_msgs.action import ExecuteTrajectory, GripperCommand
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
 from dombot_sim.cameras import CameraFrame
 from dombot_sim.motion_watch import describe_motion, take_snapshot
 from dombot_sim.sleeping import SleepSettings
-from dombot_sim.trajectory import TrajectoryError, build_trajectory
+from dombot_sim.trajectory import INVALID_JOINTS, TrajectoryError, build_trajectory
 from dombot_sim.world import CONTACT_APPROXIMATIONS, CellWorld, WorldConfig
 
 T = TypeVar("T")
 MAX_DOMINOES = 200
+# ros2_control's names: joint_trajectory_controller "arm_controller", gripper action
+# controller "gripper_controller".
+TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
+GRIPPER_ACTION = "/gripper_controller/gripper_cmd"
 FEEDBACK_PERIOD = 0.1  # s wall between action feedback messages
 DEFAULT_GOAL_TOLERANCE = 0.01  # rad
 GOAL_SETTLE_TIME = 0.5  # s simulated allowed after the trajectory ends, by default
@@ -233,8 +238,8 @@ class SimNode(Node):
         self.create_service(ResetSim, "/sim/reset", self._on_reset, callback_group=group)
         self._trajectory_server = ActionServer(
             self,
-            ExecuteTrajectory,
-            "/execute_trajectory",
+            FollowJointTrajectory,
+            TRAJECTORY_ACTION,
             execute_callback=self._execute_trajectory,
             goal_callback=lambda _: GoalResponse.ACCEPT,
             cancel_callback=lambda _: CancelResponse.ACCEPT,
@@ -243,7 +248,7 @@ class SimNode(Node):
         self._gripper_server = ActionServer(
             self,
             GripperCommand,
-            "/gripper_command",
+            GRIPPER_ACTION,
             execute_callback=self._execute_gripper,
             goal_callback=lambda _: GoalResponse.ACCEPT,
             cancel_callback=lambda _: CancelResponse.ACCEPT,
@@ -417,20 +422,21 @@ class SimNode(Node):
             self.get_logger().info(f"during the {motion}: " + "; ".join(moved))
         return result
 
-    def _execute_trajectory(self, goal_handle) -> ExecuteTrajectory.Result:
+    def _execute_trajectory(self, goal_handle) -> FollowJointTrajectory.Result:
         return self._watched("trajectory", self._follow_trajectory, goal_handle)
 
     def _execute_gripper(self, goal_handle) -> GripperCommand.Result:
         return self._watched("gripper motion", self._move_gripper, goal_handle)
 
     # ------------------------------------------------------------------ trajectory action
-    def _follow_trajectory(self, goal_handle) -> ExecuteTrajectory.Result:
+    def _follow_trajectory(self, goal_handle) -> FollowJointTrajectory.Result:
         goal = goal_handle.request
         points = goal.trajectory.points
         with self._lock:
             self._generation += 1
             generation = self._generation
             try:
+                _check_no_multi_dof(goal.multi_dof_trajectory.joint_names)
                 spline = build_trajectory(
                     goal.trajectory.joint_names,
                     [seconds_of(p.time_from_start) for p in points],
@@ -442,9 +448,9 @@ class SimNode(Node):
                     self.world.arm_limits(),
                 )
             except TrajectoryError as error:
-                self.get_logger().error(f"/execute_trajectory rejected: {error}")
+                self.get_logger().error(f"{TRAJECTORY_ACTION} rejected: {error}")
                 goal_handle.abort()
-                return ExecuteTrajectory.Result(error_code=error.code, error_string=str(error))
+                return FollowJointTrajectory.Result(error_code=error.code, error_string=str(error))
             end = self.world.follow_trajectory(spline)
         names = list(self.world.arm_joint_names)
         path_tolerance = tolerances(goal.path_tolerance, names, default=-1.0)
@@ -473,14 +479,15 @@ class SimNode(Node):
             if violated.any():
                 with self._lock:
                     self.world.hold_arm()
-                joint = names[int(np.argmax(violated))]
+                j = int(np.argmax(violated))
                 return self._finish(
                     goal_handle,
                     "abort",
                     worst,
                     error,
-                    f"path tolerance violated on {joint}",
-                    ExecuteTrajectory.Result.PATH_TOLERANCE_VIOLATED,
+                    f"path tolerance violated on {names[j]}: {abs(error[j]):.4f} rad off the "
+                    f"trajectory (allowed {path_tolerance[j]:.4f} rad)",
+                    FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED,
                 )
             if time.monotonic() - last_feedback > FEEDBACK_PERIOD:
                 last_feedback = time.monotonic()
@@ -500,30 +507,31 @@ class SimNode(Node):
                     worst,
                     error,
                     f"{joint} ended {abs(error[names.index(joint)]):.4f} rad from the goal",
-                    ExecuteTrajectory.Result.GOAL_TOLERANCE_VIOLATED,
+                    FollowJointTrajectory.Result.GOAL_TOLERANCE_VIOLATED,
                 )
 
     def _finish(self, goal_handle, outcome, worst, error, message, code=0):
+        """End the goal; ``error_string`` carries the tracking figures the control_msgs
+        result has no fields for (largest error along the way, worst joint at the end)."""
         getattr(goal_handle, outcome)()
+        figures = tracking_summary(worst, error)
         if outcome != "succeed":
-            self.get_logger().warning(f"/execute_trajectory {outcome}: {message}")
+            self.get_logger().warning(f"{TRAJECTORY_ACTION} {outcome}: {message}")
         else:
-            self.get_logger().info(f"trajectory done, largest tracking error {worst:.2e} rad")
-        return ExecuteTrajectory.Result(
+            self.get_logger().info(f"trajectory done, {figures}")
+        return FollowJointTrajectory.Result(
             error_code=code if outcome != "cancel" else 0,
-            error_string=message,
-            max_tracking_error=worst,
-            final_position_error=[] if error is None else [float(e) for e in error],
+            error_string=f"{message or 'goal reached'}; {figures}",
         )
 
     # ------------------------------------------------------------------ gripper action
     def _move_gripper(self, goal_handle) -> GripperCommand.Result:
-        goal = goal_handle.request
+        goal = goal_handle.request.command  # position: the finger opening [m]
         with self._lock:
             try:
                 self.world.command_gripper(goal.position, goal.max_effort)
             except ValueError as error:
-                self.get_logger().error(f"/gripper_command rejected: {error}")
+                self.get_logger().error(f"{GRIPPER_ACTION} rejected: {error}")
                 goal_handle.abort()
                 state = self.world.gripper_state()
                 return GripperCommand.Result(position=state.opening, effort=abs(state.force))
@@ -559,6 +567,14 @@ class SimNode(Node):
 
 
 # ---------------------------------------------------------------------- conversions
+def _check_no_multi_dof(names) -> None:
+    if names:
+        raise TrajectoryError(
+            INVALID_JOINTS,
+            f"multi_dof_trajectory names {list(names)}; the arm has single-axis joints only",
+        )
+
+
 def _all_have(points, field_name: str) -> bool:
     return bool(points) and all(len(getattr(p, field_name)) > 0 for p in points)
 
@@ -594,9 +610,16 @@ def camera_info(frame: CameraFrame, header: Header) -> CameraInfo:
     )
 
 
-def feedback_message(names, now, desired_state, state) -> ExecuteTrajectory.Feedback:
+def tracking_summary(worst: float, error: np.ndarray | None) -> str:
+    summary = f"largest tracking error {worst:.2e} rad"
+    if error is None:
+        return summary
+    return summary + f", when it ended {float(np.abs(error).max()):.2e} rad"
+
+
+def feedback_message(names, now, desired_state, state) -> FollowJointTrajectory.Feedback:
     desired, velocity, acceleration = desired_state
-    feedback = ExecuteTrajectory.Feedback()
+    feedback = FollowJointTrajectory.Feedback()
     feedback.header.stamp = time_message(now)
     feedback.joint_names = names
     feedback.desired = JointTrajectoryPoint(
