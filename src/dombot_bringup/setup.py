@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 PACKAGE = "dombot_bringup"
@@ -9,6 +11,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/launch", sorted(glob("launch/*.launch.py"))),
     ],
     install_requires=["setuptools"],
     zip_safe=False,
@@ -21,9 +24,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "bringup = dombot_bringup.bringup:main",
-            "record = dombot_bringup.record_node:main",
-            "replay = dombot_bringup.replay_node:main",
+            "bringup = dombot_bringup.entry_points:bringup",
+            "record = dombot_bringup.entry_points:record",
+            "replay = dombot_bringup.entry_points:replay",
         ],
     },
 )

@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 PACKAGE = "dombot_layer"
@@ -9,6 +11,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
     ],
     install_requires=["setuptools"],
     zip_safe=False,
@@ -21,8 +24,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "layer_node = dombot_layer.layer_node:main",
-            "vehicle_sim_node = dombot_layer.vehicle_sim_node:main",
+            "layer_node = dombot_layer.entry_points:layer_node",
+            "vehicle_sim_node = dombot_layer.entry_points:vehicle_sim_node",
         ],
     },
 )

@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 PACKAGE = "dombot_planner"
@@ -9,6 +11,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
     ],
     install_requires=["setuptools"],
     zip_safe=False,
@@ -20,6 +23,6 @@ setup(
     ),
     license="Apache-2.0",
     entry_points={
-        "console_scripts": ["planner_node = dombot_planner.planner_node:main"],
+        "console_scripts": ["planner_node = dombot_planner.entry_points:planner_node"],
     },
 )

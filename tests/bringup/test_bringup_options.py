@@ -6,9 +6,11 @@ import io
 
 import pytest
 
+from dombot_bringup import layouts
 from dombot_bringup.arm_job import ArmJobSettings, hold_viewer, recorder_command
-from dombot_bringup.bringup import main, parse_args, run_arm
+from dombot_bringup.bringup import main, make_layout, parse_args, run_arm
 from dombot_bringup.layouts import LayoutError
+from dombot_description.scenario import load_scenario
 
 
 @pytest.mark.parametrize(
@@ -71,3 +73,20 @@ def test_the_viewer_is_held_only_on_a_terminal(capsys) -> None:
     )
     assert terminal.tell() == 1  # the Enter was read
     hold_viewer("http://localhost:7000", Terminal(""))  # end of input counts as Enter
+
+
+@pytest.mark.parametrize("layout", ["line", "arc", "circle", "spiral", "s-curve"])
+def test_every_layout_with_its_defaults_fits_the_build_area(layout: str) -> None:
+    args = parse_args(["--layout", layout])
+    scenario = load_scenario()
+    area = layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
+    placements = make_layout(args, area)
+    layouts.validate(placements, area)
+    assert 1 < len(placements) <= args.pile
+
+
+def test_a_directory_as_csv_is_a_usage_error_without_a_traceback(tmp_path, capsys) -> None:
+    assert main(["--layout", "csv", "--csv", str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("bringup: layout rejected: cannot read --csv")
+    assert "it is a directory" in error

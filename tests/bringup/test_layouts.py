@@ -81,6 +81,34 @@ def test_bad_csv_row_names_the_line(tmp_path) -> None:
         layouts.from_csv(path)
 
 
+def test_csv_with_a_utf8_byte_order_mark_keeps_its_first_point(tmp_path) -> None:
+    path = tmp_path / "run.csv"
+    path.write_text("0.5,0.0\n0.5,0.2\n", encoding="utf-8-sig")
+    run = layouts.from_csv(path)
+    assert (run[0].x, run[0].y) == pytest.approx((0.5, 0.0))
+    assert len(run) == int(0.2 // 0.0288) + 1
+
+
+@pytest.mark.parametrize(
+    ("write", "reason"),
+    [
+        (lambda path: path.mkdir(), "it is a directory, not a file"),
+        (lambda path: None, "No such file or directory"),
+        (lambda path: path.write_text("0.5,0.0\n0.5,0.2\n", encoding="utf-16"), "it is not UTF-8"),
+        (
+            lambda path: path.write_text("0.5,0.0\n0.5,0.2\n", encoding="utf-16-le"),
+            "it is not UTF-8",
+        ),
+    ],
+    ids=["directory", "missing", "utf16_with_bom", "utf16_without_bom"],
+)
+def test_an_unreadable_csv_is_refused_with_what_is_wrong(tmp_path, write, reason: str) -> None:
+    path = tmp_path / "run.csv"
+    write(path)
+    with pytest.raises(LayoutError, match=rf"cannot read --csv .*run.csv: {reason}"):
+        layouts.from_csv(path)
+
+
 def test_validation_names_the_first_domino_outside_the_area() -> None:
     run = layouts.line((0.5, 0.4), heading=math.pi / 2, count=8)
     with pytest.raises(

@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import textwrap
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -34,6 +35,36 @@ def handle(request, response):
     response.message = "on" if request.data else "off"
     return response
 node.create_service(SetBool, "/cli/switch", handle)
+rclpy.spin(node)
+"""
+
+# The gripper action's type: control_msgs' where the workspace builds it, else DOM-BOT's
+# own copy with the same semantics (fields one level up).
+try:
+    import control_msgs.action  # noqa: F401
+
+    ACTION_TYPE, ACTION_GOAL = "control_msgs/action/GripperCommand", "{command: {position: 0.05}}"
+    GOAL_POSITION = "goal.command.position"
+except ImportError:
+    ACTION_TYPE, ACTION_GOAL = "dombot_msgs/action/GripperCommand", "{position: 0.05}"
+    GOAL_POSITION = "goal.position"
+
+ACTION_SERVER = f"""
+import time
+import rclpy
+from rclpy.action import ActionServer
+from {ACTION_TYPE.split("/")[0]}.action import GripperCommand
+rclpy.init()
+node = rclpy.create_node("cli_gripper")
+def execute(handle):
+    goal = handle.request
+    while node.count_subscribers("/cli/grip/_action/feedback") == 0:  # the client's
+        time.sleep(0.05)
+    for _ in range(2):
+        handle.publish_feedback(GripperCommand.Feedback(position=0.02))
+    handle.succeed()
+    return GripperCommand.Result(position={GOAL_POSITION}, reached_goal=True)
+server = ActionServer(node, GripperCommand, "/cli/grip", execute)
 rclpy.spin(node)
 """
 
@@ -213,25 +244,83 @@ def test_bad_yaml_and_fields_are_clean_errors() -> None:
     assert_clean_failure(ros2("topic", "echo", "/cli/x", "nope/msg/X", "--once"), "is invalid")
 
 
-def test_ros2_run_starts_an_installed_node_that_joins_the_graph() -> None:
+@pytest.fixture(scope="module")
+def layer_node() -> Iterator[None]:
+    """layer_node started by ``ros2 run`` with its installed parameter file, once it is
+    in the graph."""
+    share = ros2("pkg", "prefix", "--share", "dombot_layer").stdout.strip()
+    parameters = f"{share}/config/layer_node.yaml"
     process = subprocess.Popen(
-        [ROS2, "run", "dombot_layer", "layer_node"],
+        [ROS2, "run", "dombot_layer", "layer_node", "--ros-args", "--params-file", parameters],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
     )
     try:
-        nodes = []
-        for _ in range(10):
-            nodes = ros2_until("/cli_talker", "node", "list").split()
-            if "/layer_node" in nodes:
-                break
-        assert "/layer_node" in nodes
-        info = ros2("node", "info", "/layer_node").stdout
-        assert "    /layer/target_radius: std_msgs/msg/Float64" in info.split("Publishers:")[0]
+        assert "/layer_node" in ros2_until("/layer_node", "node", "list", attempts=10).split()
+        yield
     finally:
         process.terminate()
         assert process.wait(timeout=10) is not None
+
+
+def test_ros2_run_starts_an_installed_node_that_joins_the_graph(layer_node) -> None:
+    info = ros2("node", "info", "/layer_node").stdout
+    assert "    /layer/target_radius: std_msgs/msg/Float64" in info.split("Publishers:")[0]
+
+
+def test_every_service_list_sees_the_whole_graph(layer_node) -> None:
+    """Each call discovers anew: it waits until it sees a node and nothing changes, so
+    consecutive calls agree (without it they printed 0, 7, 0, 0, 7, 7 lines)."""
+    listings = [ros2("service", "list").stdout for _ in range(3)]
+    expected = {f"/layer_node/{verb}_parameters" for verb in ("get", "set", "list")}
+    for listing in listings:
+        assert expected <= set(listing.split()), listing
+    assert listings[0] == listings[1] == listings[2]
+
+
+def test_param_list_get_and_set_on_a_running_node(layer_node) -> None:
+    listing = ros2("param", "list", "/layer_node").stdout.splitlines()
+    assert "  command_rate" in listing and "  geometry.wheel_radius" in listing
+    assert ros2("param", "get", "/layer_node", "command_rate").stdout == "Double value is: 20.0\n"
+    assert ros2("param", "set", "/layer_node", "command_rate", "10.0").stdout == (
+        "Set parameter successful\n"
+    )
+    got = ros2("param", "get", "/layer_node", "command_rate", "--hide-type").stdout
+    assert got == "10.0\n"
+    ros2("param", "set", "/layer_node", "command_rate", "20.0")
+    everyone = ros2("param", "list").stdout.splitlines()
+    assert "/layer_node:" in everyone and "  command_rate" in everyone
+
+
+def test_param_errors_are_clean(layer_node) -> None:
+    refused = ros2("param", "set", "/layer_node", "forward_speed", "-1.0")
+    assert_clean_failure(refused, "Setting parameter failed: forward_speed must be a positive")
+    assert_clean_failure(ros2("param", "get", "/layer_node", "no_such"), "Parameter not set")
+    assert_clean_failure(ros2("param", "get", "/no_such_node", "x"), "Node not found")
+
+
+def test_a_call_with_no_server_says_so_after_its_timeout() -> None:
+    call = ros2("service", "call", "/cli/nobody", "std_srvs/srv/SetBool", "--timeout", "2")
+    assert "waiting for service to become available..." in call.stdout
+    assert_clean_failure(call, "no server for service '/cli/nobody' appeared within 2 s")
+    goal = ros2("action", "send_goal", "/cli/nobody", ACTION_TYPE, "--timeout", "2")
+    assert "Waiting for an action server to become available..." in goal.stdout
+    assert_clean_failure(goal, "no server for action '/cli/nobody' appeared within 2 s")
+
+
+def test_action_list_and_send_goal_with_feedback() -> None:
+    with python_process(ACTION_SERVER):
+        listing = ros2_until("/cli/grip", "action", "list", "-t")
+        result = ros2("action", "send_goal", "-f", "/cli/grip", ACTION_TYPE, ACTION_GOAL)
+    assert f"/cli/grip [{ACTION_TYPE}]" in listing.splitlines()
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[:2] == ["Waiting for an action server to become available...", "Sending goal:"]
+    assert "Goal accepted with ID: " in result.stdout
+    assert result.stdout.count("Feedback:\n    position: 0.02") == 2
+    assert "Result:\n    position: 0.05\n" in result.stdout
+    assert lines[-1] == "Goal finished with status: SUCCEEDED"
 
 
 def test_hands_over_to_a_real_ros2_when_one_is_installed(tmp_path: Path) -> None:

@@ -10,7 +10,9 @@ import sys
 from pathlib import Path
 
 HANDOVER_ENV = "DOMBOT_ROS2_REAL"  # tests point this at a stand-in 'real' ros2
-SPIN_TIME = 1.0  # s of discovery before answering graph questions
+SPIN_TIME = 0.5  # s of discovery before answering graph questions (then until it settles)
+CALL_TIMEOUT = 30.0  # s to wait for a service or action server that is not there
+PARAM_TIMEOUT = 10.0  # s for a node's parameter services to answer
 
 
 def real_ros2() -> str | None:
@@ -102,8 +104,37 @@ def build_parser() -> argparse.ArgumentParser:
     call.add_argument(
         "--timeout",
         type=float,
-        default=30.0,
-        help="seconds to wait for the service and its response",
+        default=CALL_TIMEOUT,
+        help="seconds to wait for the service and then for its response (%(default)s)",
+    )
+
+    param = _verbs(commands, "param", "Various param related sub-commands")
+    listing = param.add_parser("list", help="Output a list of available parameters")
+    listing.add_argument("node_name", nargs="?", help="Name of the ROS node")
+    get = param.add_parser("get", help="Get parameter")
+    get.add_argument("node_name", help="Name of the ROS node")
+    get.add_argument("parameter_name", help="Name of the parameter")
+    get.add_argument("--hide-type", action="store_true", help="Hide the type information")
+    put = param.add_parser("set", help="Set parameter")
+    put.add_argument("node_name", help="Name of the ROS node")
+    put.add_argument("parameter_name", help="Name of the parameter")
+    put.add_argument("value", help="Value of the parameter")
+
+    action = _verbs(commands, "action", "Various action related sub-commands")
+    listing = action.add_parser("list", help="Output a list of action names")
+    listing.add_argument("-t", "--show-types", action="store_true")
+    goal = action.add_parser("send_goal", help="Send an action goal")
+    goal.add_argument("action_name", help="Name of the ROS action (e.g. '/fibonacci')")
+    goal.add_argument("action_type", help="Type of the ROS action")
+    goal.add_argument("goal", nargs="?", default="{}", help="Goal request values in YAML format")
+    goal.add_argument(
+        "-f", "--feedback", action="store_true", help="Echo feedback messages for the goal"
+    )
+    goal.add_argument(
+        "--timeout",
+        type=float,
+        default=CALL_TIMEOUT,
+        help="seconds to wait for the action server (%(default)s); the goal may run longer",
     )
 
     interface = _verbs(commands, "interface", "Show information about ROS interfaces")
@@ -146,8 +177,10 @@ def dispatch(args: argparse.Namespace) -> int:
         return _print(_interface(args, interfaces))
     from rclpy.executors import ExternalShutdownException
 
+    # A call waits for its own server; listings and node look-ups wait for the graph.
+    calls = args.verb in ("call", "send_goal")
     try:
-        with graph.graph_node(SPIN_TIME) as node:
+        with graph.graph_node(SPIN_TIME, settle_limit=0.0 if calls else 10.0) as node:
             return _print(_graph(args, graph, node))
     except ExternalShutdownException:  # Ctrl-C or SIGTERM while spinning
         return 0
@@ -202,9 +235,38 @@ def _graph(args, graph, node) -> list[str]:
             return [graph.service_type(node, args.service_name)]
         graph.service_call(node, args.service_name, args.service_type, args.values, args.timeout)
         return []
+    if args.command == "param":
+        return _param(args, node)
+    if args.command == "action":
+        return _action(args, node)
     if args.verb == "list":
         return graph.node_list(node, args.all)
     return graph.node_info(node, args.node_name)
+
+
+def _param(args, node) -> list[str]:
+    from dombot_ros2 import params
+
+    if args.verb == "list":
+        return params.param_list(node, args.node_name, PARAM_TIMEOUT)
+    if args.verb == "get":
+        return [
+            params.param_get(
+                node, args.node_name, args.parameter_name, args.hide_type, PARAM_TIMEOUT
+            )
+        ]
+    return [params.param_set(node, args.node_name, args.parameter_name, args.value, PARAM_TIMEOUT)]
+
+
+def _action(args, node) -> list[str]:
+    from dombot_ros2 import actions
+
+    if args.verb == "list":
+        return actions.action_list(node, args.show_types)
+    actions.send_goal(
+        node, args.action_name, args.action_type, args.goal, args.feedback, args.timeout
+    )
+    return []
 
 
 def _print(lines: list[str]) -> int:
@@ -222,6 +284,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return dispatch(args)
     except KeyboardInterrupt:
+        return 0
+    except BrokenPipeError:  # output piped into head & co., which stopped reading
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except (LookupError, RuntimeError, ValueError) as error:
         print(error, file=sys.stderr)

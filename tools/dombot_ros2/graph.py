@@ -20,29 +20,42 @@ from dombot_ros2.packages import CommandError
 
 
 @contextmanager
-def graph_node(spin_time: float, settle_limit: float = 5.0) -> Iterator[Node]:
+def graph_node(spin_time: float, settle_limit: float = 10.0) -> Iterator[Node]:
     """A hidden node whose view of the graph has settled.
 
-    There is no daemon holding the graph, so each command discovers it anew: spin
-    ``spin_time``, then until the set of nodes and topics stops changing for 0.5 s
-    (a loaded machine discovers slowly), at most ``settle_limit`` seconds.
+    There is no daemon holding the graph, so each command discovers it anew, and Fast
+    DDS announces other participants and their endpoints over a second or more on a
+    loaded machine: answered after a fixed spin, six ``service list`` calls with
+    layer_node up printed 0, 7, 0, 0, 7 and 7 lines. So spin ``spin_time``, then on
+    while no other node is seen or the set of nodes, topics and services still changed
+    within the last ``QUIET`` seconds, at most ``settle_limit`` seconds (a graph that
+    is really empty is reported after that long).
     """
     rclpy.init()
     node = rclpy.create_node(f"_ros2cli_{os.getpid()}", start_parameter_services=False)
     try:
         spin_for(node, spin_time)
-        deadline = time.monotonic() + settle_limit
-        seen = _graph_snapshot(node)
-        while time.monotonic() < deadline:
-            spin_for(node, 0.5)
-            now = _graph_snapshot(node)
-            if now == seen:
-                break
-            seen = now
+        if settle_limit > 0:
+            _settle(node, settle_limit)
         yield node
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+QUIET = 1.0  # s without a change in the graph before it counts as discovered
+
+
+def _settle(node: Node, limit: float) -> None:
+    deadline = time.monotonic() + limit
+    seen, changed = _graph_snapshot(node), time.monotonic()
+    while time.monotonic() < deadline:
+        spin_for(node, 0.1)
+        now = _graph_snapshot(node)
+        if now != seen:
+            seen, changed = now, time.monotonic()
+        elif _others(node, seen) and time.monotonic() - changed >= QUIET:
+            return
 
 
 def _graph_snapshot(node: Node) -> tuple:
@@ -51,6 +64,10 @@ def _graph_snapshot(node: Node) -> tuple:
         sorted((name, tuple(types)) for name, types in node.get_topic_names_and_types()),
         sorted((name, tuple(types)) for name, types in node.get_service_names_and_types()),
     )
+
+
+def _others(node: Node, snapshot: tuple) -> bool:
+    return any(name != node.get_name() for name, _ in snapshot[0])
 
 
 def spin_for(node: Node, seconds: float) -> None:
@@ -215,7 +232,7 @@ def service_call(node: Node, service: str, type_name: str, values: str, timeout:
             print("waiting for service to become available...", flush=True)
             announced = True
         if time.monotonic() > deadline:
-            raise CommandError(f"service '{service}' did not become available in {timeout:.0f} s")
+            raise CommandError(no_server("service", service, timeout))
         spin_for(node, 0.1)
     print(f"requester: making request: {request!r}\n", flush=True)
     future = client.call_async(request)
@@ -224,6 +241,13 @@ def service_call(node: Node, service: str, type_name: str, values: str, timeout:
             raise CommandError(f"no response from '{service}' within {timeout:.0f} s")
         rclpy.spin_once(node, timeout_sec=0.1)
     print(f"response:\n{future.result()!r}\n", flush=True)
+
+
+def no_server(kind: str, name: str, timeout: float) -> str:
+    return (
+        f"no server for {kind} '{name}' appeared within {timeout:g} s: start the node that "
+        f"serves it (ros2 {kind} list shows what is served now)"
+    )
 
 
 # ---------------------------------------------------------------- nodes

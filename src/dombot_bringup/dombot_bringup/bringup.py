@@ -59,8 +59,17 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     run.add_argument("--spacing", type=float, help="centre spacing [m] (default 60%% of height)")
     run.add_argument("--start", type=float, nargs=2, default=(0.45, 0.0), metavar=("X", "Y"))
     run.add_argument("--heading", type=float, default=90.0, help="line/s-curve heading [deg]")
-    run.add_argument("--center", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"))
-    run.add_argument("--radius", type=float, help="arc/circle radius [m] (arc 0.6; layer 0.5)")
+    run.add_argument(
+        "--center",
+        type=float,
+        nargs=2,
+        metavar=("X", "Y"),
+        help="arc/circle/spiral centre [m] (arc: the arm base 0 0; circle, spiral: the middle "
+        "of the build area)",
+    )
+    run.add_argument(
+        "--radius", type=float, help="arc/circle radius [m] (arc 0.6; circle 0.1; layer 0.5)"
+    )
     run.add_argument("--start-angle", type=float, default=5.0, help="arc start [deg] (5)")
     run.add_argument("--inner-radius", type=float, default=0.08, help="spiral [m]")
     run.add_argument("--pitch", type=float, default=0.06, help="spiral [m per turn]")
@@ -168,19 +177,21 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def make_layout(args: argparse.Namespace) -> list[layouts.DominoPlacement]:
+def make_layout(args: argparse.Namespace, area: layouts.BuildArea) -> list[layouts.DominoPlacement]:
+    """The run the options describe; each shape's defaults fit inside ``area``."""
     heading = math.radians(args.heading)
     if args.layout == "line":
         return layouts.line(tuple(args.start), heading, args.count, args.spacing)
     if args.layout == "arc":
         radius = 0.6 if args.radius is None else args.radius
         start = math.radians(args.start_angle)
-        return layouts.arc(tuple(args.center), radius, start, args.count, args.spacing)
+        center = area.base_xy if args.center is None else tuple(args.center)
+        return layouts.arc(center, radius, start, args.count, args.spacing)
+    center = area.middle if args.center is None else tuple(args.center)
     if args.layout == "circle":
         radius = 0.1 if args.radius is None else args.radius
-        return layouts.circle(tuple(args.center), radius, args.spacing)
+        return layouts.circle(center, radius, args.spacing)
     if args.layout == "spiral":
-        center = tuple(args.center)
         return layouts.spiral(center, args.inner_radius, args.pitch, args.count, args.spacing)
     if args.layout == "s-curve":
         return layouts.s_curve(
@@ -192,9 +203,9 @@ def make_layout(args: argparse.Namespace) -> list[layouts.DominoPlacement]:
 
 
 def run_arm(args: argparse.Namespace) -> int:
-    placements = make_layout(args)
     scenario = load_scenario()
     area = layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
+    placements = make_layout(args, area)
     layouts.validate(placements, area)
     if not 1 <= args.pile <= 200:
         raise layouts.LayoutError(f"--pile must be 1..200, got {args.pile}")

@@ -9,6 +9,7 @@ bad domino, because a builder fixes a layout one domino at a time.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -70,6 +71,11 @@ class BuildArea:
 
     def reach_of(self, x: float, y: float) -> float:
         return math.hypot(x - self.base_xy[0], y - self.base_xy[1])
+
+    @property
+    def middle(self) -> tuple[float, float]:
+        """The box's centre: where a circle or spiral fits by default."""
+        return ((self.x_min + self.x_max) / 2, (self.y_min + self.y_max) / 2)
 
 
 def _upright_quaternion(heading: float) -> tuple[float, float, float, float]:
@@ -215,21 +221,45 @@ def polyline(
 def from_csv(
     path: Path, count: int | None = None, spacing: float | None = None
 ) -> list[DominoPlacement]:
-    """A polyline from a CSV file of ``x,y`` rows in metres (a header row is allowed)."""
-    rows = []
-    with Path(path).open(newline="") as handle:
-        for line_number, row in enumerate(csv.reader(handle), start=1):
-            if not row or row[0].strip().startswith("#"):
-                continue
-            try:
-                rows.append((float(row[0]), float(row[1])))
-            except (ValueError, IndexError):
-                if line_number == 1:
-                    continue  # header
-                raise LayoutError(
-                    f"{path}:{line_number}: expected 'x,y' in metres, got {row}"
-                ) from None
+    """A polyline from a CSV file of ``x,y`` rows in metres (a header row is allowed).
+
+    Read as UTF-8 with an optional byte-order mark (spreadsheets write one: read as
+    plain UTF-8 it made the first point look like a header, dropped silently)."""
+    try:
+        with Path(path).open(newline="", encoding="utf-8-sig") as handle:
+            text = handle.read()
+        if "\x00" in text:  # UTF-16 without a byte-order mark decodes as UTF-8 with NULs
+            raise UnicodeError
+        rows = _csv_points(path, list(csv.reader(io.StringIO(text, newline=""))))
+    except (OSError, UnicodeError, csv.Error) as error:
+        raise LayoutError(f"cannot read --csv {path}: {_reason(error)}") from None
     return polyline(np.array(rows), count, spacing)
+
+
+def _reason(error: Exception) -> str:
+    if isinstance(error, IsADirectoryError):
+        return "it is a directory, not a file"
+    if isinstance(error, UnicodeError):
+        return "it is not UTF-8 text (UTF-16? save it as CSV UTF-8)"
+    if isinstance(error, csv.Error):
+        return f"it is not plain CSV text ({error})"
+    return error.strerror or str(error)
+
+
+def _csv_points(path: Path, table: list[list[str]]) -> list[tuple[float, float]]:
+    rows = []
+    for line_number, row in enumerate(table, start=1):
+        if not row or row[0].strip().startswith("#"):
+            continue
+        try:
+            rows.append((float(row[0]), float(row[1])))
+        except (ValueError, IndexError):
+            if line_number == 1:
+                continue  # header
+            raise LayoutError(
+                f"{path}:{line_number}: expected 'x,y' in metres, got {row}"
+            ) from None
+    return rows
 
 
 def _sample_polyline(

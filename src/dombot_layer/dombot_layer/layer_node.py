@@ -19,13 +19,13 @@ from dataclasses import fields
 
 import numpy as np
 import rclpy
-import rclpy.executors
 from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray
 
+from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import (
     LayerKinematics,
@@ -268,9 +268,8 @@ def spin(node_class: type[Node], args: list[str] | None = None) -> None:
     rclpy.init(args=args)
     node = node_class()
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
+        with stop_quietly_on_shutdown():
+            rclpy.spin(node)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

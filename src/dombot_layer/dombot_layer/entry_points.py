@@ -1,0 +1,12 @@
+"""The package's console scripts (setup.py), each importing its module inside
+``run_quietly`` so that Ctrl-C at any moment, imports included, ends it quietly."""
+
+from dombot_description.console import run_quietly
+
+
+def layer_node() -> int:
+    return run_quietly("dombot_layer.layer_node")
+
+
+def vehicle_sim_node() -> int:
+    return run_quietly("dombot_layer.vehicle_sim_node")

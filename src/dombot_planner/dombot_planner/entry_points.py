@@ -1,0 +1,8 @@
+"""The package's console scripts (setup.py), each importing its module inside
+``run_quietly`` so that Ctrl-C at any moment, imports included, ends it quietly."""
+
+from dombot_description.console import run_quietly
+
+
+def planner_node() -> int:
+    return run_quietly("dombot_planner.planner_node")

@@ -1,0 +1,113 @@
+"""Ctrl-C at any moment, imports included, ends every DOM-BOT executable quietly."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from ament_index_python.packages import get_package_prefix
+
+from dombot_description.console import INTERRUPTED
+
+SLOW_MODULE = """
+import sys, time
+print("importing", flush=True)
+time.sleep(60)  # an import that takes a while, as Drake's does
+def main():
+    return 0
+"""
+
+EXECUTABLES = [
+    ("dombot_sim", "sim_node"),
+    ("dombot_perception", "perception_node"),
+    ("dombot_planner", "planner_node"),
+    ("dombot_layer", "layer_node"),
+    ("dombot_layer", "vehicle_sim_node"),
+    ("dombot_bringup", "bringup"),
+]
+
+
+def test_ctrl_c_while_the_node_module_imports_ends_quietly(tmp_path: Path) -> None:
+    (tmp_path / "slow_node.py").write_text(SLOW_MODULE)
+    code = "from dombot_description.console import run_quietly; exit(run_quietly('slow_node'))"
+    env = dict(os.environ, PYTHONPATH=f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    child = subprocess.Popen(
+        [sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    assert child.stdout.readline() == b"importing\n"
+    child.send_signal(signal.SIGINT)
+    _, error = child.communicate(timeout=30)
+    assert child.returncode == INTERRUPTED
+    assert error == b""
+
+
+def _loaded(pid: int, library: str) -> bool:
+    try:
+        return library in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs Linux /proc")
+@pytest.mark.parametrize(("package", "executable"), EXECUTABLES)
+def test_ctrl_c_during_start_up_leaves_no_traceback(
+    package: str, executable: str, tmp_path: Path
+) -> None:
+    """SIGINT once rclpy's library is loaded: the executable is importing the rest of its
+    modules or already starting; either way it ends without a traceback."""
+    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    arguments = ["--out", str(tmp_path)] if executable == "bringup" else []
+    child = subprocess.Popen(
+        [str(path), *arguments], stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not _loaded(child.pid, "_rclpy_pybind11") and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert _loaded(child.pid, "_rclpy_pybind11"), f"{executable} never imported rclpy"
+        child.send_signal(signal.SIGINT)
+        output, _ = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    text = output.decode(errors="replace")
+    assert "Traceback" not in text and "KeyboardInterrupt" not in text, text
+    assert child.returncode in (0, INTERRUPTED), text
+
+
+@pytest.mark.parametrize(
+    ("package", "executable", "started"),
+    [
+        ("dombot_layer", "layer_node", "ready:"),
+        ("dombot_layer", "vehicle_sim_node", "simulating"),
+    ],
+)
+def test_ctrl_c_while_a_node_spins_leaves_no_traceback(
+    package: str, executable: str, started: str
+) -> None:
+    """SIGINT shuts rclpy's context down under the spinning executor, whose next wait then
+    fails ('the given context is not valid'): that is a normal stop too."""
+    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    child = subprocess.Popen(
+        [str(path)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+        lines = []
+        while not any(started in line for line in lines):
+            line = child.stdout.readline()
+            assert line, f"{executable} ended before it started: {''.join(lines)}"
+            lines.append(line)
+        child.send_signal(signal.SIGINT)
+        output, _ = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert "Traceback" not in output, output
+    assert child.returncode in (0, INTERRUPTED), output
