@@ -131,7 +131,7 @@ def test_validation_names_an_overlapping_domino() -> None:
         layouts.validate([*run, clash], AREA)
 
 
-@pytest.mark.parametrize("spacing", [0.005, 0.06, float("nan")])
+@pytest.mark.parametrize("spacing", [0.005, 0.013, 0.06, float("nan")])
 def test_spacing_that_would_not_topple_is_refused(spacing: float) -> None:
     with pytest.raises(LayoutError, match="spacing"):
         layouts.line((0.5, 0.0), 0.0, 3, spacing=spacing)
