@@ -65,7 +65,7 @@ class Camera:
         self.static.publish(TFMessage(transforms=[transform_stamped(*t) for t in transforms]))
 
     def detected_position(self) -> tuple[np.ndarray | None, str]:
-        response = call_service(self.node, self.detect, DetectDominoes.Request(), timeout=30)
+        response = call_service(self.node, self.detect, DetectDominoes.Request(), timeout=60)
         assert response is not None, "no answer from /perception/detect"
         if not response.success or len(response.detections.detections) != 1:
             return None, response.message
@@ -85,7 +85,7 @@ def camera(render_scene):
     ]
     with installed_node("dombot_perception", "perception_node", *arguments) as process:
         camera = Camera(views)
-        assert spin_until(camera.node, camera.detect.service_is_ready, 60), process.poll()
+        assert spin_until(camera.node, camera.detect.service_is_ready, 120), process.poll()
         yield camera
         camera.node.destroy_node()
         assert process.poll() is None, "perception_node died during the tests"
@@ -95,11 +95,11 @@ def camera(render_scene):
 def test_no_camera_pose_without_transforms_then_the_calibrated_pose(camera: Camera) -> None:
     """Before /tf_static says where the cameras are, no view is usable and the answer
     names the missing frame; with it, the domino is where it lies."""
-    assert spin_until(camera.node, lambda: "received yet" not in camera.detected_position()[1], 60)
+    assert spin_until(camera.node, lambda: "received yet" not in camera.detected_position()[1], 120)
     position, message = camera.detected_position()
     assert position is None and "camera_0_color_optical_frame" in message, message
     camera.calibrate(RIG)
-    assert spin_until(camera.node, lambda: camera.detected_position()[0] is not None, 60)
+    assert spin_until(camera.node, lambda: camera.detected_position()[0] is not None, 120)
     position, message = camera.detected_position()
     assert np.linalg.norm(position - TRUTH[:3, 3]) < 0.003, message
 
@@ -114,6 +114,6 @@ def test_a_moved_rig_moves_the_detection_with_it(camera: Camera) -> None:
         position = camera.detected_position()[0]
         return position is not None and np.linalg.norm(position - TRUTH[:3, 3]) > 0.0075
 
-    assert spin_until(camera.node, shifted, 60)
+    assert spin_until(camera.node, shifted, 120)
     position, message = camera.detected_position()
     assert np.linalg.norm(position - (TRUTH[:3, 3] + shift)) < 0.003, message
