@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import Transform, Vector3
 from scipy.spatial.transform import Rotation
 
 from dombot_description.pose_messages import (
@@ -13,7 +12,6 @@ from dombot_description.pose_messages import (
     pose_message,
     seconds_of,
     time_message,
-    transform_matrix,
 )
 
 
@@ -22,16 +20,6 @@ def test_a_pose_survives_the_message_both_ways() -> None:
     matrix[:3, :3] = Rotation.from_euler("xyz", [0.3, -1.2, 2.5]).as_matrix()
     matrix[:3, 3] = [0.55, -0.3, 0.004]
     assert np.allclose(pose_matrix(pose_message(matrix)), matrix)
-
-
-def test_a_tf_transform_gives_its_matrix() -> None:
-    matrix = np.eye(4)
-    matrix[:3, :3] = Rotation.from_euler("xyz", [-2.0, 0.4, 1.1]).as_matrix()
-    matrix[:3, 3] = [0.2, 0.7, -0.1]
-    pose = pose_message(matrix)
-    p = pose.position
-    transform = Transform(translation=Vector3(x=p.x, y=p.y, z=p.z), rotation=pose.orientation)
-    assert np.allclose(transform_matrix(transform), matrix)
 
 
 @pytest.mark.parametrize("seconds", [0.0, 0.01, 1.5, 2.999999999, 7.0 + 1e-9, 1795514776.3])

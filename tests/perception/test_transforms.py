@@ -22,12 +22,17 @@ X_RC = transform([0.3, -2.0, 0.1], [0.1, 0.2, 0.0])
 X_WT = transform([0.0, 0.4, 0.0], [0.0, -1.0, 0.0])
 
 
+def put(buffer: TransformBuffer, parent: str, child: str, x: np.ndarray) -> None:
+    """As tf sends it: translation and quaternion (x, y, z, w)."""
+    buffer.set(parent, child, tuple(x[:3, 3]), tuple(Rotation.from_matrix(x[:3, :3]).as_quat()))
+
+
 @pytest.fixture
 def buffer() -> TransformBuffer:
     buffer = TransformBuffer()
-    buffer.set("world", "rig", X_WR)
-    buffer.set("rig", "camera_optical", X_RC)
-    buffer.set("world", "table", X_WT)
+    put(buffer, "world", "rig", X_WR)
+    put(buffer, "rig", "camera_optical", X_RC)
+    put(buffer, "world", "table", X_WT)
     return buffer
 
 
@@ -41,16 +46,24 @@ def test_a_chain_composes_down_up_and_across(buffer: TransformBuffer) -> None:
 
 def test_the_newest_transform_of_a_frame_wins(buffer: TransformBuffer) -> None:
     moved = transform([0.0, 0.0, 0.0], [0.0, 0.0, 0.01])
-    buffer.set("rig", "camera_optical", X_RC @ moved)
+    put(buffer, "rig", "camera_optical", X_RC @ moved)
     assert np.allclose(buffer.lookup("world", "camera_optical"), X_WR @ X_RC @ moved)
+
+
+def test_a_quaternion_off_unit_length_is_normalised() -> None:
+    buffer = TransformBuffer()
+    buffer.set("world", "camera", (1.0, 2.0, 3.0), (0.0, 0.0, 2.0, 0.0))  # half turn about z
+    expected = np.diag([-1.0, -1.0, 1.0, 1.0])
+    expected[:3, 3] = [1.0, 2.0, 3.0]
+    assert np.allclose(buffer.lookup("world", "camera"), expected)
 
 
 def test_unknown_and_unconnected_frames_are_named(buffer: TransformBuffer) -> None:
     with pytest.raises(LookupError, match="camera_9"):
         buffer.lookup("world", "camera_9")
-    buffer.set("odom", "base", np.eye(4))
+    put(buffer, "odom", "base", np.eye(4))
     with pytest.raises(LookupError, match="'odom'"):
         buffer.lookup("world", "base")
-    buffer.set("rig", "world", np.eye(4))  # world → rig → world
+    put(buffer, "rig", "world", np.eye(4))  # world → rig → world
     with pytest.raises(LookupError, match="loop"):
         buffer.lookup("world", "camera_optical")

@@ -1,12 +1,12 @@
-"""4x4 homogeneous transforms ↔ ``geometry_msgs/Pose`` and ``geometry_msgs/Transform``:
-the one conversion every node adapter needs between the plain modules (numpy) and their
-messages; and seconds ↔ ``builtin_interfaces/Time`` and ``Duration``."""
+"""4x4 homogeneous transforms ↔ ``geometry_msgs/Pose``: the one conversion every node
+adapter needs between the plain modules (numpy) and their messages; and seconds ↔
+``builtin_interfaces/Time`` and ``Duration``."""
 
 from __future__ import annotations
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import Point, Pose, Quaternion, Transform
+from geometry_msgs.msg import Point, Pose, Quaternion
 from scipy.spatial.transform import Rotation
 
 
@@ -23,15 +23,6 @@ def pose_message(matrix: np.ndarray) -> Pose:
     x, y, z = (float(v) for v in matrix[:3, 3])
     qx, qy, qz, qw = (float(v) for v in Rotation.from_matrix(matrix[:3, :3]).as_quat())
     return Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
-
-
-def transform_matrix(transform: Transform) -> np.ndarray:
-    """The 4x4 matrix of a tf transform (its quaternion normalised by scipy)."""
-    t, q = transform.translation, transform.rotation
-    pose = Pose(
-        position=Point(x=t.x, y=t.y, z=t.z), orientation=Quaternion(x=q.x, y=q.y, z=q.z, w=q.w)
-    )
-    return pose_matrix(pose)
 
 
 def time_message(seconds: float) -> Time:

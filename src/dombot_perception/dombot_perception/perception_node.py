@@ -37,7 +37,7 @@ from tf2_msgs.msg import TFMessage
 
 from dombot_description import tilt_from_vertical
 from dombot_description.node_shutdown import stop_quietly_on_shutdown
-from dombot_description.pose_messages import pose_matrix, pose_message, transform_matrix
+from dombot_description.pose_messages import pose_matrix, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
@@ -267,11 +267,13 @@ class PerceptionNode(Node):
             )
 
     def _on_transforms(self, message: TFMessage) -> None:
-        for transform in message.transforms:
+        for stamped in message.transforms:
+            t, q = stamped.transform.translation, stamped.transform.rotation
             self.transforms.set(
-                transform.header.frame_id,
-                transform.child_frame_id,
-                transform_matrix(transform.transform),
+                stamped.header.frame_id,
+                stamped.child_frame_id,
+                (t.x, t.y, t.z),
+                (q.x, q.y, q.z, q.w),
             )
 
     def _known(self, names: list[str]) -> list[str]:
