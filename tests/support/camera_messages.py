@@ -1,12 +1,12 @@
-"""Rendered views as the messages a camera driver publishes, and its calibration as tf."""
+"""Rendered views as the messages a camera driver publishes; tf transforms ↔ 4x4 matrices."""
 
 from __future__ import annotations
 
 import numpy as np
-from geometry_msgs.msg import Transform, TransformStamped, Vector3
+from geometry_msgs.msg import Point, Pose, Transform, TransformStamped, Vector3
 from sensor_msgs.msg import CameraInfo, Image
 
-from dombot_description.pose_messages import pose_message
+from dombot_description.pose_messages import pose_matrix, pose_message
 
 
 def image_messages(
@@ -36,3 +36,9 @@ def transform_stamped(parent: str, child: str, matrix: np.ndarray) -> TransformS
         translation=Vector3(x=p.x, y=p.y, z=p.z), rotation=pose.orientation
     )
     return stamped
+
+
+def transform_matrix(transform: Transform) -> np.ndarray:
+    """The 4x4 matrix of a tf transform."""
+    t = transform.translation
+    return pose_matrix(Pose(position=Point(x=t.x, y=t.y, z=t.z), orientation=transform.rotation))
