@@ -22,24 +22,12 @@ from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.domino_model import orientation_error
 from dombot_perception.perception_node import CameraInput
+from support.camera_messages import image_messages
 from support.perception_scenes import PILE_CENTRE, flat
 from support.ros_processes import call_service, installed_node, spin_until
 
 TRUTH = flat(*PILE_CENTRE, yaw=0.4)
 STANDING_IN_RUN = upright_pose(0.52, 0.15, 0.4).GetAsMatrix4()  # seen by camera_2
-
-
-def image_messages(view, stamp, depth_encoding: str = "32FC1") -> tuple[Image, Image, CameraInfo]:
-    height, width = view.depth.shape
-    color = Image(height=height, width=width, encoding="rgb8", step=width * 3)
-    color.data = view.rgb.tobytes()
-    depth = Image(height=height, width=width, encoding=depth_encoding, step=width * 4)
-    depth.data = view.depth.astype(np.float32).tobytes()
-    info = CameraInfo(height=height, width=width, k=view.K.ravel().tolist())
-    for message in (color, depth, info):
-        message.header.stamp = stamp
-        message.header.frame_id = f"{view.name}_optical"
-    return color, depth, info
 
 
 class Cameras:

@@ -3,11 +3,14 @@
 A thin ROS adapter over ``pipeline``: it keeps the latest synchronised colour/depth/
 camera_info of each camera, runs the pipeline continuously at ``rate`` (when
 ``continuous``) and on demand through ``/perception/detect``, and publishes
-``/domino_poses`` (best grasp first), ``/domino_detections`` and a debug picture.
-Camera poses come from the scenario file, or from ``<camera>.optical_pose``
-parameters. Missing, stale or malformed images give an empty result and a warning;
-the node keeps serving. ``/perception/check_placement`` looks at where the dominoes of a
-run should stand (``placement_check``), with the build-area camera by default.
+``/domino_poses`` (best grasp first), ``/domino_detections`` and a debug picture. Camera
+poses come from the scenario file, from ``<camera>.optical_pose`` parameters, or
+(``extrinsics_from_tf``) from /tf and /tf_static: world → the images' frame, a real
+cell's calibration. Images are subscribed with sensor-data QoS (best effort), so a
+best-effort camera driver connects as well as a reliable one. Missing, stale or malformed
+images give an empty result and a warning; the node keeps serving.
+``/perception/check_placement`` looks at where the dominoes of a run should stand
+(``placement_check``), with the build-area camera by default.
 """
 
 from __future__ import annotations
@@ -27,8 +30,10 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
+from tf2_msgs.msg import TFMessage
 
 from dombot_description import tilt_from_vertical
 from dombot_description.node_shutdown import stop_quietly_on_shutdown
@@ -41,6 +46,7 @@ from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline, PipelineResult, build_pipeline
 from dombot_perception.placement_check import PlacementConfig, check_placements
 from dombot_perception.segmentation import SegmenterError
+from dombot_perception.transforms import TransformBuffer
 
 DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
 MAX_IN_HAND_TILT = math.degrees(PlacementConfig().max_tilt)  # expected poses when in_hand
@@ -52,6 +58,11 @@ SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one
 FRESH_WAIT = 10.0
 STAMP_SLACK = 1e-3  # s: stamps this much before not_before still count (rounding)
 DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
+WORLD_FRAME = "world"
+# tf2_ros's listener QoS: /tf reliable, volatile; /tf_static reliable, transient local
+TF_QOS = QoSProfile(depth=100)
+TF_STATIC_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+START_UP_PARAMETERS = ("cameras", "scenario", "extrinsics_from_tf")
 
 
 @dataclass
@@ -106,6 +117,12 @@ class PerceptionNode(Node):
         inputs = ReentrantCallbackGroup()
         for name in self.camera_names:
             self._subscribe(name, inputs)
+        self.transforms = TransformBuffer()
+        if self._param("extrinsics_from_tf"):
+            for topic, qos in (("/tf", TF_QOS), ("/tf_static", TF_STATIC_QOS)):
+                self.create_subscription(
+                    TFMessage, topic, self._on_transforms, qos, callback_group=inputs
+                )
         work = MutuallyExclusiveCallbackGroup()
         self.create_service(
             DetectDominoes, "perception/detect", self._on_detect, callback_group=work
@@ -121,9 +138,11 @@ class PerceptionNode(Node):
             1.0 / self._param("rate"), self._on_timer, callback_group=work
         )
         mode = f"continuous at {self._param('rate')} Hz" if self._param("continuous") else ""
+        extrinsics = "/tf" if self._param("extrinsics_from_tf") else "the scenario"
         self.get_logger().info(
-            f"ready: backend {self.pipeline.segmenter.name}, cameras {self.camera_names}, "
-            f"{mode or 'on demand only'}; services /perception/detect, /perception/check_placement"
+            f"ready: backend {self.pipeline.segmenter.name}, cameras {self.camera_names} "
+            f"(extrinsics from {extrinsics}), {mode or 'on demand only'}; "
+            "services /perception/detect, /perception/check_placement"
         )
 
     # ------------------------------------------------------------------ parameters
@@ -154,6 +173,12 @@ class PerceptionNode(Node):
             ("work_region_center", [0.0, 0.0], "region centre [x y] in world; [0 0]: the pile's"),
             ("work_region_radius", 0.0, "region radius [m]; 0: scenario pile radius + margin"),
             ("publish_debug_image", True, "publish /perception/debug_image"),
+            (
+                "extrinsics_from_tf",
+                False,
+                "camera poses from /tf and /tf_static (world → the images' frame_id) instead "
+                "of the scenario; read at start-up",
+            ),
         ):
             self.declare_parameter(name, default, ParameterDescriptor(description=description))
             self.parameter_names.append(name)
@@ -204,8 +229,9 @@ class PerceptionNode(Node):
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         changed = {p.name: p.value for p in parameters}
-        if "cameras" in changed or "scenario" in changed:
-            reason = "cameras and scenario are read at start-up; restart the node to change them"
+        fixed = [name for name in START_UP_PARAMETERS if name in changed]
+        if fixed:
+            reason = f"{', '.join(fixed)}: read at start-up; restart the node to change them"
             self.get_logger().error(f"rejected parameter update: {reason}")
             return SetParametersResult(successful=False, reason=reason)
         try:
@@ -231,15 +257,24 @@ class PerceptionNode(Node):
         def on_info(message: CameraInfo) -> None:
             camera.info = message
 
-        self.create_subscription(
-            Image, f"{name}/color/image_raw", on_color, 2, callback_group=group
-        )
-        self.create_subscription(
-            Image, f"{name}/depth/image_raw", on_depth, 2, callback_group=group
-        )
-        self.create_subscription(
-            CameraInfo, f"{name}/color/camera_info", on_info, 2, callback_group=group
-        )
+        for topic, kind, callback in (
+            (f"{name}/color/image_raw", Image, on_color),
+            (f"{name}/depth/image_raw", Image, on_depth),
+            (f"{name}/color/camera_info", CameraInfo, on_info),
+        ):
+            self.create_subscription(
+                kind, topic, callback, qos_profile_sensor_data, callback_group=group
+            )
+
+    def _on_transforms(self, message: TFMessage) -> None:
+        for stamped in message.transforms:
+            t, q = stamped.transform.translation, stamped.transform.rotation
+            self.transforms.set(
+                stamped.header.frame_id,
+                stamped.child_frame_id,
+                (t.x, t.y, t.z),
+                (q.x, q.y, q.z, q.w),
+            )
 
     def _known(self, names: list[str]) -> list[str]:
         return [name for name in names if name in self.inputs]
@@ -292,14 +327,16 @@ class PerceptionNode(Node):
             rgb_array(color),
             depth_array(depth),
             np.asarray(camera.info.k, dtype=float).reshape(3, 3),
-            self._camera_pose(name),
+            self._camera_pose(name, color.header.frame_id or f"{name}_optical"),
         )
         problem = view.check()
         if problem:
             raise ValueError(problem)
         return view
 
-    def _camera_pose(self, name: str) -> np.ndarray:
+    def _camera_pose(self, name: str, frame_id: str) -> np.ndarray:
+        """X_WC of camera ``name`` whose images are in ``frame_id``: its optical_pose
+        parameter, else /tf (extrinsics_from_tf), else the scenario."""
         try:
             values = self.get_parameter(f"{name}.optical_pose").value
         except ParameterUninitializedException:
@@ -314,6 +351,11 @@ class PerceptionNode(Node):
             pose[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
             pose[:3, 3] = values[:3]
             return pose
+        if self._param("extrinsics_from_tf"):
+            try:
+                return self.transforms.lookup(WORLD_FRAME, frame_id)
+            except LookupError as error:
+                raise ValueError(f"no {WORLD_FRAME} → {frame_id} on /tf: {error}") from None
         for spec in self.scenario.cameras:
             if spec.name == name:
                 return spec.pose()

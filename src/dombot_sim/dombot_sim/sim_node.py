@@ -8,6 +8,11 @@ GripperCommand at ``GRIPPER_ACTION``, its position the finger opening) and
 ROS callbacks run on a multi-threaded executor and reach the world under one lock.
 After each trajectory and gripper goal it logs the dominoes that moved ``log_moved_mm``
 or more meanwhile (the truth, for whoever reads the log; nothing else sees it).
+
+Frames, as robot_state_publisher and a calibrated camera mount would give them: ``/tf``
+(arm and gripper links at ``tf_rate``, the dominoes at ``domino_tf_rate``),
+``/tf_static`` (arm base, table, fixed links, the cameras' optical frames) and
+``/robot_description``, both transient local.
 """
 
 from __future__ import annotations
@@ -26,23 +31,28 @@ from typing import TypeVar
 import numpy as np
 import rclpy
 from control_msgs.action import FollowJointTrajectory, GripperCommand
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Quaternion, Transform, TransformStamped, Twist, Vector3
+from pydrake.math import RigidTransform
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Header, String
+from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_description.pose_messages import pose_message, seconds_of, time_message
+from dombot_description.robot_description import robot_urdf
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
 from dombot_sim.cameras import CameraFrame
+from dombot_sim.frames import FrameTransform, camera_transforms
 from dombot_sim.motion_watch import describe_motion, take_snapshot
 from dombot_sim.sleeping import SleepSettings
 from dombot_sim.trajectory import INVALID_JOINTS, TrajectoryError, build_trajectory
@@ -63,6 +73,8 @@ RATE_FIELDS = {
     "joint_state_rate": "joint_states",
     "camera_rate": "cameras",
     "ground_truth_rate": "ground_truth",
+    "tf_rate": "tf",
+    "domino_tf_rate": "domino_tf",
     "real_time_factor": "real_time_factor",
 }
 RESTART_PARAMETERS = (
@@ -74,6 +86,16 @@ RESTART_PARAMETERS = (
     "meshcat_recording_path",
     "sleeping",
 )
+RATES = ("joint_state_rate", "camera_rate", "ground_truth_rate", "tf_rate", "domino_tf_rate")
+# Images and camera_info: RELIABLE keep-last 5 (sensor data's depth). A reliable writer
+# serves reliable readers and best-effort ones (perception subscribes with sensor-data QoS,
+# as it must for a best-effort camera driver); a best-effort writer would serve only
+# best-effort readers. docs/ARCHITECTURE.md, "Quality of service".
+CAMERA_QOS = QoSProfile(depth=5)
+TF_QOS = QoSProfile(depth=100)  # tf2_ros TransformBroadcaster
+# tf2_ros StaticTransformBroadcaster and robot_state_publisher's /robot_description: the
+# last message, kept for subscribers that come later
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class WorldLock:
@@ -112,6 +134,8 @@ class Rates:
     joint_states: float
     cameras: float
     ground_truth: float
+    tf: float
+    domino_tf: float
     real_time_factor: float
 
 
@@ -140,6 +164,7 @@ class SimNode(Node):
             if self._param("meshcat_recording_path"):
                 self.world.start_meshcat_recording()
         self._make_interfaces()
+        self._publish_description()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._reset(self._param("domino_count"), self._param("seed"))
 
@@ -155,6 +180,8 @@ class SimNode(Node):
             "joint_state_rate": 100.0,
             "camera_rate": 2.0,
             "ground_truth_rate": 2.0,
+            "tf_rate": 100.0,  # at most one /tf message per tick (joint_state_rate)
+            "domino_tf_rate": 2.0,  # 0: no domino_N frames
             "cameras": True,
             "meshcat": False,
             # with meshcat: record what Meshcat shows, written here as HTML on shutdown
@@ -176,7 +203,7 @@ class SimNode(Node):
     @staticmethod
     def _parameter_problems(values: dict) -> list[str]:
         problems = []
-        for name in ("joint_state_rate", "camera_rate", "ground_truth_rate"):
+        for name in RATES:
             if name in values and not (values[name] >= 0.0 and math.isfinite(values[name])):
                 problems.append(f"{name} must be a finite rate >= 0 Hz, got {values[name]}")
         if "joint_state_rate" in values and not values["joint_state_rate"] > 0.0:
@@ -209,6 +236,8 @@ class SimNode(Node):
             joint_states=self._param("joint_state_rate"),
             cameras=self._param("camera_rate"),
             ground_truth=self._param("ground_truth_rate"),
+            tf=self._param("tf_rate"),
+            domino_tf=self._param("domino_tf_rate"),
             real_time_factor=self._param("real_time_factor"),
         )
 
@@ -247,13 +276,14 @@ class SimNode(Node):
         self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self._joint_pub = self.create_publisher(JointState, "/joint_states", 10)
         self._truth_pub = self.create_publisher(DominoStateArray, "/sim/domino_ground_truth", 2)
+        self._tf_pub = self.create_publisher(TFMessage, "/tf", TF_QOS)
         self._camera_pubs = {}
         for name in self.world.camera_names:
             self._camera_pubs[name] = (
-                self.create_publisher(Image, f"/{name}/color/image_raw", 2),
-                self.create_publisher(Image, f"/{name}/depth/image_raw", 2),
-                self.create_publisher(CameraInfo, f"/{name}/color/camera_info", 2),
-                self.create_publisher(CameraInfo, f"/{name}/depth/camera_info", 2),
+                self.create_publisher(Image, f"/{name}/color/image_raw", CAMERA_QOS),
+                self.create_publisher(Image, f"/{name}/depth/image_raw", CAMERA_QOS),
+                self.create_publisher(CameraInfo, f"/{name}/color/camera_info", CAMERA_QOS),
+                self.create_publisher(CameraInfo, f"/{name}/depth/camera_info", CAMERA_QOS),
             )
         self.create_service(ResetSim, "/sim/reset", self._on_reset, callback_group=group)
         self._trajectory_server = ActionServer(
@@ -278,7 +308,7 @@ class SimNode(Node):
     # ------------------------------------------------------------------ simulation loop
     def run(self, stop: threading.Event) -> None:
         """Advance the world tick by tick, publish, and keep pace with the real-time factor."""
-        next_camera = next_truth = 0.0
+        next_camera = next_truth = next_tf = next_domino_tf = 0.0
         wall_start, sim_start = time.monotonic(), self.world.time
         factor = self.rates.real_time_factor
         while not stop.is_set() and rclpy.ok():
@@ -301,6 +331,12 @@ class SimNode(Node):
                 if rates.ground_truth > 0.0 and now >= next_truth:
                     self._publish_truth(now)
                     next_truth = now + 1.0 / rates.ground_truth
+                if rates.tf > 0.0 and now >= next_tf:
+                    self._publish_tf(now, self.world.link_frames())
+                    next_tf = now + 1.0 / rates.tf
+                if rates.domino_tf > 0.0 and now >= next_domino_tf:
+                    self._publish_tf(now, self.world.domino_frames())
+                    next_domino_tf = now + 1.0 / rates.domino_tf
             if factor > 0.0:
                 ahead = sim_start + (time.monotonic() - wall_start) * factor
                 delay = (now - ahead) / factor
@@ -323,6 +359,21 @@ class SimNode(Node):
                 effort=sample.effort.tolist(),
             )
         )
+
+    def _publish_description(self) -> None:
+        """/robot_description and /tf_static, once: transient local, so subscribers that
+        come later get them (the node keeps the publishers)."""
+        latched = {
+            topic: self.create_publisher(kind, topic, LATCHED_QOS)
+            for topic, kind in (("/robot_description", String), ("/tf_static", TFMessage))
+        }
+        latched["/robot_description"].publish(String(data=robot_urdf(self.world.scenario)))
+        fixed = self.world.fixed_frames() + camera_transforms(self.world.scenario.cameras)
+        latched["/tf_static"].publish(tf_message(self.world.time, fixed))
+
+    def _publish_tf(self, now: float, frames: list[FrameTransform]) -> None:
+        if frames:
+            self._tf_pub.publish(tf_message(now, frames))
 
     def _publish_cameras(self, frames: dict[str, CameraFrame]) -> None:
         for name, frame in frames.items():
@@ -613,6 +664,29 @@ def twist_message(velocity: np.ndarray) -> Twist:
     twist.angular.x, twist.angular.y, twist.angular.z = (float(v) for v in velocity[:3])
     twist.linear.x, twist.linear.y, twist.linear.z = (float(v) for v in velocity[3:])
     return twist
+
+
+def tf_message(now: float, frames: list[FrameTransform]) -> TFMessage:
+    stamp = time_message(now)
+    return TFMessage(
+        transforms=[
+            TransformStamped(
+                header=Header(stamp=stamp, frame_id=frame.parent),
+                child_frame_id=frame.child,
+                transform=transform_message(frame.X_PC),
+            )
+            for frame in frames
+        ]
+    )
+
+
+def transform_message(pose: RigidTransform) -> Transform:
+    """With Drake's quaternion: scipy's conversion cost ~20x more per frame (bench_tf)."""
+    x, y, z = pose.translation()
+    q = pose.rotation().ToQuaternion()
+    return Transform(
+        translation=Vector3(x=x, y=y, z=z), rotation=Quaternion(x=q.x(), y=q.y(), z=q.z(), w=q.w())
+    )
 
 
 def camera_info(frame: CameraFrame, header: Header) -> CameraInfo:

@@ -2,8 +2,9 @@
 
 ``ros2 run dombot_sim snapshot --out DIR [--cameras camera_0 camera_1]`` subscribes to
 ``/<camera>/color/image_raw`` and ``/<camera>/depth/image_raw`` (from sim_node or a real
-camera driver), writes ``<camera>_color.png`` and ``<camera>_depth.png`` (depth in
-metres through a colour map, no-return pixels black) and exits.
+camera driver: sensor-data QoS, so best-effort drivers connect too), writes
+``<camera>_color.png`` and ``<camera>_depth.png`` (depth in metres through a colour map,
+no-return pixels black) and exits.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import rclpy
+from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
 
@@ -63,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
                 Image,
                 f"/{camera}/{kind}/image_raw",
                 lambda message, key=(camera, kind): frames.setdefault(key, message),
-                2,
+                qos_profile_sensor_data,
             )
     deadline = time.monotonic() + args.timeout
     wanted = 2 * len(args.cameras)

@@ -46,6 +46,7 @@ from dombot_description.cell import add_cell, add_dominoes, build_shadow_plant
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_lookup, render
 from dombot_sim.control import ArmCommand, ArmGains, GripperController, GripperSettings
+from dombot_sim.frames import WORLD, FrameTransform, LinkTree
 from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
 from dombot_sim.sleeping import SleepManager, SleepSettings
 from dombot_sim.trajectory import JointLimits
@@ -209,6 +210,7 @@ class CellWorld:
 
         self._diagram = builder.Build()
         self._plant, self._scene_graph, self._models = plant, scene_graph, models
+        self._links = LinkTree(plant, (models.arm, models.gripper, models.table))
         self._arm_source, self._gripper = arm_source, gripper
         self._domino_bodies = [plant.GetBodyByName("domino", m) for m in domino_models]
         self._domino_names = [plant.GetModelInstanceName(m) for m in domino_models]
@@ -472,6 +474,25 @@ class CellWorld:
                 )
             )
         return truths
+
+    def fixed_frames(self) -> list[FrameTransform]:
+        """The welds of arm, gripper and table, parent link → child link (constant)."""
+        return self._links.fixed(self._plant_context)
+
+    def link_frames(self) -> list[FrameTransform]:
+        """Arm and gripper links, each in its parent link, at the current state."""
+        return self._links.moving(self._plant_context)
+
+    def domino_frames(self) -> list[FrameTransform]:
+        """world → each domino in use (body frame, named as its model: ``domino_N``)."""
+        return [
+            FrameTransform(
+                WORLD,
+                self._domino_names[index],
+                self._domino_bodies[index].EvalPoseInWorld(self._plant_context),
+            )
+            for index in self._in_use
+        ]
 
     def deepest_penetration(self) -> tuple[float, str]:
         """Deepest overlap [m] of a domino with anything, and which pair; sleepers included."""
