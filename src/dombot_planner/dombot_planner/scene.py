@@ -31,6 +31,7 @@ from pydrake.multibody.tree import BodyIndex
 from dombot_description import DOMINO_SIZE
 from dombot_description.cell import ShadowPlant, build_shadow_plant
 from dombot_description.scenario import Scenario
+from dombot_planner.request import TableTop
 
 ARM, PADS, HELD = "arm", "pads", "held"  # moving classes (ARM includes the gripper body)
 TABLE, STANDING, TARGET, PILE, SELF = "table", "standing", "target", "pile", "self"
@@ -52,6 +53,26 @@ class ShadowPlants:
         if key not in self._plants:
             self._plants[key] = build_shadow_plant(self.scenario, key / 1e4)
         return self._plants[key]
+
+
+def table_top(shadow: ShadowPlant) -> TableTop:
+    """The x-y extent of the table model's collision boxes in world (the workspace check)."""
+    plant, inspector = shadow.plant, shadow.scene_graph.model_inspector()
+    context = plant.CreateDefaultContext()
+    corners = []
+    for index in plant.GetBodyIndices(plant.GetModelInstanceByName("table")):
+        body = plant.get_body(index)
+        body_pose = plant.EvalBodyPoseInWorld(context, body)
+        for geometry in plant.GetCollisionGeometriesForBody(body):
+            shape = inspector.GetShape(geometry)
+            if isinstance(shape, Box):
+                half = np.array([shape.width(), shape.depth(), shape.height()]) / 2
+                signs = np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1)
+                local = (signs * half[:, None]).T
+                corners.append((body_pose @ inspector.GetPoseInFrame(geometry)).multiply(local.T).T)
+    points = np.vstack(corners)
+    low, high = points.min(axis=0), points.max(axis=0)
+    return TableTop(x=(float(low[0]), float(high[0])), y=(float(low[1]), float(high[1])))
 
 
 @dataclass(frozen=True)
