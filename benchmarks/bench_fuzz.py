@@ -13,9 +13,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
+
+# its own ROS domain, discovery on localhost: other sessions' nodes must not answer
+os.environ.setdefault("ROS_DOMAIN_ID", str(10 + os.getpid() % 90))
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import rclpy
 from rclpy.node import Node
@@ -49,6 +54,7 @@ def main() -> None:
     parser.add_argument("--requests", type=int, default=1000, help="hostile requests per endpoint")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--timeout", type=float, default=300.0, help="s before a reply is a hang")
+    parser.add_argument("--logs", type=Path, default=Path("fuzz_logs"), help="node logs")
     parser.add_argument("--only", nargs="*", help="endpoint names (default: all)")
     parser.add_argument(
         "--fewest-at-once", type=int, default=1, help="smallest batch (largest: 10)"
@@ -56,7 +62,8 @@ def main() -> None:
     args = parser.parse_args()
     rclpy.init()
     began = time.monotonic()
-    with fuzzed_nodes() as processes:
+    args.logs.mkdir(parents=True, exist_ok=True)
+    with fuzzed_nodes(args.logs) as processes:
         node = Node("fuzz_bench")
         endpoints = service_endpoints(node)
         endpoints |= {e.name: (e, LAYER_CASES[e.name]) for e in layer_endpoints(node)}

@@ -41,9 +41,9 @@ LAYER_CASES = {
 
 
 @pytest.fixture(scope="module")
-def session():
+def session(tmp_path_factory):
     rclpy.init()
-    with fuzzed_nodes() as processes:
+    with fuzzed_nodes(tmp_path_factory.mktemp("fuzz_logs")) as processes:
         node = Node("fuzz_probe")
         endpoints = service_endpoints(node)
         endpoints |= {e.name: (e, LAYER_CASES[e.name]) for e in layer_endpoints(node)}

@@ -779,9 +779,10 @@ SIM_ARGUMENTS = ("domino_count:=3", "camera_rate:=2.0", "ground_truth_rate:=1.0"
 
 
 @contextmanager
-def fuzzed_nodes() -> Iterator[dict[str, Popen]]:
+def fuzzed_nodes(logs: Path) -> Iterator[dict[str, Popen]]:
     """planner_node, sim_node (3 dominoes), perception_node (sim time) and layer_node,
-    each its own process."""
+    each its own process, logging to ``logs``/NAME.log (a fuzzed node logs every refusal:
+    a pipe nobody reads would fill up and block it)."""
     nodes = {
         "planner_node": ("dombot_planner", ()),
         "sim_node": ("dombot_sim", SIM_ARGUMENTS),
@@ -792,7 +793,10 @@ def fuzzed_nodes() -> Iterator[dict[str, Popen]]:
         processes = {}
         for name, (package, parameters) in nodes.items():
             arguments = ["--ros-args", *(a for p in parameters for a in ("-p", p))]
-            processes[name] = stack.enter_context(installed_node(package, name, *arguments))
+            log = stack.enter_context((logs / f"{name}.log").open("w"))
+            processes[name] = stack.enter_context(
+                installed_node(package, name, *arguments, output=log)
+            )
         yield processes
 
 
