@@ -189,7 +189,8 @@ class Harness:
         return replies
 
     def _send(self, endpoint: Endpoint, cases: list[Case], after_batch: bool = False) -> list:
-        if not self.alive(endpoint):
+        if not self.alive(endpoint):  # counted: a crash ends a long run's loop too
+            self.report.requests[endpoint.name] += len(cases)
             return [None] * len(cases)
         began = time.monotonic()
         requests = [case.request for case in cases]

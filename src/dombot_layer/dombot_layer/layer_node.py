@@ -43,6 +43,8 @@ from dombot_layer.paths import (
 from dombot_msgs.msg import WheelVelocities
 
 GEOMETRY_PREFIX = "geometry."
+# largest accepted value of each setting: 1000 Hz (faster floods the topics), 10 m/s, 1 m
+MAX_SETTING = {"command_rate": 1000.0, "forward_speed": 10.0, "deposit_spacing": 1.0}
 
 
 class LayerNode(Node):
@@ -115,9 +117,11 @@ class LayerNode(Node):
                 if (
                     isinstance(value, bool)
                     or not isinstance(value, int | float)
-                    or not (math.isfinite(value) and value > 0)
+                    or not (math.isfinite(value) and 0 < value <= MAX_SETTING[name])
                 ):
-                    raise ValueError(f"{name} must be a positive number, got {value!r}")
+                    raise ValueError(
+                        f"{name} must be a number in (0, {MAX_SETTING[name]}], got {value!r}"
+                    )
         except ValueError as error:
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
