@@ -35,9 +35,8 @@ from dombot_layer.kinematics import (
 )
 from dombot_layer.paths import (
     PathError,
-    Straight,
     WheelSchedule,
-    polyline_segments,
+    path_segments,
     schedule_segments,
 )
 from dombot_msgs.msg import WheelVelocities
@@ -172,7 +171,7 @@ class LayerNode(Node):
             [[p.pose.position.x, p.pose.position.y] for p in message.poses], dtype=float
         )
         try:
-            segments = self._segments_from(points)
+            segments = path_segments(points)
             self.schedule = schedule_segments(
                 self.kinematics,
                 segments,
@@ -194,16 +193,6 @@ class LayerNode(Node):
             f"{len(self.schedule.deposit_times)} dominoes"
         )
         self._publish()  # the wheels start when the schedule's clock does, not a tick later
-
-    @staticmethod
-    def _segments_from(points: np.ndarray) -> list:
-        if len(points) == 2:
-            length = float(np.linalg.norm(points[1] - points[0]))
-            if length > 0:
-                return [Straight(length)]
-        if len(points) < 2:
-            raise PathError("a path needs at least two poses")
-        return polyline_segments(points)
 
     # ------------------------------------------------------------------ output
     def _on_odometry(self, message: Odometry) -> None:

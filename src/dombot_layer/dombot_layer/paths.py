@@ -136,6 +136,21 @@ MAX_POLYLINE_LENGTH = 1000.0  # m along the fitted spline
 MIN_POLYLINE_STEP = 1e-4  # m: a point closer than this to the previous one repeats it
 
 
+def path_segments(points: np.ndarray) -> list[Segment]:
+    """A path message's points: two distinct ones are one straight, more a polyline; both
+    within the polyline limits."""
+    points = np.asarray(points, dtype=float)
+    if len(points) == 2 and np.all(np.isfinite(points)):
+        length = math.hypot(*(points[1] - points[0]))
+        if 0 < length <= MAX_POLYLINE_LENGTH:
+            return [Straight(length)]
+        if length > MAX_POLYLINE_LENGTH:
+            raise PathError(f"a path is at most {MAX_POLYLINE_LENGTH} m long, got {length:.3g} m")
+    if len(points) < 2:
+        raise PathError("a path needs at least two poses")
+    return polyline_segments(points)
+
+
 def polyline_segments(
     points: np.ndarray, step: float = 0.01, smoothing: float = 0.0
 ) -> list[Segment]:
