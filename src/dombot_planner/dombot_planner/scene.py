@@ -42,7 +42,11 @@ QUERY_DISTANCE = 0.05  # m: pairs farther apart than this are reported as this f
 
 
 class ShadowPlants:
-    """build_shadow_plant results kept per finger opening (0.1 mm resolution)."""
+    """build_shadow_plant results kept per finger opening (0.1 mm resolution), the
+    KEPT_PLANTS used last: requests with many different grasp widths must not make the
+    node keep a plant for each."""
+
+    KEPT_PLANTS = 8  # a domino width needs 3 (pre-grasp, closed, release), a strike 1
 
     def __init__(self, scenario: Scenario) -> None:
         self.scenario = scenario
@@ -50,9 +54,11 @@ class ShadowPlants:
 
     def get(self, opening: float) -> ShadowPlant:
         key = round(opening * 1e4)
-        if key not in self._plants:
-            self._plants[key] = build_shadow_plant(self.scenario, key / 1e4)
-        return self._plants[key]
+        plant = self._plants.pop(key, None) or build_shadow_plant(self.scenario, key / 1e4)
+        self._plants[key] = plant  # the newest last
+        while len(self._plants) > self.KEPT_PLANTS:
+            del self._plants[next(iter(self._plants))]
+        return plant
 
 
 def table_top(shadow: ShadowPlant) -> TableTop:
