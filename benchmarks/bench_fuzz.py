@@ -15,6 +15,7 @@ import argparse
 import json
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -54,7 +55,9 @@ def main() -> None:
     parser.add_argument("--requests", type=int, default=1000, help="hostile requests per endpoint")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--timeout", type=float, default=300.0, help="s before a reply is a hang")
-    parser.add_argument("--logs", type=Path, default=Path("fuzz_logs"), help="node logs")
+    parser.add_argument(
+        "--logs", type=Path, default=Path(tempfile.gettempdir()) / "dombot_fuzz", help="node logs"
+    )
     parser.add_argument("--only", nargs="*", help="endpoint names (default: all)")
     parser.add_argument(
         "--fewest-at-once", type=int, default=1, help="smallest batch (largest: 10)"
