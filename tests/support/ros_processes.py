@@ -10,6 +10,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 import rclpy
 from ament_index_python.packages import get_package_prefix
@@ -17,9 +18,15 @@ from rclpy.node import Node
 
 
 @contextmanager
-def _supervised(command: list[str]) -> Iterator[subprocess.Popen[str]]:
+def _supervised(command: list[str], output: IO | None = None) -> Iterator[subprocess.Popen[str]]:
+    """``output``: where the child's stdout and stderr go (default: a pipe, fine for a
+    test's few log lines; a child that logs more blocks once the pipe is full)."""
     child = subprocess.Popen(
-        command, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        command,
+        env=dict(os.environ),
+        stdout=subprocess.PIPE if output is None else output,
+        stderr=subprocess.STDOUT,
+        text=True,
     )
     try:
         yield child
@@ -40,10 +47,12 @@ def python_process(source: str) -> Iterator[subprocess.Popen[str]]:
 
 
 @contextmanager
-def installed_node(package: str, executable: str, *args: str) -> Iterator[subprocess.Popen[str]]:
+def installed_node(
+    package: str, executable: str, *args: str, output: IO | None = None
+) -> Iterator[subprocess.Popen[str]]:
     """Run an installed node executable, found through the ament index as ros2 run does."""
     path = Path(get_package_prefix(package)) / "lib" / package / executable
-    with _supervised([str(path), *args]) as child:
+    with _supervised([str(path), *args], output) as child:
         yield child
 
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+MAX_DIMENSION = 100.0  # m: any larger vehicle dimension is a typo (and overflows eq. 9)
+
 
 @dataclass(frozen=True)
 class VehicleGeometry:
@@ -39,8 +41,11 @@ class VehicleGeometry:
             value = getattr(self, field.name)
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ValueError(f"VehicleGeometry.{field.name} must be a number, got {value!r}")
-            if not math.isfinite(value):
-                raise ValueError(f"VehicleGeometry.{field.name} must be finite, got {value}")
+            if not math.isfinite(value) or abs(value) > MAX_DIMENSION:
+                raise ValueError(
+                    f"VehicleGeometry.{field.name} must be finite and at most "
+                    f"{MAX_DIMENSION} m, got {value}"
+                )
             if field.name != "d_t" and value <= 0.0:
                 raise ValueError(f"VehicleGeometry.{field.name} must be positive, got {value} m")
 

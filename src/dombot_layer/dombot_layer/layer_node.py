@@ -35,14 +35,15 @@ from dombot_layer.kinematics import (
 )
 from dombot_layer.paths import (
     PathError,
-    Straight,
     WheelSchedule,
-    polyline_segments,
+    path_segments,
     schedule_segments,
 )
 from dombot_msgs.msg import WheelVelocities
 
 GEOMETRY_PREFIX = "geometry."
+# largest accepted value of each setting: 1000 Hz (faster floods the topics), 10 m/s, 1 m
+MAX_SETTING = {"command_rate": 1000.0, "forward_speed": 10.0, "deposit_spacing": 1.0}
 
 
 class LayerNode(Node):
@@ -115,9 +116,11 @@ class LayerNode(Node):
                 if (
                     isinstance(value, bool)
                     or not isinstance(value, int | float)
-                    or not (math.isfinite(value) and value > 0)
+                    or not (math.isfinite(value) and 0 < value <= MAX_SETTING[name])
                 ):
-                    raise ValueError(f"{name} must be a positive number, got {value!r}")
+                    raise ValueError(
+                        f"{name} must be a number in (0, {MAX_SETTING[name]}], got {value!r}"
+                    )
         except ValueError as error:
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
@@ -168,7 +171,7 @@ class LayerNode(Node):
             [[p.pose.position.x, p.pose.position.y] for p in message.poses], dtype=float
         )
         try:
-            segments = self._segments_from(points)
+            segments = path_segments(points)
             self.schedule = schedule_segments(
                 self.kinematics,
                 segments,
@@ -190,16 +193,6 @@ class LayerNode(Node):
             f"{len(self.schedule.deposit_times)} dominoes"
         )
         self._publish()  # the wheels start when the schedule's clock does, not a tick later
-
-    @staticmethod
-    def _segments_from(points: np.ndarray) -> list:
-        if len(points) == 2:
-            length = float(np.linalg.norm(points[1] - points[0]))
-            if length > 0:
-                return [Straight(length)]
-        if len(points) < 2:
-            raise PathError("a path needs at least two poses")
-        return polyline_segments(points)
 
     # ------------------------------------------------------------------ output
     def _on_odometry(self, message: Odometry) -> None:

@@ -129,6 +129,28 @@ def _midpoint_radii_or_raise(
     return inverse.midpoint_radius
 
 
+# Polylines (e.g. /layer/path): what a vehicle can lay in one go; larger ones are refused.
+MAX_POLYLINE_POINTS = 10_000
+MAX_POLYLINE_EXTENT = 100.0  # m, every coordinate
+MAX_POLYLINE_LENGTH = 1000.0  # m along the fitted spline
+MIN_POLYLINE_STEP = 1e-4  # m: a point closer than this to the previous one repeats it
+
+
+def path_segments(points: np.ndarray) -> list[Segment]:
+    """A path message's points: two distinct ones are one straight, more a polyline; both
+    within the polyline limits."""
+    points = np.asarray(points, dtype=float)
+    if len(points) == 2 and np.all(np.isfinite(points)):
+        length = math.hypot(*(points[1] - points[0]))
+        if 0 < length <= MAX_POLYLINE_LENGTH:
+            return [Straight(length)]
+        if length > MAX_POLYLINE_LENGTH:
+            raise PathError(f"a path is at most {MAX_POLYLINE_LENGTH} m long, got {length:.3g} m")
+    if len(points) < 2:
+        raise PathError("a path needs at least two poses")
+    return polyline_segments(points)
+
+
 def polyline_segments(
     points: np.ndarray, step: float = 0.01, smoothing: float = 0.0
 ) -> list[Segment]:
@@ -142,17 +164,30 @@ def polyline_segments(
         raise PathError(f"a polyline is an (n, 2) array of points, got shape {points.shape}")
     if not np.all(np.isfinite(points)):
         raise PathError("polyline points must be finite")
-    repeated = np.concatenate([[False], np.all(np.diff(points, axis=0) == 0.0, axis=1)])
-    points = points[~repeated]  # a zero-length step has no direction for the spline
+    if len(points) > MAX_POLYLINE_POINTS or np.any(np.abs(points) > MAX_POLYLINE_EXTENT):
+        raise PathError(
+            f"a polyline has at most {MAX_POLYLINE_POINTS} points within "
+            f"±{MAX_POLYLINE_EXTENT} m, got {len(points)} up to {np.abs(points).max():.3g} m"
+        )
+    steps = np.hypot(*np.diff(points, axis=0).T)
+    repeated = np.concatenate([[False], steps < MIN_POLYLINE_STEP])
+    points = points[~repeated]  # a (nearly) zero-length step has no direction for the spline
     if len(points) < 3:
         raise PathError("a polyline needs at least three distinct (x, y) points")
-    tck, _ = splprep(points.T, s=smoothing, k=min(3, len(points) - 1))
+    try:
+        tck, _ = splprep(points.T, s=smoothing, k=min(3, len(points) - 1))
+    except ValueError as error:  # FITPACK refuses some degenerate point sets
+        raise PathError(f"no spline fits the polyline: {error}") from None
     u = np.linspace(0.0, 1.0, 20001)
     dx, dy = splev(u, tck, der=1)
     ddx, ddy = splev(u, tck, der=2)
     speed = np.hypot(dx, dy)
     arc_length = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(u))])
     curvature = (dx * ddy - dy * ddx) / speed**3
+    if arc_length[-1] > MAX_POLYLINE_LENGTH:
+        raise PathError(
+            f"a polyline is at most {MAX_POLYLINE_LENGTH} m long, got {arc_length[-1]:.3g} m"
+        )
     count = max(1, round(arc_length[-1] / step))
     edges = np.linspace(0.0, arc_length[-1], count + 1)
     middle_curvature = np.interp(0.5 * (edges[1:] + edges[:-1]), arc_length, curvature)

@@ -57,6 +57,10 @@ SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one
 # come (a stale frame from before a placement once made a standing domino MISSING)
 FRESH_WAIT = 10.0
 STAMP_SLACK = 1e-3  # s: stamps this much before not_before still count (rounding)
+MAX_EXPECTED = 500  # poses a placement check takes (a run in the build area has < 200)
+# s a request's not_before may lie after the newest frame; later ones are refused at once
+# (a frame that far ahead does not come within FRESH_WAIT, even from a fast simulation)
+MAX_NOT_BEFORE_AHEAD = 60.0
 DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
 WORLD_FRAME = "world"
 # tf2_ros's listener QoS: /tf reliable, volatile; /tf_static reliable, transient local
@@ -312,6 +316,12 @@ class PerceptionNode(Node):
         return views, warnings
 
     def _view(self, name: str, camera: CameraInput, not_before: float) -> CameraView:
+        ahead = not_before - _seconds(camera.colors[-1].header.stamp)
+        if ahead > MAX_NOT_BEFORE_AHEAD:
+            raise ValueError(
+                f"not_before is {ahead:.3g} s after the newest frame "
+                f"(at most {MAX_NOT_BEFORE_AHEAD} s are waited for)"
+            )
         tolerance = float(self._param("sync_tolerance"))
         pair = camera.latest_pair(tolerance, not_before)
         deadline = time.monotonic() + (SYNC_WAIT if math.isinf(not_before) else FRESH_WAIT)
@@ -453,6 +463,8 @@ class PerceptionNode(Node):
             return f"unknown cameras {unknown}; configured: {self.camera_names}"
         if not math.isfinite(request.search_radius) or request.search_radius < 0:
             return f"search_radius must be >= 0, got {request.search_radius}"
+        if len(request.expected) > MAX_EXPECTED:
+            return f"{len(request.expected)} expected poses, at most {MAX_EXPECTED} are checked"
         for index, pose in enumerate(request.expected):
             q = pose.orientation
             values = [pose.position.x, pose.position.y, pose.position.z, q.x, q.y, q.z, q.w]

@@ -34,6 +34,7 @@ from dombot_planner.scene import (
     ClearanceRules,
     Scene,
     ShadowPlants,
+    table_top,
 )
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
@@ -177,8 +178,10 @@ class ArmPlanner:
         self.settings = settings or PlannerSettings()
         self.plants = plants or ShadowPlants(scenario)
         plant = self.plants.get(DOMINO_SIZE[1]).plant  # any opening: only the arm's limits
+        self.table = table_top(self.plants.get(DOMINO_SIZE[1]))
         self.lower = plant.GetPositionLowerLimits()
         self.upper = plant.GetPositionUpperLimits()
+        self.velocity_limits = plant.GetVelocityUpperLimits()
         self.limits = JointLimits(
             velocity=plant.GetVelocityUpperLimits() * self.settings.velocity_scale,
             acceleration=np.full(plant.num_velocities(), self.settings.acceleration_limit),

@@ -62,7 +62,7 @@ from dombot_planner.motion import (
     Segment,
     reasons,
 )
-from dombot_planner.request import PickPlaceRequest, check_request
+from dombot_planner.request import GRASP_REACH, PickPlaceRequest, check_request, invalid, near_pick
 from dombot_planner.scene import (
     ARM,
     HELD,
@@ -234,11 +234,12 @@ class PickPlacePlanner(ArmPlanner):
 
     def check(self, request: PickPlaceRequest) -> None:
         """What can be said without planning; raises PlanningError."""
-        check_request(request, self.settings)
+        check_request(request, self.settings, self.table)
 
     def plan(self, request: PickPlaceRequest) -> PickPlacePlan:
         """A plan for ``request``; raises PlanningError with a code and the failing stage."""
         self.check(request)
+        request = near_pick(request)
         deadline = Deadline(request.time_budget or self.settings.default_time_budget)
         if request.holding:
             plan = RequestPlanning(self, request, deadline).plan_held()
@@ -347,6 +348,7 @@ class RequestPlanning(RequestMotions):
         points = request.pile_points
         self.pile_points = points[target.signed_distance(points) > OWN_POINTS]
         self.retreat = self._scene("release", target=request.place_pose)
+        deadline.check("scene")  # building the scenes counts against the budget
         self.search = EndSearch()
         self.escape_line: np.ndarray | None = None  # out of a start close to something
 
@@ -409,6 +411,13 @@ class RequestPlanning(RequestMotions):
         request = self.request
         grasp = self.approach.tcp_pose(request.start)
         held = domino_in_tcp(grasp, request.domino_pose)
+        reach = float(np.linalg.norm(held.translation()))
+        if reach > GRASP_REACH:
+            raise invalid(
+                "validation",
+                f"holding: domino_pose is {reach * 1000:.0f} mm from the TCP at the start "
+                f"state (at most {GRASP_REACH * 1000:.0f} mm): it is not in the hand",
+            )
         self.search.picks_found = 1  # held already: a failure is the place's, not a grasp's
         transfer = self._scene("closed", held_in_tcp=held)
         self.check_start(transfer, held_perceived=True)

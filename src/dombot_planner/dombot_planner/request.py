@@ -1,13 +1,16 @@
 """Pick-and-place and strike requests in plain Python types, and the checks every request
-passes before any planning: finite numbers, unit quaternions, a known start state, poses
-inside the workspace, a place pose (or the domino to strike) that does not overlap the
-table or a standing domino, a domino to strike that stands upright."""
+passes before any planning: finite numbers, unit quaternions, a known start state, a time
+budget and obstacle lists no larger than the documented maxima, poses inside the workspace
+(reach from the base, height, over the table top), a place pose (or the domino to strike)
+that does not overlap the table or a standing domino, a domino to strike that stands
+upright. ``near_pick`` drops the pile dominoes and points too far from the pick to matter,
+so a big but valid request stays within its budget."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
@@ -28,6 +31,19 @@ MAX_PUSH_DISTANCE = 0.05  # m past the back face: farther reaches the next domin
 MAX_SWEEP_DISTANCE = 0.1  # m a sweep may push a domino (two lengths)
 SWEEP_CHECK_STEP = 0.005  # m between the poses of a swept domino checked against the run
 MAX_PUSH_SPEED = 0.5  # m/s: faster throws the domino instead of tipping it
+# Request sizes (docs/PLANNER.md): larger requests are refused, not truncated. Every
+# obstacle becomes Drake geometry of each request scene, so the counts bound the time spent
+# before planning proper and the memory of a request.
+MAX_TIME_BUDGET = 3600.0  # s: an hour never cuts a search short (tests, slow machines)
+# (Drake registers them one by one, ~3 ms each on a loaded 2-core machine)
+MAX_STANDING = 200  # standing_dominoes: more than a build area holds in a run
+MAX_PILE_DOMINOES = 200  # pile_dominoes: the largest pile the simulator pours
+MAX_PILE_POINTS = 50_000  # pile_points
+# m (horizontal) from the domino to pick: pile dominoes and points farther away are dropped.
+# The gripper body spans 15 cm and leans 60° at a grasp, and coarse moves pass low over the
+# pile: the bring-up sends the detections within 0.25 m (offers.NEIGHBOUR_RADIUS, found
+# where 8 cm missed dominoes the gripper met); this keeps a margin beyond that.
+PILE_NEIGHBOURHOOD = 0.3
 
 
 @dataclass(frozen=True)
@@ -90,10 +106,19 @@ def arm_positions(
     lower: np.ndarray,
     upper: np.ndarray,
     what: str = "start_state",
+    velocities: Sequence[float] = (),
+    velocity_limits: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The arm's joint positions from a JointState's names and positions, checked."""
+    """The arm's joint positions from a JointState's names and positions, checked; its
+    velocities (may be empty) must be finite and within ``velocity_limits`` (the plan
+    starts at rest, so their values are otherwise unused)."""
     if len(names) != len(positions):
         raise invalid("validation", f"{what} has {len(names)} names but {len(positions)} positions")
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise invalid("validation", f"{what} names {', '.join(repeated)} more than once")
+    if velocities:
+        check_velocities(names, velocities, arm_joints, velocity_limits, what)
     by_name = dict(zip(names, positions, strict=True))
     missing = [joint for joint in arm_joints if joint not in by_name]
     if missing:
@@ -108,6 +133,25 @@ def arm_positions(
     return np.clip(q, lower, upper)
 
 
+def check_velocities(
+    names: Sequence[str],
+    velocities: Sequence[float],
+    arm_joints: Sequence[str],
+    limits: np.ndarray | None,
+    what: str,
+) -> None:
+    if len(velocities) != len(names):
+        raise invalid(
+            "validation", f"{what} has {len(names)} names but {len(velocities)} velocities"
+        )
+    by_name = dict(zip(names, velocities, strict=True))
+    for index, joint in enumerate(arm_joints):
+        value = by_name.get(joint, 0.0)
+        limit = math.inf if limits is None else limits[index]
+        if not (math.isfinite(value) and abs(value) <= limit * (1 + JOINT_LIMIT_TOLERANCE)):
+            raise invalid("validation", f"{what}: {joint} velocity {value} is beyond its limit")
+
+
 def finger_opening(
     names: Sequence[str], positions: Sequence[float], gripper_joints: Sequence[str]
 ) -> float | None:
@@ -120,13 +164,45 @@ def finger_opening(
 
 
 def check_budget(budget: float) -> None:
-    if not (math.isfinite(budget) and budget >= 0):
-        raise invalid("validation", f"time_budget must be >= 0 s, got {budget}")
+    if not (math.isfinite(budget) and 0 <= budget <= MAX_TIME_BUDGET):
+        raise invalid(
+            "validation", f"time_budget must be 0 (default) to {MAX_TIME_BUDGET} s, got {budget}"
+        )
 
 
-def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
+def check_sizes(**counts: tuple[int, int]) -> None:
+    """Each named list's (length, maximum); a list longer than its maximum is refused."""
+    for name, (count, most) in counts.items():
+        if count > most:
+            raise invalid("validation", f"{name} has {count} entries, at most {most} are served")
+
+
+def near_pick(request: PickPlaceRequest) -> PickPlaceRequest:
+    """``request`` without the pile dominoes and points farther than PILE_NEIGHBOURHOOD
+    from the domino to pick, and without any pile when it is held already (unused)."""
+    if request.holding:
+        return replace(request, pile=(), pile_points=np.zeros((0, 3)))
+    centre = request.domino_pose.translation()[:2]
+    pile = tuple(
+        pose
+        for pose in request.pile
+        if np.linalg.norm(pose.translation()[:2] - centre) <= PILE_NEIGHBOURHOOD
+    )
+    points = request.pile_points
+    near = np.linalg.norm(points[:, :2] - centre, axis=1) <= PILE_NEIGHBOURHOOD
+    return replace(request, pile=pile, pile_points=points[near])
+
+
+def check_request(
+    request: PickPlaceRequest, settings: PlannerSettings, table: TableTop | None = None
+) -> None:
     """Everything that can be said about a request without planning; raises PlanningError."""
     check_budget(request.time_budget)
+    check_sizes(
+        standing_dominoes=(len(request.standing), MAX_STANDING),
+        pile_dominoes=(len(request.pile), MAX_PILE_DOMINOES),
+        pile_points=(len(request.pile_points), MAX_PILE_POINTS),
+    )
     width = request.grasp_width
     stroke = gripper_geometry().max_opening
     if not (math.isfinite(width) and width >= 0.0 and pregrasp_opening(width) <= stroke):
@@ -136,7 +212,7 @@ def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
             f"stroke, got {width}",
         )
     for what, pose in (("domino_pose", request.domino_pose), ("place_pose", request.place_pose)):
-        check_workspace(pose, what, settings)
+        check_workspace(pose, what, settings, table)
     points = request.pile_points
     if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
         raise invalid("validation", "pile_points must be finite 3-D points")
@@ -149,9 +225,12 @@ def check_request(request: PickPlaceRequest, settings: PlannerSettings) -> None:
     check_place_is_free(request.place_pose, request.standing)
 
 
-def check_strike_request(request: StrikeRequest, settings: PlannerSettings) -> None:
+def check_strike_request(
+    request: StrikeRequest, settings: PlannerSettings, table: TableTop | None = None
+) -> None:
     """Everything that can be said about a strike or sweep request without planning."""
     check_budget(request.time_budget)
+    check_sizes(standing_dominoes=(len(request.standing), MAX_STANDING))
     sweep = request.sweep is not None
     longest = MAX_SWEEP_DISTANCE if sweep else MAX_PUSH_DISTANCE
     for name, value, most in (
@@ -160,7 +239,7 @@ def check_strike_request(request: StrikeRequest, settings: PlannerSettings) -> N
     ):
         if not (math.isfinite(value) and 0.0 <= value <= most):
             raise invalid("validation", f"{name} must be 0 (default) to {most}, got {value}")
-    check_workspace(request.domino_pose, "domino_pose", settings)
+    check_workspace(request.domino_pose, "domino_pose", settings, table)
     if sweep:
         check_sweep(request, request.push_distance or settings.push_distance)
         return
@@ -217,16 +296,37 @@ def sweep_blocker(
     return None
 
 
-def check_workspace(pose: RigidTransform, what: str, settings: PlannerSettings) -> None:
+@dataclass(frozen=True)
+class TableTop:
+    """The table top's extent in world x and y [m] (scene.table_top reads it from the cell)."""
+
+    x: tuple[float, float]
+    y: tuple[float, float]
+
+    def holds(self, x: float, y: float) -> bool:
+        """A domino centre at (x, y) at least half a domino length inside the edges."""
+        inset = DOMINO_SIZE[0] / 2
+        return (
+            self.x[0] + inset <= x <= self.x[1] - inset
+            and self.y[0] + inset <= y <= self.y[1] - inset
+        )
+
+
+def check_workspace(
+    pose: RigidTransform, what: str, settings: PlannerSettings, table: TableTop | None = None
+) -> None:
+    """Within reach of the base axis, at a domino's height, and over the table top."""
     x, y, z = pose.translation()
     reach, (low, high) = math.hypot(x, y), settings.workspace_reach
     z_low, z_high = settings.workspace_height
-    if not (low <= reach <= high and z_low <= z <= z_high):
+    on_table = table is None or table.holds(x, y)
+    if not (low <= reach <= high and z_low <= z <= z_high and on_table):
+        over = "" if table is None else f", over the table top x {table.x} y {table.y} m"
         raise PlanningError(
             ErrorCode.OUTSIDE_WORKSPACE,
             "validation",
             f"{what} at ({x:.3f}, {y:.3f}, {z:.3f}) m is outside the workspace "
-            f"(reach {low}–{high} m from the arm base axis, height {z_low}–{z_high} m)",
+            f"(reach {low}–{high} m from the arm base axis, height {z_low}–{z_high} m{over})",
         )
 
 

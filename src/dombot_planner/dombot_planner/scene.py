@@ -31,6 +31,7 @@ from pydrake.multibody.tree import BodyIndex
 from dombot_description import DOMINO_SIZE
 from dombot_description.cell import ShadowPlant, build_shadow_plant
 from dombot_description.scenario import Scenario
+from dombot_planner.request import TableTop
 
 ARM, PADS, HELD = "arm", "pads", "held"  # moving classes (ARM includes the gripper body)
 TABLE, STANDING, TARGET, PILE, SELF = "table", "standing", "target", "pile", "self"
@@ -41,7 +42,11 @@ QUERY_DISTANCE = 0.05  # m: pairs farther apart than this are reported as this f
 
 
 class ShadowPlants:
-    """build_shadow_plant results kept per finger opening (0.1 mm resolution)."""
+    """build_shadow_plant results kept per finger opening (0.1 mm resolution), the
+    KEPT_PLANTS used last: requests with many different grasp widths must not make the
+    node keep a plant for each."""
+
+    KEPT_PLANTS = 8  # a domino width needs 3 (pre-grasp, closed, release), a strike 1
 
     def __init__(self, scenario: Scenario) -> None:
         self.scenario = scenario
@@ -49,9 +54,31 @@ class ShadowPlants:
 
     def get(self, opening: float) -> ShadowPlant:
         key = round(opening * 1e4)
-        if key not in self._plants:
-            self._plants[key] = build_shadow_plant(self.scenario, key / 1e4)
-        return self._plants[key]
+        plant = self._plants.pop(key, None) or build_shadow_plant(self.scenario, key / 1e4)
+        self._plants[key] = plant  # the newest last
+        while len(self._plants) > self.KEPT_PLANTS:
+            del self._plants[next(iter(self._plants))]
+        return plant
+
+
+def table_top(shadow: ShadowPlant) -> TableTop:
+    """The x-y extent of the table model's collision boxes in world (the workspace check)."""
+    plant, inspector = shadow.plant, shadow.scene_graph.model_inspector()
+    context = plant.CreateDefaultContext()
+    corners = []
+    for index in plant.GetBodyIndices(plant.GetModelInstanceByName("table")):
+        body = plant.get_body(index)
+        body_pose = plant.EvalBodyPoseInWorld(context, body)
+        for geometry in plant.GetCollisionGeometriesForBody(body):
+            shape = inspector.GetShape(geometry)
+            if isinstance(shape, Box):
+                half = np.array([shape.width(), shape.depth(), shape.height()]) / 2
+                signs = np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1)
+                local = (signs * half[:, None]).T
+                corners.append((body_pose @ inspector.GetPoseInFrame(geometry)).multiply(local.T).T)
+    points = np.vstack(corners)
+    low, high = points.min(axis=0), points.max(axis=0)
+    return TableTop(x=(float(low[0]), float(high[0])), y=(float(low[1]), float(high[1])))
 
 
 @dataclass(frozen=True)

@@ -151,7 +151,7 @@ class StrikePlanner(ArmPlanner):
 
     def check(self, request: StrikeRequest) -> None:
         """What can be said without planning; raises PlanningError."""
-        check_strike_request(request, self.settings)
+        check_strike_request(request, self.settings, self.table)
 
     def plan(self, request: StrikeRequest) -> StrikePlan:
         """A plan for ``request``; raises PlanningError with a code and the failing stage."""
@@ -192,6 +192,7 @@ class StrikePlanning(RequestMotions):
         shadow, tcp = planner.plants.get(CLOSED), planner.scenario.tcp_frame
         self.run = Scene(shadow, tcp, request.standing, target=request.domino_pose)
         self.after = Scene(shadow, tcp, request.standing)  # the struck domino has gone
+        deadline.check("scene")  # building the scenes counts against the budget
         # the pads may come as near the table as on a placement: a sweep pushes low
         low_pads = {(PADS, TABLE): s.pad_table_clearance}
         pads_near_run = {**low_pads, (PADS, STANDING): s.fine_obstacle_clearance}

@@ -16,6 +16,7 @@ from pydrake.trajectories import PiecewisePolynomial, Trajectory
 
 RETIME_ROUNDS = 3
 LIMIT_TOLERANCE = 0.002  # a limit exceeded in the dense check is tightened this much more
+CHECK_PERIOD = 0.002  # s between the samples that check the limits
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,8 @@ def retime(
 
     TOPP-RA enforces the limits at its grid points only (and hardly at the last one); the
     result is sampled densely and, where a limit is exceeded, solved again with that limit
-    tightened by the excess.
+    tightened by the excess. Still exceeded after RETIME_ROUNDS, the scaling is slowed
+    down uniformly (velocities scale with 1/k, accelerations with 1/k²) until it is not.
     """
     grid = np.linspace(path.start_time(), path.end_time(), grid_points)
     scale = np.ones(2)  # velocity, acceleration
@@ -91,11 +93,15 @@ def retime(
         if np.all(use <= 1.0):  # the executor allows 0.1 % over at its points, no more
             return timed
         scale = scale / np.maximum(use, 1.0) * (1.0 - LIMIT_TOLERANCE)
+    stretch = max(use[0], math.sqrt(use[1])) * (1.0 + LIMIT_TOLERANCE)
+    timed.scaling.ScaleTime(stretch)
     return timed
 
 
-def limit_use(timed: TimedPath, limits: JointLimits, samples: int = 400) -> np.ndarray:
-    """Largest |velocity| / limit and |acceleration| / limit over dense samples."""
+def limit_use(timed: TimedPath, limits: JointLimits) -> np.ndarray:
+    """Largest |velocity| / limit and |acceleration| / limit over samples CHECK_PERIOD
+    apart (at least 400): denser than the published trajectory points."""
+    samples = max(400, math.ceil(timed.duration / CHECK_PERIOD) + 1)
     _, velocity, acceleration = timed.sample(np.linspace(0.0, timed.duration, samples))
     return np.array(
         [

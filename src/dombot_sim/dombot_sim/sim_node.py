@@ -229,6 +229,8 @@ class SimNode(Node):
             problems.append("meshcat_recording_path needs meshcat:=true")
         if "domino_count" in values and not 0 <= values["domino_count"] <= MAX_DOMINOES:
             problems.append(f"domino_count must be 0..{MAX_DOMINOES}, got {values['domino_count']}")
+        if "seed" in values and values["seed"] < 0:
+            problems.append(f"seed must be >= 0, got {values['seed']}")
         return problems
 
     def _read_rates(self) -> Rates:
@@ -427,7 +429,12 @@ class SimNode(Node):
             response.message = f"domino_count must be 0..{MAX_DOMINOES}, got {request.domino_count}"
             self.get_logger().error(f"/sim/reset refused: {response.message}")
             return response
-        report = self._in_loop(lambda: self._reset(request.domino_count, request.seed))
+        try:
+            report = self._in_loop(lambda: self._reset(request.domino_count, request.seed))
+        except ValueError as error:  # world.reset's checks, before anything changed
+            response.success, response.message = False, str(error)
+            self.get_logger().error(f"/sim/reset refused: {error}")
+            return response
         response.success = report.settled
         response.settle_time = report.settle_time
         response.message = (

@@ -361,6 +361,8 @@ class CellWorld:
         """Arm home, gripper open, then pour ``domino_count`` dominoes (seeded) and settle them."""
         if domino_count < 0:
             raise ValueError(f"domino_count must be >= 0, got {domino_count}")
+        if seed < 0:  # numpy's generators take none; checked before the world changes
+            raise ValueError(f"seed must be >= 0, got {seed}")
         started = wallclock.perf_counter()
         if domino_count > self._capacity:
             self._build(domino_count)
