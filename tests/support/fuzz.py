@@ -150,7 +150,7 @@ class Harness:
 
     def __init__(self, processes: dict[str, Popen], timeout: float) -> None:
         self.processes = processes
-        self.timeout = timeout  # s a reply may take (generous: searches end long before their budget)
+        self.timeout = timeout  # s a reply may take (generous: a search ends before its budget)
         self.report = Report()
 
     def running(self, endpoint: Endpoint) -> Callable[[], bool]:
