@@ -80,6 +80,7 @@ def camera(render_scene):
     arguments = [
         "--ros-args",
         *("-p", "extrinsics_from_tf:=true"),
+        *("-p", "image_reliability:=best_effort"),  # as a realsense-ros user sets it
         *("-p", "cameras:=[camera_0, camera_1]"),
         *("-p", "continuous:=false"),
     ]

@@ -21,6 +21,7 @@ import numpy as np
 import rclpy
 from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray
@@ -259,11 +260,16 @@ class LayerNode(Node):
 def spin(node_class: type[Node], args: list[str] | None = None) -> None:
     """Run one node until Ctrl-C or shutdown, then clean up."""
     rclpy.init(args=args)
+    # built before the node says it is ready: a Ctrl-C inside an executor's __init__
+    # leaves half an executor whose __del__ prints a traceback
+    executor = SingleThreadedExecutor()
     node = node_class()
     try:
         with stop_quietly_on_shutdown():
-            rclpy.spin(node)
+            executor.add_node(node)
+            executor.spin()
     finally:
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
 

@@ -6,8 +6,10 @@ camera_info of each camera, runs the pipeline continuously at ``rate`` (when
 ``/domino_poses`` (best grasp first), ``/domino_detections`` and a debug picture. Camera
 poses come from the scenario file, from ``<camera>.optical_pose`` parameters, or
 (``extrinsics_from_tf``) from /tf and /tf_static: world → the images' frame, a real
-cell's calibration. Images are subscribed with sensor-data QoS (best effort), so a
-best-effort camera driver connects as well as a reliable one. Missing, stale or malformed
+cell's calibration. Images are subscribed reliable by default (``image_reliability``):
+a best-effort reader drops a whole image whenever one of its fragments is lost, which
+starved the placement checks under load; ``best_effort`` (sensor-data QoS) is for a
+best-effort camera driver such as realsense-ros. Missing, stale or malformed
 images give an empty result and a warning; the node keeps serving.
 ``/perception/check_placement`` looks at where the dominoes of a run should stand
 (``placement_check``), with the build-area camera by default.
@@ -66,7 +68,11 @@ WORLD_FRAME = "world"
 # tf2_ros's listener QoS: /tf reliable, volatile; /tf_static reliable, transient local
 TF_QOS = QoSProfile(depth=100)
 TF_STATIC_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-START_UP_PARAMETERS = ("cameras", "scenario", "extrinsics_from_tf")
+START_UP_PARAMETERS = ("cameras", "scenario", "extrinsics_from_tf", "image_reliability")
+IMAGE_QOS = {
+    "reliable": QoSProfile(depth=qos_profile_sensor_data.depth),
+    "best_effort": qos_profile_sensor_data,
+}
 
 
 @dataclass
@@ -178,6 +184,12 @@ class PerceptionNode(Node):
             ("work_region_radius", 0.0, "region radius [m]; 0: scenario pile radius + margin"),
             ("publish_debug_image", True, "publish /perception/debug_image"),
             (
+                "image_reliability",
+                "reliable",
+                "image and camera_info subscriptions: reliable | best_effort (sensor-data "
+                "QoS, for a best-effort camera driver); read at start-up",
+            ),
+            (
                 "extrinsics_from_tf",
                 False,
                 "camera poses from /tf and /tf_static (world → the images' frame_id) instead "
@@ -197,6 +209,11 @@ class PerceptionNode(Node):
 
     def _build_pipeline(self, values: dict) -> PerceptionPipeline:
         """A pipeline for these parameter values; raises ValueError naming a bad one."""
+        if values["image_reliability"] not in IMAGE_QOS:
+            raise ValueError(
+                f"image_reliability must be one of {sorted(IMAGE_QOS)}, "
+                f"got {values['image_reliability']!r}"
+            )
         for name in ("rate", "max_frame_age", "sync_tolerance", "max_fit_error", "min_coverage"):
             value = values[name]
             if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
@@ -250,6 +267,8 @@ class PerceptionNode(Node):
     # ------------------------------------------------------------------ inputs
     def _subscribe(self, name: str, group: ReentrantCallbackGroup) -> None:
         camera = self.inputs[name]
+        # a bad value was reported with the other parameters: the default then
+        qos = IMAGE_QOS.get(self._param("image_reliability"), IMAGE_QOS["reliable"])
 
         def on_color(message: Image) -> None:
             camera.colors.append(message)
@@ -266,9 +285,7 @@ class PerceptionNode(Node):
             (f"{name}/depth/image_raw", Image, on_depth),
             (f"{name}/color/camera_info", CameraInfo, on_info),
         ):
-            self.create_subscription(
-                kind, topic, callback, qos_profile_sensor_data, callback_group=group
-            )
+            self.create_subscription(kind, topic, callback, qos, callback_group=group)
 
     def _on_transforms(self, message: TFMessage) -> None:
         for stamped in message.transforms:
