@@ -55,7 +55,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     run.add_argument(
         "--layout", choices=["line", "arc", "circle", "spiral", "s-curve", "csv"], default="arc"
     )
-    run.add_argument("--count", type=int, default=10, help="dominoes in the run (default 10)")
+    run.add_argument(
+        "--count",
+        type=int,
+        default=10,
+        help="dominoes in the run (default 10; circle: as many as fit around its --radius)",
+    )
     run.add_argument("--spacing", type=float, help="centre spacing [m] (default 60%% of height)")
     run.add_argument("--start", type=float, nargs=2, default=(0.45, 0.0), metavar=("X", "Y"))
     run.add_argument("--heading", type=float, default=90.0, help="line/s-curve heading [deg]")
