@@ -70,12 +70,9 @@ def test_ctrl_c_during_start_up_leaves_no_traceback(
         while not _loaded(child.pid, "_rclpy_pybind11") and time.monotonic() < deadline:
             time.sleep(0.01)
         assert _loaded(child.pid, "_rclpy_pybind11"), f"{executable} never imported rclpy"
-        child.send_signal(signal.SIGINT)
-        output, _ = child.communicate(timeout=60)
+        output = _interrupted(child)
     finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
+        _killed_if_running(child)
     text = output.decode(errors="replace")
     assert "Traceback" not in text and "KeyboardInterrupt" not in text, text
     assert child.returncode in (0, INTERRUPTED), text
@@ -103,11 +100,21 @@ def test_ctrl_c_while_a_node_spins_leaves_no_traceback(
             line = child.stdout.readline()
             assert line, f"{executable} ended before it started: {''.join(lines)}"
             lines.append(line)
-        child.send_signal(signal.SIGINT)
-        output, _ = child.communicate(timeout=60)
+        output = _interrupted(child)
     finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
+        _killed_if_running(child)
     assert "Traceback" not in output, output
     assert child.returncode in (0, INTERRUPTED), output
+
+
+def _interrupted(child: subprocess.Popen):
+    """Ctrl-C to ``child``: all it printed until it ended."""
+    child.send_signal(signal.SIGINT)
+    output, _ = child.communicate(timeout=60)
+    return output
+
+
+def _killed_if_running(child: subprocess.Popen) -> None:
+    if child.poll() is None:
+        child.kill()
+        child.wait()
