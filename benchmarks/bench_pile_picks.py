@@ -56,6 +56,13 @@ from dombot_planner.planner import PickPlacePlan, PickPlacePlanner, steeper_gras
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.scene import ARM, PADS, PILE, QUERY_DISTANCE, Scene
 from dombot_planner.settings import PlannerSettings
+from dombot_sim.goal_monitor import (
+    GOAL_SETTLE_TIME,
+    Outcome,
+    Tolerances,
+    TrajectoryMonitor,
+    Verdict,
+)
 from dombot_sim.trajectory import build_trajectory
 from dombot_sim.world import CellWorld, WorldConfig
 
@@ -69,8 +76,6 @@ SQUEEZE_LIMIT = 0.00085  # m: ... and no further inside it, or the pads met an e
 PLACE_TOLERANCE = (0.003, math.radians(3.0))  # horizontal m, tilt rad (bring-up's)
 BACK_OUT_OPENING = 0.04  # m wider than the pre-grasp: the bring-up's opening to back out
 BACK_OUT_LEAD = 0.5  # s to ease from where the arm stopped onto the reversed approach
-GOAL_TOLERANCE = 0.01  # rad per joint at a segment's end (the simulator's default)
-GOAL_SETTLE = 0.5  # s the simulator allows after a trajectory's end to get within it
 RUN = {"center": (0.0, 0.0), "radius": 0.6, "start_angle": math.radians(-2.0)}
 
 
@@ -288,8 +293,9 @@ class PileRun:
         carried = None
         for segment in plan.sampled(self.planner.settings.sample_period):
             track(self.world, segment)
-            error = self.goal_error(segment)
-            if error > GOAL_TOLERANCE:
+            verdict = self.goal_verdict(segment)
+            if verdict.outcome is not Outcome.SUCCEEDED:
+                error = float(np.abs(verdict.error).max())
                 row.update(outcome=f"aborted {segment.label}", goal_error_rad=error)
                 if segment.label.endswith("approach_grasp"):
                     self.back_out(segment)
@@ -320,16 +326,20 @@ class PileRun:
         self.world.advance(SETTLE_AFTER_PLACE)
         return carried
 
-    def goal_error(self, segment) -> float:
-        """The largest joint error at the segment's end once the simulator's action server
-        would judge it: within GOAL_TOLERANCE at once, else after up to GOAL_SETTLE."""
+    def goal_verdict(self, segment) -> Verdict:
+        """The simulator's verdict on the segment's goal with the default tolerances (the
+        bring-up sends none); ``track`` left the arm TRACKING_SETTLE past the end."""
         if len(segment.times) < 2:
-            return 0.0
-        goal, deadline = segment.positions[-1], self.world.time + GOAL_SETTLE - TRACKING_SETTLE
+            return Verdict(Outcome.SUCCEEDED)
+        names = self.world.arm_joint_names
+        monitor = TrajectoryMonitor(
+            names, self.world.time - TRACKING_SETTLE, Tolerances.defaults(len(names))
+        )
         while True:
-            error = float(np.abs(self.world.joint_state().position[:7] - goal).max())
-            if error <= GOAL_TOLERANCE or self.world.time >= deadline:
-                return error
+            position = self.world.joint_state().position[:7]
+            verdict = monitor.check(self.world.time, position, segment.positions[-1])
+            if verdict.outcome is not Outcome.RUNNING:
+                return verdict
             self.world.advance(0.05)
 
     def back_out(self, segment) -> None:
@@ -348,7 +358,7 @@ class PileRun:
             self.world.joint_state().position[:7],
             self.world.arm_limits(),
         )
-        self.world.advance_to(self.world.follow_trajectory(spline) + GOAL_SETTLE)
+        self.world.advance_to(self.world.follow_trajectory(spline) + GOAL_SETTLE_TIME)
 
     def judge(self, slot: int, carried: int) -> dict:
         """Placed within the bring-up's tolerance, or "misplaced" (and taken out)."""

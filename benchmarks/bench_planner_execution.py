@@ -35,11 +35,11 @@ from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.verify import nearest_error
+from dombot_sim.goal_monitor import GripperMonitor
 from dombot_sim.world import CellWorld, WorldConfig
 
 TRACKING_SETTLE = 0.1  # s held at the end of each segment before the gripper event
-GRIPPER_TIMEOUT = 2.0  # s a gripper command may take
-GRIPPER_STILL_TIME = 0.1  # s the fingers must be still (at the goal or on the domino)
+GRIPPER_STEP = 0.01  # s simulated between looks at the fingers
 FINAL_SETTLE = 2.0  # s limit for the dominoes to come to rest at the end
 PICKED = 0
 
@@ -88,14 +88,15 @@ def execute(world: CellWorld, plan, period: float) -> dict:
 
 
 def wait_for_gripper(world: CellWorld) -> None:
-    """Advance until the fingers reach the commanded opening or stall on the domino."""
-    deadline, still = world.time + GRIPPER_TIMEOUT, 0.0
-    while world.time < deadline and still < GRIPPER_STILL_TIME:
-        world.advance(0.01)
+    """Advance until the simulator's gripper action would end: the fingers at the
+    commanded opening, stalled on the domino, or out of time."""
+    state = world.gripper_state()
+    monitor = GripperMonitor(state.goal, world.time, world.gripper_stroke_time)
+    while not monitor.check(
+        world.time, state.opening, state.opening_rate, state.force, state.force_limit
+    ).done:
+        world.advance(GRIPPER_STEP)
         state = world.gripper_state()
-        moving = abs(state.opening_rate) > 1e-3 or abs(state.opening - state.goal) > 0.01
-        reached = abs(state.opening - state.goal) < 2e-4
-        still = still + 0.01 if (reached or not moving) else 0.0
 
 
 def plan_force(plan, label: str) -> float:

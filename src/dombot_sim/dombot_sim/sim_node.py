@@ -53,6 +53,16 @@ from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
 from dombot_sim.cameras import CameraFrame
 from dombot_sim.frames import FrameTransform, camera_transforms
+from dombot_sim.goal_monitor import (
+    DEFAULT_GOAL_TOLERANCE,
+    GOAL_SETTLE_TIME,
+    GripperMonitor,
+    Outcome,
+    Tolerances,
+    TrajectoryMonitor,
+    joint_tolerances,
+    tracking_summary,
+)
 from dombot_sim.motion_watch import describe_motion, take_snapshot
 from dombot_sim.sleeping import SleepSettings
 from dombot_sim.trajectory import INVALID_JOINTS, TrajectoryError, build_trajectory
@@ -65,10 +75,11 @@ MAX_DOMINOES = 200
 TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
 GRIPPER_ACTION = "/gripper_controller/gripper_cmd"
 FEEDBACK_PERIOD = 0.1  # s wall between action feedback messages
-DEFAULT_GOAL_TOLERANCE = 0.01  # rad
-GOAL_SETTLE_TIME = 0.5  # s simulated allowed after the trajectory ends, by default
-GRIPPER_STALL_SPEED = 1e-3  # m/s
-GRIPPER_STALL_TIME = 0.1  # s simulated below that speed
+RESULT_CODES = {
+    Outcome.SUCCEEDED: FollowJointTrajectory.Result.SUCCESSFUL,
+    Outcome.PATH_TOLERANCE_VIOLATED: FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED,
+    Outcome.GOAL_TOLERANCE_VIOLATED: FollowJointTrajectory.Result.GOAL_TOLERANCE_VIOLATED,
+}
 RATE_FIELDS = {
     "joint_state_rate": "joint_states",
     "camera_rate": "cameras",
@@ -531,68 +542,48 @@ class SimNode(Node):
                 return FollowJointTrajectory.Result(error_code=error.code, error_string=str(error))
             end = self.world.follow_trajectory(spline)
         names = list(self.world.arm_joint_names)
-        path_tolerance = tolerances(goal.path_tolerance, names, default=-1.0)
-        goal_tolerance = tolerances(goal.goal_tolerance, names, default=DEFAULT_GOAL_TOLERANCE)
-        settle = seconds_of(goal.goal_time_tolerance) or GOAL_SETTLE_TIME
+        monitor = TrajectoryMonitor(names, end, goal_tolerances(goal, names))
         self.get_logger().info(
             f"executing a {spline.end_time():.2f} s trajectory ({len(points)} points)"
         )
-        worst, last_feedback = 0.0, 0.0
+        last_feedback = 0.0
         while True:
             time.sleep(0.005)
             with self._lock:
                 if generation != self._generation:
                     return self._finish(
-                        goal_handle, "abort", worst, None, "preempted by a newer goal or a reset"
+                        goal_handle, "abort", monitor, None, "preempted by a newer goal or a reset"
                     )
                 if goal_handle.is_cancel_requested:
                     self.world.hold_arm()
-                    return self._finish(goal_handle, "cancel", worst, None, "canceled")
+                    return self._finish(goal_handle, "cancel", monitor, None, "canceled")
                 now = self.world.time
                 desired, velocity, acceleration = self.world.desired_arm_state()
                 state = self.world.joint_state()
-            error = state.position[:7] - desired
-            worst = max(worst, float(np.abs(error).max()))
-            violated = (path_tolerance > 0.0) & (np.abs(error) > path_tolerance)
-            if violated.any():
+            verdict = monitor.check(now, state.position[:7], desired)
+            if verdict.outcome is Outcome.PATH_TOLERANCE_VIOLATED:
                 with self._lock:
                     self.world.hold_arm()
-                j = int(np.argmax(violated))
+            if verdict.outcome is not Outcome.RUNNING:
                 return self._finish(
                     goal_handle,
-                    "abort",
-                    worst,
-                    error,
-                    f"path tolerance violated on {names[j]}: {abs(error[j]):.4f} rad off the "
-                    f"trajectory (allowed {path_tolerance[j]:.4f} rad)",
-                    FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED,
+                    "succeed" if verdict.outcome is Outcome.SUCCEEDED else "abort",
+                    monitor,
+                    verdict.error,
+                    verdict.message,
+                    RESULT_CODES[verdict.outcome],
                 )
             if time.monotonic() - last_feedback > FEEDBACK_PERIOD:
                 last_feedback = time.monotonic()
                 goal_handle.publish_feedback(
                     feedback_message(names, now, (desired, velocity, acceleration), state)
                 )
-            if now < end:
-                continue
-            within = (goal_tolerance <= 0.0) | (np.abs(error) <= goal_tolerance)
-            if within.all():
-                return self._finish(goal_handle, "succeed", worst, error, "")
-            if now > end + settle:
-                joint = names[int(np.argmin(within))]
-                return self._finish(
-                    goal_handle,
-                    "abort",
-                    worst,
-                    error,
-                    f"{joint} ended {abs(error[names.index(joint)]):.4f} rad from the goal",
-                    FollowJointTrajectory.Result.GOAL_TOLERANCE_VIOLATED,
-                )
 
-    def _finish(self, goal_handle, outcome, worst, error, message, code=0):
+    def _finish(self, goal_handle, outcome, monitor, error, message, code=0):
         """End the goal; ``error_string`` carries the tracking figures the control_msgs
         result has no fields for (largest error along the way, worst joint at the end)."""
         getattr(goal_handle, outcome)()
-        figures = tracking_summary(worst, error)
+        figures = tracking_summary(monitor.worst, error)
         if outcome != "succeed":
             self.get_logger().warning(f"{TRAJECTORY_ACTION} {outcome}: {message}")
         else:
@@ -613,9 +604,7 @@ class SimNode(Node):
                 goal_handle.abort()
                 state = self.world.gripper_state()
                 return GripperCommand.Result(position=state.opening, effort=abs(state.force))
-            start = self.world.time
-            limit = start + self.world.gripper_stroke / self.world.config.gripper.speed + 1.0
-        slow_since = None
+            monitor = GripperMonitor(goal.position, self.world.time, self.world.gripper_stroke_time)
         while True:
             time.sleep(0.005)
             with self._lock:
@@ -625,17 +614,12 @@ class SimNode(Node):
                     goal_handle.canceled()
                     return gripper_result(state, reached=False, stalled=False)
                 now, state = self.world.time, self.world.gripper_state()
-            reached = abs(state.opening - goal.position) < 1e-3
-            slow = abs(state.opening_rate) < GRIPPER_STALL_SPEED and now - start > 0.05
-            slow_since = (slow_since or now) if slow else None
-            stalled = (
-                not reached
-                and slow_since is not None
-                and now - slow_since > GRIPPER_STALL_TIME
-                and abs(state.force) >= 0.99 * state.force_limit
+            verdict = monitor.check(
+                now, state.opening, state.opening_rate, state.force, state.force_limit
             )
+            reached, stalled = verdict.reached, verdict.stalled
             goal_handle.publish_feedback(gripper_feedback(state, reached, stalled))
-            if reached or stalled or now > limit:
+            if verdict.done:
                 goal_handle.succeed()
                 self.get_logger().info(
                     f"gripper at {state.opening * 1e3:.1f} mm, force {abs(state.force):.1f} N"
@@ -657,13 +641,15 @@ def _all_have(points, field_name: str) -> bool:
     return bool(points) and all(len(getattr(p, field_name)) > 0 for p in points)
 
 
-def tolerances(entries, names: list[str], default: float) -> np.ndarray:
-    """Per-joint position tolerance from JointTolerance entries (0: default, < 0: none)."""
-    values = np.full(len(names), default)
-    for entry in entries:
-        if entry.name in names and entry.position != 0.0:
-            values[names.index(entry.name)] = entry.position
-    return values
+def goal_tolerances(goal: FollowJointTrajectory.Goal, names: list[str]) -> Tolerances:
+    """The goal's JointTolerance entries and goal_time_tolerance as monitor tolerances."""
+    path = [(entry.name, entry.position) for entry in goal.path_tolerance]
+    end = [(entry.name, entry.position) for entry in goal.goal_tolerance]
+    return Tolerances(
+        path=joint_tolerances(path, names, default=-1.0),
+        goal=joint_tolerances(end, names, default=DEFAULT_GOAL_TOLERANCE),
+        settle=seconds_of(goal.goal_time_tolerance) or GOAL_SETTLE_TIME,
+    )
 
 
 def twist_message(velocity: np.ndarray) -> Twist:
@@ -709,13 +695,6 @@ def camera_info(frame: CameraFrame, header: Header) -> CameraInfo:
         r=np.eye(3).ravel().tolist(),
         p=np.hstack([intrinsics, np.zeros((3, 1))]).ravel().tolist(),
     )
-
-
-def tracking_summary(worst: float, error: np.ndarray | None) -> str:
-    summary = f"largest tracking error {worst:.2e} rad"
-    if error is None:
-        return summary
-    return summary + f", when it ended {float(np.abs(error).max()):.2e} rad"
 
 
 def feedback_message(names, now, desired_state, state) -> FollowJointTrajectory.Feedback:

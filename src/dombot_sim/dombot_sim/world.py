@@ -612,6 +612,11 @@ class CellWorld:
         finger = self._plant.GetJointByName(self.scenario.gripper_joints[0])
         return 2.0 * float(finger.position_upper_limits()[0])
 
+    @property
+    def gripper_stroke_time(self) -> float:
+        """Seconds a full stroke takes at the fingers' speed."""
+        return self.gripper_stroke / self.config.gripper.speed
+
     def gripper_state(self) -> GripperState:
         state = self._plant.GetPositionsAndVelocities(self._plant_context, self._models.gripper)
         return GripperState(
