@@ -9,9 +9,9 @@ import torch
 
 from dombot_description.scenario import load_scenario
 from dombot_perception.backprojection import organised_cloud
-from dombot_perception.pipeline import PerceptionPipeline, config_for_scenario
+from dombot_perception.pipeline import PerceptionPipeline, config_for_scenario, make_segmenter
 from dombot_perception.sam_segmentation import SamSegmenter, box_nms, load_sam
-from dombot_perception.segmentation import SegmenterError, make_segmenter
+from dombot_perception.segmentation import SegmenterError
 from support.perception_scenes import PILE_CENTRE, flat
 
 from segment_anything.modeling import (  # isort: skip (after sam_segmentation sets it up)

@@ -30,13 +30,15 @@ from dombot_perception.domino_model import (
 from dombot_perception.filtering import FilterConfig, rejection_reason, remove_outliers
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.fusion import FusedCloud, FusionConfig, MaskCloud, fuse
+from dombot_perception.geometric_segmentation import GeometricSegmenter, GeometricSegmenterConfig
 from dombot_perception.grasp_scoring import GraspScoringConfig, score_detections
-from dombot_perception.segmentation import Segmenter, make_segmenter
+from dombot_perception.segmentation import Segmenter, SegmenterError
 
 REJOIN_DISTANCE = 0.032  # m: halves of one domino have centres about 24 mm apart
 REJOIN_SIDEWAYS = 0.005  # m: and are offset across the length by less than this
 PILE_MARGIN = 0.12  # m around the pile disc where dominoes may have slid
 STAGES = ("segmentation", "backprojection", "fusion", "box_fit", "scoring")
+BACKENDS = ("geometric", "sam")
 
 
 @dataclass(frozen=True)
@@ -343,3 +345,22 @@ def _aligned_pairs(fits: list[BoxFit]) -> list[tuple[int, int]]:
         if offset[1] < REJOIN_SIDEWAYS and offset[2] < REJOIN_SIDEWAYS:
             pairs.append((float(offset[0]), first, second))
     return [(first, second) for _, first, second in sorted(pairs)]
+
+
+def make_segmenter(
+    backend: str,
+    geometric: GeometricSegmenterConfig | None = None,
+    sam_checkpoint: str = "",
+    sam_model_type: str = "vit_b",
+    sam_points_per_side: int = 32,
+) -> Segmenter:
+    """The backend named ``backend`` ('geometric' or 'sam')."""
+    if backend == "geometric":
+        return GeometricSegmenter(geometric)
+    if backend == "sam":
+        from dombot_perception.sam_segmentation import SamSegmenter, load_sam  # needs torch
+
+        if not sam_checkpoint:
+            raise SegmenterError("backend 'sam' needs a checkpoint path (sam_checkpoint)")
+        return SamSegmenter(load_sam(sam_model_type, sam_checkpoint), sam_points_per_side)
+    raise SegmenterError(f"unknown segmentation backend {backend!r}; choose one of {BACKENDS}")
