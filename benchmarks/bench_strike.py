@@ -44,6 +44,7 @@ from dombot_description.grasp import (
     release_opening,
     upright_pose,
 )
+from dombot_description.pusher import PUSHER_STANDOFF
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_planner.errors import PlanningError
 from dombot_planner.request import StrikeRequest
@@ -224,9 +225,9 @@ def write_strike_figure(path: str, settings: PlannerSettings) -> None:
         pusher_rotations(along)[0],
         along,
         settings.strike_height,
-        settings.strike_standoff,
+        PUSHER_STANDOFF,
     )
-    push = settings.strike_standoff + settings.push_distance
+    push = PUSHER_STANDOFF + settings.push_distance
     gripper = gripper_geometry()
     figure, axis = plt.subplots(figsize=(7, 6))
     for shift, alpha in (

@@ -14,7 +14,7 @@ import numpy as np
 
 from dombot_bringup.layouts import DOMINO_WIDTH, DominoPlacement
 from dombot_description import domino_corners
-from dombot_planner.request import MAX_SWEEP_DISTANCE as MAX_SWEEP
+from dombot_description.pusher import MAX_SWEEP_DISTANCE as MAX_SWEEP
 
 
 def sweep_pushes(

@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 from dombot_bringup.debris import MAX_SWEEP
 from dombot_description import DOMINO_SIZE, domino_corners
 from dombot_description.grasp import OrientedBox
+from dombot_description.pusher import PADS_HALF, PUSHER_STANDOFF, SWEEP_HEIGHT
 from dombot_planner.request import sweep_blocker
 from dombot_planner.settings import PlannerSettings
 
@@ -30,19 +31,16 @@ SPREAD_DIRECTIONS = 16  # tried around the circle
 SPREAD_STEP = 0.01  # m between the push distances tried
 MIN_SPREAD = 0.02  # m: the shortest push
 OUTLINE_STEP = 0.003  # m between the points of a domino's faces
-# The pusher (closed pads, ~16 × 16 mm, pointing down) comes down PUSHER_BEHIND behind
-# the pushed domino (the planner's strike_standoff, which the pads travel before they
-# meet it, plus half the pads), its tips at sweep_height of the domino's vertical
-# extent, and needs PUSHER_ROOM around that spot above its tips (less the planner's
-# fine_obstacle_clearance): a domino the pushed one lies on is no obstacle to it. The
-# planner checks all this exactly; here it only chooses what to ask for.
-_PLANNER = PlannerSettings()
-PUSHER_STANDOFF = _PLANNER.strike_standoff  # m
-PUSHER_BEHIND = PUSHER_STANDOFF + 0.008  # m
+# The pusher (closed pads pointing down) comes down PUSHER_BEHIND behind the pushed
+# domino (the standoff the pads travel before they meet it, plus half the pads), its tips
+# at SWEEP_HEIGHT of the domino's vertical extent, and needs PUSHER_ROOM around that spot
+# above its tips (less the planner's fine_obstacle_clearance): a domino the pushed one
+# lies on is no obstacle to it. The planner checks all this exactly; here it only
+# chooses what to ask for.
+PUSHER_BEHIND = PUSHER_STANDOFF + PADS_HALF  # m
 PUSHER_ROOM = 0.013  # m
 PUSHER_STEP = 0.005  # m between the pusher's spots checked along the push
-PUSHER_BELOW = _PLANNER.fine_obstacle_clearance  # m
-SWEEP_HEIGHT = _PLANNER.sweep_height
+PUSHER_BELOW = PlannerSettings().fine_obstacle_clearance  # m
 FINGERS_END = 0.005  # m beyond its ends that the fingers' room must reach
 # m a jammed domino is pushed through its neighbours: a missed grasp in a jam moved them
 # 3-25 mm (replays of 4b0c505's misses), after which the next pick planned

@@ -18,6 +18,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE, domino_corners, tilt_from_vertical
 from dombot_description.grasp import gripper_geometry, pregrasp_opening
+from dombot_description.pusher import MAX_SWEEP_DISTANCE
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.settings import PlannerSettings
 
@@ -28,7 +29,6 @@ TABLE_TOLERANCE = 5e-4  # m a place pose may reach into the table top
 GRASP_REACH = 0.05  # m: a grasp TCP farther than this from its domino's centre is a mistake
 UPRIGHT_TOLERANCE = math.radians(10.0)  # body x this close to vertical stands upright
 MAX_PUSH_DISTANCE = 0.05  # m past the back face: farther reaches the next domino of a run
-MAX_SWEEP_DISTANCE = 0.1  # m a sweep may push a domino (two lengths)
 SWEEP_CHECK_STEP = 0.005  # m between the poses of a swept domino checked against the run
 MAX_PUSH_SPEED = 0.5  # m/s: faster throws the domino instead of tipping it
 # Request sizes (docs/PLANNER.md): larger requests are refused, not truncated. Every

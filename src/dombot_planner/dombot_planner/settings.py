@@ -51,13 +51,12 @@ class PlannerSettings:
     # position) sets the squeeze, as a WSG grasp command does.
     grip_force: float = 40.0  # N
     # Strike (/plan_strike): the closed fingers push the first domino of a run along its
-    # body z (the direction it topples) with their tips at strike_height × its height.
+    # body z (the direction it topples) with their tips at strike_height × its height;
+    # where the pads start and a sweep's height are dombot_description.pusher's.
     strike_height: float = 0.75  # of the domino's height, where the fingertips push
-    strike_standoff: float = 0.01  # m between pads and the domino's back face before the push
     strike_approach_height: float = 0.05  # m of the vertical line down to the strike pose
     push_distance: float = 0.015  # m the fingertips travel past the back face (request: 0)
     push_speed: float = 0.1  # m/s of the fingertips during the push (request: 0)
-    sweep_height: float = 0.4  # of a swept domino's vertical extent, where the tips push
     # Requests.
     default_time_budget: float = 5.0  # s when the request says 0
     workspace_reach: tuple[float, float] = (0.25, 0.85)  # m from the arm base axis
@@ -92,8 +91,7 @@ class PlannerSettings:
             raise ValueError(
                 f"steeper_grasp_turn must be 0 to π/2 rad, got {self.steeper_grasp_turn}"
             )
-        for name in ("strike_height", "sweep_height"):
-            if getattr(self, name) > 1.0:
-                raise ValueError(f"{name} is a fraction of the height, got {getattr(self, name)}")
+        if self.strike_height > 1.0:
+            raise ValueError(f"strike_height is a fraction of the height, got {self.strike_height}")
         if self.kto_control_points < 4:
             raise ValueError("kto_control_points must be at least 4 (cubic B-spline)")

@@ -5,7 +5,7 @@ pointing down. Plan of a request:
 
 1. *Strike pose.* For each pusher orientation (``pusher_rotations``: straight down, then
    leaning sideways), the TCP pose that puts the fingertips at ``strike_height`` of the
-   domino's height and the pads ``strike_standoff`` behind its back face (behind = against
+   domino's height and the pads ``PUSHER_STANDOFF`` behind its back face (behind = against
    its body z, the direction it topples). IK there, then three straight TCP lines at that
    orientation: the descent from ``strike_approach_height`` above (clear of everything by
    ``coarse_clearance``), the push along body z to ``push_distance`` past the back face
@@ -22,7 +22,7 @@ Segments: ``close_gripper`` (only if the start may have the fingers open), ``app
 ``push``, ``retreat``.
 
 A *sweep* is the same move for a domino in any pose, pushed along a horizontal direction
-the request gives (``StrikeRequest.sweep``), its fingertips at ``sweep_height`` of the
+the request gives (``StrikeRequest.sweep``), its fingertips at ``SWEEP_HEIGHT`` of the
 domino's vertical extent (low, so a flat domino slides rather than the pads riding over
 it): the bring-up clears fallen dominoes out of the run's way when no grasp reaches
 them.
@@ -40,6 +40,7 @@ from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description.grasp import gripper_geometry
+from dombot_description.pusher import PUSHER_STANDOFF, SWEEP_HEIGHT
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.ik import PoseIK
 from dombot_planner.motion import (
@@ -186,8 +187,8 @@ class StrikePlanning(RequestMotions):
         self.request = request
         s = self.settings
         self.direction = push_direction(request)
-        self.height = s.strike_height if request.sweep is None else s.sweep_height
-        self.push_length = s.strike_standoff + (request.push_distance or s.push_distance)
+        self.height = s.strike_height if request.sweep is None else SWEEP_HEIGHT
+        self.push_length = PUSHER_STANDOFF + (request.push_distance or s.push_distance)
         self.push_speed = request.push_speed or s.push_speed
         shadow, tcp = planner.plants.get(CLOSED), planner.scenario.tcp_frame
         self.run = Scene(shadow, tcp, request.standing, target=request.domino_pose)
@@ -220,13 +221,12 @@ class StrikePlanning(RequestMotions):
 
     def _lines(self) -> Iterator[Lines]:
         """Strike poses whose descent, push and retreat lines keep their clearances."""
-        s = self.settings
         rotations = pusher_rotations(self.direction)
         self.search.orientations = len(rotations)
         checks = [(self.run, self.rules["descent"])]
         for rotation in rotations:
             pose = strike_pose(
-                self.request.domino_pose, rotation, self.direction, self.height, s.strike_standoff
+                self.request.domino_pose, rotation, self.direction, self.height, PUSHER_STANDOFF
             )
             ik = PoseIK(self.run, rotation)
             at = pose.translation()
