@@ -16,6 +16,7 @@ from geometry_msgs.msg import Point, Pose, Quaternion
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from dombot_adapters.pose_messages import duration_message, pose_matrix
 from dombot_bringup import layouts
 from dombot_bringup.arm_job import (
     DEFERRED,
@@ -44,7 +45,6 @@ from dombot_bringup.run_report import (
 )
 from dombot_bringup.spread import STIR_DISTANCE
 from dombot_description import DOMINO_SIZE
-from dombot_description.pose_messages import duration_message, pose_matrix
 from dombot_msgs.msg import DominoDetection, DominoState, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike
 

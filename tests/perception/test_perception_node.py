@@ -16,8 +16,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
 
+from dombot_adapters.pose_messages import pose_message
 from dombot_description.grasp import upright_pose
-from dombot_description.pose_messages import pose_message
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.domino_model import orientation_error

@@ -18,8 +18,8 @@ from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
+from dombot_adapters.pose_messages import pose_matrix
 from dombot_description.cell import add_cell
-from dombot_description.pose_messages import pose_matrix
 from dombot_description.scenario import load_scenario
 from dombot_msgs.msg import DominoStateArray
 from support.camera_messages import transform_matrix

@@ -6,7 +6,7 @@ import numpy as np
 from geometry_msgs.msg import Point, Pose, Transform, TransformStamped, Vector3
 from sensor_msgs.msg import CameraInfo, Image
 
-from dombot_description.pose_messages import pose_matrix, pose_message
+from dombot_adapters.pose_messages import pose_matrix, pose_message
 
 
 def image_messages(

@@ -36,6 +36,7 @@ import rclpy
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from dombot_adapters.pose_messages import duration_message, pose_matrix, seconds_of
 from dombot_bringup.cell_client import CallFailedError, CellClient
 from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement, safety_gaps
@@ -52,7 +53,6 @@ from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_bringup.spread import spread_pushes, stir_pushes
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
-from dombot_description.pose_messages import duration_message, pose_matrix, seconds_of
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, PlanPlace, PlanStrike
 

@@ -24,6 +24,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
+from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
 from dombot_bringup.record_node import message_class
 from dombot_bringup.recording import (
     BEST_EFFORT,
@@ -33,7 +34,6 @@ from dombot_bringup.recording import (
     recorded_channels,
     recorded_messages,
 )
-from dombot_description.node_shutdown import stop_quietly_on_shutdown
 
 TAIL = 0.5  # s kept alive after the last message
 CLOCK_PERIOD = 0.025  # s of recording time between /clock messages made from log times

@@ -26,7 +26,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray
 
-from dombot_description.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import (
     LayerKinematics,

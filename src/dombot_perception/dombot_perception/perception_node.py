@@ -37,9 +37,9 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
 
+from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.pose_messages import pose_matrix, pose_message
 from dombot_description import tilt_from_vertical
-from dombot_description.node_shutdown import stop_quietly_on_shutdown
-from dombot_description.pose_messages import pose_matrix, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes

@@ -31,8 +31,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from dombot_description.node_shutdown import stop_quietly_on_shutdown
-from dombot_description.pose_messages import duration_message, pose_message
+from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.pose_messages import duration_message, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
 from dombot_msgs.srv import PlanPlace, PlanStrike

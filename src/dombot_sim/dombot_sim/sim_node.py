@@ -46,8 +46,8 @@ from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from dombot_description.node_shutdown import stop_quietly_on_shutdown
-from dombot_description.pose_messages import pose_message, seconds_of, time_message
+from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.pose_messages import pose_message, seconds_of, time_message
 from dombot_description.robot_description import robot_urdf
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim

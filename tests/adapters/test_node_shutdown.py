@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import rclpy
 
-from dombot_description.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
 
 
 def test_an_error_after_shutdown_is_a_normal_stop_and_one_before_it_is_raised() -> None:

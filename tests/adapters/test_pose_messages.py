@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dombot_description.pose_messages import (
+from dombot_adapters.pose_messages import (
     duration_message,
     pose_matrix,
     pose_message,
