@@ -14,7 +14,7 @@ setup(
     zip_safe=False,
     maintainer="DOM-BOT developers",
     maintainer_email="dombot@example.org",
-    description="What every DOM-BOT node adapter shares: pose and time messages and a quiet "
-    "shutdown.",
+    description="What every DOM-BOT node adapter shares: pose and time messages, a quiet "
+    "shutdown, settings dataclasses as ROS parameters.",
     license="Apache-2.0",
 )

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from dombot_sim.sim_node import SimNode
+from dombot_sim.sim_node import SimParameters
 from dombot_sim.world import CellWorld, WorldConfig
 
 
@@ -26,5 +26,5 @@ def test_without_meshcat_there_is_nothing_to_record(tmp_path: Path) -> None:
     world = CellWorld(WorldConfig(cameras=False, domino_capacity=1))
     with pytest.raises(ValueError, match="Meshcat is off"):
         world.start_meshcat_recording()
-    problems = SimNode._parameter_problems({"meshcat": False, "meshcat_recording_path": "a.html"})
-    assert problems == ["meshcat_recording_path needs meshcat:=true"]
+    with pytest.raises(ValueError, match=r"^meshcat_recording_path needs meshcat:=true$"):
+        SimParameters(meshcat=False, meshcat_recording_path="a.html")

@@ -15,18 +15,19 @@ serving.
 from __future__ import annotations
 
 import math
-from dataclasses import fields
+from dataclasses import dataclass
 
 import numpy as np
 import rclpy
 from nav_msgs.msg import Odometry, Path
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray
 
 from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.parameters import DataclassParameters, described
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import (
     LayerKinematics,
@@ -47,26 +48,34 @@ GEOMETRY_PREFIX = "geometry."
 MAX_SETTING = {"command_rate": 1000.0, "forward_speed": 10.0, "deposit_spacing": 1.0}
 
 
+@dataclass(frozen=True)
+class Driving:
+    """How the vehicle is driven; each a number in (0, MAX_SETTING]."""
+
+    forward_speed: float = described(0.1, "front-axle midpoint speed [m/s]")
+    deposit_spacing: float = described(0.03, "domino spacing on paths [m]")
+    command_rate: float = described(20.0, "command publish rate [Hz]")
+
+    def __post_init__(self) -> None:
+        for name, most in MAX_SETTING.items():
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not (math.isfinite(value) and 0 < value <= most)
+            ):
+                raise ValueError(f"{name} must be a number in (0, {most}], got {value!r}")
+
+
 class LayerNode(Node):
     def __init__(self) -> None:
         super().__init__("layer_node")
-        defaults = VehicleGeometry()
-        for field in fields(VehicleGeometry):
-            self.declare_parameter(
-                GEOMETRY_PREFIX + field.name,
-                float(getattr(defaults, field.name)),
-                ParameterDescriptor(description=f"vehicle {field.name} [m], see docs/LAYER.md"),
-            )
-        self.declare_parameter(
-            "forward_speed", 0.1, ParameterDescriptor(description="front-axle midpoint speed [m/s]")
+        self.geometry_parameters = DataclassParameters(
+            self, VehicleGeometry, GEOMETRY_PREFIX, "vehicle dimension [m], see docs/LAYER.md"
         )
-        self.declare_parameter(
-            "deposit_spacing", 0.03, ParameterDescriptor(description="domino spacing on paths [m]")
-        )
-        self.declare_parameter(
-            "command_rate", 20.0, ParameterDescriptor(description="command publish rate [Hz]")
-        )
-        self.kinematics = LayerKinematics(self._geometry_from(self._parameter_values()))
+        self.driving_parameters = DataclassParameters(self, Driving)
+        self.driving = self.driving_parameters.read()
+        self.kinematics = LayerKinematics(self.geometry_parameters.read())
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self.command_pub = self.create_publisher(
@@ -83,9 +92,7 @@ class LayerNode(Node):
         self.schedule_start = 0.0
         self.last_position: np.ndarray | None = None
         self.travelled = 0.0  # m by the drive axle since the path started (odometry)
-        self.timer = self.create_timer(
-            1.0 / self.get_parameter("command_rate").value, self._publish
-        )
+        self.timer = self.create_timer(1.0 / self.driving.command_rate, self._publish)
         minimum = self.kinematics.minimum_laying_radius
         self.get_logger().info(
             f"ready: minimum laying radius {minimum('left'):.4f} m (left), "
@@ -93,44 +100,20 @@ class LayerNode(Node):
         )
 
     # ------------------------------------------------------------------ parameters
-    def _parameter_values(self, overrides: dict[str, object] | None = None) -> dict[str, object]:
-        values = {name: self.get_parameter(name).value for name in self._parameter_names()}
-        values.update(overrides or {})
-        return values
-
-    def _parameter_names(self) -> list[str]:
-        names = [GEOMETRY_PREFIX + f.name for f in fields(VehicleGeometry)]
-        return [*names, "forward_speed", "deposit_spacing", "command_rate"]
-
-    @staticmethod
-    def _geometry_from(values: dict[str, object]) -> VehicleGeometry:
-        return VehicleGeometry(
-            **{f.name: values[GEOMETRY_PREFIX + f.name] for f in fields(VehicleGeometry)}
-        )
-
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        candidate = self._parameter_values({p.name: p.value for p in parameters})
         try:
-            geometry = self._geometry_from(candidate)
-            for name in ("forward_speed", "deposit_spacing", "command_rate"):
-                value = candidate[name]
-                if (
-                    isinstance(value, bool)
-                    or not isinstance(value, int | float)
-                    or not (math.isfinite(value) and 0 < value <= MAX_SETTING[name])
-                ):
-                    raise ValueError(
-                        f"{name} must be a number in (0, {MAX_SETTING[name]}], got {value!r}"
-                    )
+            geometry = self.geometry_parameters.read(parameters)
+            driving = self.driving_parameters.read(parameters)
         except ValueError as error:
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
         if geometry != self.kinematics.geometry:
             self.kinematics = LayerKinematics(geometry)
             self.get_logger().info(f"geometry updated: {geometry}")
-        if candidate["command_rate"] != self.get_parameter("command_rate").value:
+        if driving.command_rate != self.driving.command_rate:
             self.timer.cancel()
-            self.timer = self.create_timer(1.0 / candidate["command_rate"], self._publish)
+            self.timer = self.create_timer(1.0 / driving.command_rate, self._publish)
+        self.driving = driving
         return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ inputs
@@ -139,7 +122,7 @@ class LayerNode(Node):
         self.command = self._radius_command(message.data)
 
     def _radius_command(self, radius: float) -> WheelVelocities:
-        speed = float(self.get_parameter("forward_speed").value)
+        speed = self.driving.forward_speed
         try:
             midpoint = self.kinematics.midpoint_radius(radius)
         except UnreachableRadiusError as error:
@@ -176,8 +159,8 @@ class LayerNode(Node):
             self.schedule = schedule_segments(
                 self.kinematics,
                 segments,
-                float(self.get_parameter("forward_speed").value),
-                float(self.get_parameter("deposit_spacing").value),
+                self.driving.forward_speed,
+                self.driving.deposit_spacing,
                 look_ahead=True,
             )
         except PathError as error:
@@ -211,7 +194,7 @@ class LayerNode(Node):
         """Where the vehicle is in the schedule: odometry distance over the axle speed."""
         if self.last_position is None:  # no odometry (yet): the clock
             return self._now() - self.schedule_start
-        return self.travelled / float(self.get_parameter("forward_speed").value)
+        return self.travelled / self.driving.forward_speed
 
     def _publish(self) -> None:
         if self.schedule is not None:
@@ -232,7 +215,7 @@ class LayerNode(Node):
         return WheelVelocities(
             left=left,
             right=right,
-            forward_speed=float(self.get_parameter("forward_speed").value),
+            forward_speed=self.driving.forward_speed,
             deposit_radius=float(schedule.deposit_radius[k]),
             midpoint_radius=midpoint,
             wheel_speed_ratio=wheel_speed_ratio(self.kinematics.geometry, midpoint),

@@ -18,8 +18,9 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
+from dombot_adapters.parameters import DataclassParameters
 from dombot_layer.geometry import VehicleGeometry
-from dombot_layer.layer_node import spin
+from dombot_layer.layer_node import GEOMETRY_PREFIX, spin
 from dombot_layer.vehicle_sim import VehicleSimulator
 
 START_FRAME = "layer_start"
@@ -29,17 +30,16 @@ BASE_FRAME = "layer_base"
 class VehicleSimNode(Node):
     def __init__(self) -> None:
         super().__init__("vehicle_sim_node")
-        defaults = VehicleGeometry()
-        geometry = {}
-        for name, value in defaults.__dict__.items():
-            geometry[name] = self.declare_parameter(f"geometry.{name}", float(value)).value
+        geometry = DataclassParameters(
+            self, VehicleGeometry, GEOMETRY_PREFIX, "vehicle dimension [m], see docs/LAYER.md"
+        )
         spacing = self.declare_parameter(
             "deposit_spacing", 0.03, ParameterDescriptor(description="domino spacing [m]")
         ).value
         rate = self.declare_parameter(
             "rate", 50.0, ParameterDescriptor(description="integration/publish rate [Hz]")
         ).value
-        self.simulator = VehicleSimulator(VehicleGeometry(**geometry), spacing)
+        self.simulator = VehicleSimulator(geometry.read(), spacing)
         self.command = (0.0, 0.0)
         self.deposits: list[np.ndarray] = []
         self.period = 1.0 / rate

@@ -38,6 +38,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
 
 from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.parameters import DataclassParameters, described
 from dombot_adapters.pose_messages import pose_matrix, pose_message
 from dombot_description import tilt_from_vertical
 from dombot_description.scenario import ScenarioError, load_scenario
@@ -99,12 +100,69 @@ class CameraInput:
         return None
 
 
+@dataclass(frozen=True)
+class PerceptionParameters:
+    """perception_node's parameters (START_UP_PARAMETERS are read at start-up only); the
+    pipeline checks the values when it is built from them."""
+
+    scenario: str = described("", "scenario file; empty: dombot_description's default")
+    cameras: tuple[str, ...] = described(
+        ("camera_0", "camera_1", "camera_2"), "cameras to subscribe (/<name>/...)"
+    )
+    detect_cameras: tuple[str, ...] = described(
+        ("camera_0", "camera_1"), "cameras that watch the pile"
+    )
+    placement_cameras: tuple[str, ...] = described(
+        ("camera_2",), "cameras that watch the build area"
+    )
+    in_hand_cameras: tuple[str, ...] = described(
+        ("camera_0", "camera_1", "camera_2"),
+        "cameras of in_hand placement checks (each fitted alone; the gripper hides the held "
+        "domino from some)",
+    )
+    backend: str = described("geometric", "segmentation backend: geometric | sam")
+    sam_checkpoint: str = described("", "path of a SAM checkpoint (.pth), needed by backend sam")
+    sam_model_type: str = described(
+        "vit_b", "SAM model type of the checkpoint: vit_b | vit_l | vit_h"
+    )
+    sam_points_per_side: int = described(32, "SAM prompt grid: points per image side")
+    continuous: bool = described(True, "process new frames at 'rate' without being asked")
+    rate: float = described(1.0, "continuous processing rate [Hz]")
+    max_frame_age: float = described(5.0, "frames older than this [s] count as a stopped camera")
+    sync_tolerance: float = described(0.05, "colour and depth stamps may differ by this [s]")
+    max_fit_error: float = described(
+        0.0015, "reject boxes whose RMS point distance exceeds this [m]"
+    )
+    min_coverage: float = described(0.85, "fraction of a large face that must be seen")
+    min_clearance: float = described(
+        0.0015, "finger clearance below this predicts a failed grasp [m]"
+    )
+    work_region_center: tuple[float, float] = described(
+        (0.0, 0.0), "region centre [x y] in world; [0 0]: the pile's"
+    )
+    work_region_radius: float = described(
+        0.0, "region radius [m]; 0: scenario pile radius + margin"
+    )
+    publish_debug_image: bool = described(True, "publish /perception/debug_image")
+    image_reliability: str = described(
+        "reliable",
+        "image and camera_info subscriptions: reliable | best_effort (sensor-data QoS, for "
+        "a best-effort camera driver); read at start-up",
+    )
+    extrinsics_from_tf: bool = described(
+        False,
+        "camera poses from /tf and /tf_static (world → the images' frame_id) instead of the "
+        "scenario; read at start-up",
+    )
+
+
 class PerceptionNode(Node):
     def __init__(self) -> None:
         super().__init__("perception_node")
-        self._declare_parameters()
-        self.scenario = load_scenario(self._param("scenario") or None)
-        self.camera_names: list[str] = list(self._param("cameras"))
+        self.parameters = DataclassParameters(self, PerceptionParameters)
+        self.settings = self.parameters.read()
+        self.scenario = load_scenario(self.settings.scenario or None)
+        self.camera_names: list[str] = list(self.settings.cameras)
         for name in self.camera_names:
             self.declare_parameter(
                 f"{name}.optical_pose",
@@ -115,7 +173,7 @@ class PerceptionNode(Node):
             )
         self.inputs = {name: CameraInput() for name in self.camera_names}
         try:
-            self.pipeline = self._build_pipeline(self._parameter_values())
+            self.pipeline = self._build_pipeline(self.settings)
         except (ValueError, SegmenterError, OSError, RuntimeError) as error:
             self.get_logger().error(f"bad parameters ({error}); using the default settings")
             self.pipeline = build_pipeline(self.scenario)
@@ -128,7 +186,7 @@ class PerceptionNode(Node):
         for name in self.camera_names:
             self._subscribe(name, inputs)
         self.transforms = TransformBuffer()
-        if self._param("extrinsics_from_tf"):
+        if self.settings.extrinsics_from_tf:
             for topic, qos in (("/tf", TF_QOS), ("/tf_static", TF_STATIC_QOS)):
                 self.create_subscription(
                     TFMessage, topic, self._on_transforms, qos, callback_group=inputs
@@ -145,10 +203,10 @@ class PerceptionNode(Node):
         )
         self.last_processed: dict[str, float] = {}
         self.timer = self.create_timer(
-            1.0 / self._param("rate"), self._on_timer, callback_group=work
+            1.0 / self.settings.rate, self._on_timer, callback_group=work
         )
-        mode = f"continuous at {self._param('rate')} Hz" if self._param("continuous") else ""
-        extrinsics = "/tf" if self._param("extrinsics_from_tf") else "the scenario"
+        mode = f"continuous at {self.settings.rate} Hz" if self.settings.continuous else ""
+        extrinsics = "/tf" if self.settings.extrinsics_from_tf else "the scenario"
         self.get_logger().info(
             f"ready: backend {self.pipeline.segmenter.name}, cameras {self.camera_names} "
             f"(extrinsics from {extrinsics}), {mode or 'on demand only'}; "
@@ -156,95 +214,44 @@ class PerceptionNode(Node):
         )
 
     # ------------------------------------------------------------------ parameters
-    def _declare_parameters(self) -> None:
-        self.parameter_names: list[str] = []
-        for name, default, description in (
-            ("scenario", "", "scenario file; empty: dombot_description's default"),
-            ("cameras", ["camera_0", "camera_1", "camera_2"], "cameras to subscribe (/<name>/...)"),
-            ("detect_cameras", ["camera_0", "camera_1"], "cameras that watch the pile"),
-            ("placement_cameras", ["camera_2"], "cameras that watch the build area"),
-            (
-                "in_hand_cameras",
-                ["camera_0", "camera_1", "camera_2"],
-                "cameras of in_hand placement checks (each fitted alone; the gripper hides "
-                "the held domino from some)",
-            ),
-            ("backend", "geometric", "segmentation backend: geometric | sam"),
-            ("sam_checkpoint", "", "path of a SAM checkpoint (.pth), needed by backend sam"),
-            ("sam_model_type", "vit_b", "SAM model type of the checkpoint: vit_b | vit_l | vit_h"),
-            ("sam_points_per_side", 32, "SAM prompt grid: points per image side"),
-            ("continuous", True, "process new frames at 'rate' without being asked"),
-            ("rate", 1.0, "continuous processing rate [Hz]"),
-            ("max_frame_age", 5.0, "frames older than this [s] count as a stopped camera"),
-            ("sync_tolerance", 0.05, "colour and depth stamps may differ by this [s]"),
-            ("max_fit_error", 0.0015, "reject boxes whose RMS point distance exceeds this [m]"),
-            ("min_coverage", 0.85, "fraction of a large face that must be seen"),
-            ("min_clearance", 0.0015, "finger clearance below this predicts a failed grasp [m]"),
-            ("work_region_center", [0.0, 0.0], "region centre [x y] in world; [0 0]: the pile's"),
-            ("work_region_radius", 0.0, "region radius [m]; 0: scenario pile radius + margin"),
-            ("publish_debug_image", True, "publish /perception/debug_image"),
-            (
-                "image_reliability",
-                "reliable",
-                "image and camera_info subscriptions: reliable | best_effort (sensor-data "
-                "QoS, for a best-effort camera driver); read at start-up",
-            ),
-            (
-                "extrinsics_from_tf",
-                False,
-                "camera poses from /tf and /tf_static (world → the images' frame_id) instead "
-                "of the scenario; read at start-up",
-            ),
-        ):
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-            self.parameter_names.append(name)
-
-    def _param(self, name: str):
-        return self.get_parameter(name).value
-
-    def _parameter_values(self, overrides: dict | None = None) -> dict:
-        values = {name: self.get_parameter(name).value for name in self.parameter_names}
-        values.update(overrides or {})
-        return values
-
-    def _build_pipeline(self, values: dict) -> PerceptionPipeline:
+    def _build_pipeline(self, values: PerceptionParameters) -> PerceptionPipeline:
         """A pipeline for these parameter values; raises ValueError naming a bad one."""
-        if values["image_reliability"] not in IMAGE_QOS:
+        if values.image_reliability not in IMAGE_QOS:
             raise ValueError(
                 f"image_reliability must be one of {sorted(IMAGE_QOS)}, "
-                f"got {values['image_reliability']!r}"
+                f"got {values.image_reliability!r}"
             )
         for name in ("rate", "max_frame_age", "sync_tolerance", "max_fit_error", "min_coverage"):
-            value = values[name]
+            value = getattr(values, name)
             if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        if not 0 < values["min_coverage"] <= 1:
-            raise ValueError(f"min_coverage must be in (0, 1], got {values['min_coverage']}")
+        if not 0 < values.min_coverage <= 1:
+            raise ValueError(f"min_coverage must be in (0, 1], got {values.min_coverage}")
         pipeline = build_pipeline(
             self.scenario,
-            backend=values["backend"],
-            sam_checkpoint=values["sam_checkpoint"],
-            sam_model_type=values["sam_model_type"],
-            sam_points_per_side=int(values["sam_points_per_side"]),
+            backend=values.backend,
+            sam_checkpoint=values.sam_checkpoint,
+            sam_model_type=values.sam_model_type,
+            sam_points_per_side=int(values.sam_points_per_side),
         )
         config = pipeline.config
         region = config.region
-        centre = [float(v) for v in values["work_region_center"]]
+        centre = [float(v) for v in values.work_region_center]
         if len(centre) != 2 or not np.all(np.isfinite(centre)):
             raise ValueError(f"work_region_center needs two finite numbers, got {centre}")
         if any(centre):
             region = replace(region, center=(centre[0], centre[1]))
-        if values["work_region_radius"] > 0:
-            region = replace(region, radius=float(values["work_region_radius"]))
+        if values.work_region_radius > 0:
+            region = replace(region, radius=float(values.work_region_radius))
         pipeline.config = replace(
             config,
             region=region,
             filtering=replace(
                 config.filtering,
-                max_fit_error=float(values["max_fit_error"]),
-                min_coverage=float(values["min_coverage"]),
+                max_fit_error=float(values.max_fit_error),
+                min_coverage=float(values.min_coverage),
             ),
-            scoring=replace(config.scoring, min_clearance=float(values["min_clearance"])),
+            scoring=replace(config.scoring, min_clearance=float(values.min_clearance)),
         )
         return pipeline
 
@@ -256,11 +263,12 @@ class PerceptionNode(Node):
             self.get_logger().error(f"rejected parameter update: {reason}")
             return SetParametersResult(successful=False, reason=reason)
         try:
-            pipeline = self._build_pipeline(self._parameter_values(changed))
-        except (ValueError, SegmenterError, OSError, RuntimeError) as error:
+            settings = self.parameters.read(parameters)
+            pipeline = self._build_pipeline(settings)
+        except (ValueError, TypeError, SegmenterError, OSError, RuntimeError) as error:
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
-        self.pipeline = pipeline
+        self.settings, self.pipeline = settings, pipeline
         self.get_logger().info(f"parameters updated: {changed}")
         return SetParametersResult(successful=True)
 
@@ -268,7 +276,7 @@ class PerceptionNode(Node):
     def _subscribe(self, name: str, group: ReentrantCallbackGroup) -> None:
         camera = self.inputs[name]
         # a bad value was reported with the other parameters: the default then
-        qos = IMAGE_QOS.get(self._param("image_reliability"), IMAGE_QOS["reliable"])
+        qos = IMAGE_QOS.get(self.settings.image_reliability, IMAGE_QOS["reliable"])
 
         def on_color(message: Image) -> None:
             camera.colors.append(message)
@@ -306,7 +314,7 @@ class PerceptionNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _is_stale(self, camera: CameraInput) -> bool:
-        return self._seconds_now() - camera.received > float(self._param("max_frame_age"))
+        return self._seconds_now() - camera.received > float(self.settings.max_frame_age)
 
     def _views(
         self, names: list[str], not_before: float = -math.inf
@@ -314,7 +322,7 @@ class PerceptionNode(Node):
         """Usable synchronised views of ``names`` (stamped at or after ``not_before``) and
         the warnings about the others."""
         views, warnings = [], []
-        max_age = float(self._param("max_frame_age"))
+        max_age = float(self.settings.max_frame_age)
         for name in names:
             camera = self.inputs[name]
             if not camera.colors or not camera.depths or camera.info is None:
@@ -339,7 +347,7 @@ class PerceptionNode(Node):
                 f"not_before is {ahead:.3g} s after the newest frame "
                 f"(at most {MAX_NOT_BEFORE_AHEAD} s are waited for)"
             )
-        tolerance = float(self._param("sync_tolerance"))
+        tolerance = float(self.settings.sync_tolerance)
         pair = camera.latest_pair(tolerance, not_before)
         deadline = time.monotonic() + (SYNC_WAIT if math.isinf(not_before) else FRESH_WAIT)
         while pair is None and time.monotonic() < deadline:
@@ -378,7 +386,7 @@ class PerceptionNode(Node):
             pose[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
             pose[:3, 3] = values[:3]
             return pose
-        if self._param("extrinsics_from_tf"):
+        if self.settings.extrinsics_from_tf:
             try:
                 return self.transforms.lookup(WORLD_FRAME, frame_id)
             except LookupError as error:
@@ -390,9 +398,9 @@ class PerceptionNode(Node):
 
     # ------------------------------------------------------------------ processing
     def _on_timer(self) -> None:
-        if not self._param("continuous"):
+        if not self.settings.continuous:
             return
-        names = self._known(self._param("detect_cameras"))
+        names = self._known(self.settings.detect_cameras)
         fresh = {
             name: _seconds(self.inputs[name].colors[-1].header.stamp)
             for name in names
@@ -411,7 +419,7 @@ class PerceptionNode(Node):
     def _on_detect(
         self, request: DetectDominoes.Request, response: DetectDominoes.Response
     ) -> DetectDominoes.Response:
-        names = list(request.cameras) or list(self._param("detect_cameras"))
+        names = list(request.cameras) or list(self.settings.detect_cameras)
         unknown = [name for name in names if name not in self.inputs]
         if unknown:
             response.success = False
@@ -432,7 +440,7 @@ class PerceptionNode(Node):
         self, request: CheckPlacement.Request, response: CheckPlacement.Response
     ) -> CheckPlacement.Response:
         default = "in_hand_cameras" if request.in_hand else "placement_cameras"
-        names = list(request.cameras) or list(self._param(default))
+        names = list(request.cameras) or list(getattr(self.settings, default))
         problem = self._placement_request_problem(request, names)
         if problem:
             response.success, response.message = False, problem
@@ -522,7 +530,7 @@ class PerceptionNode(Node):
             self.get_logger().warning(warning)
         detections = result.detections if result else []
         self._publish(detections)
-        if result is not None and self._param("publish_debug_image"):
+        if result is not None and self.settings.publish_debug_image:
             self.debug_pub.publish(self._debug_image(views, result))
         summary = f"{len(detections)} dominoes found"
         return result, "; ".join([summary, *warnings])

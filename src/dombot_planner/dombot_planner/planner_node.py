@@ -32,6 +32,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.parameters import DataclassParameters
 from dombot_adapters.pose_messages import duration_message, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
@@ -95,15 +96,12 @@ class PlannerNode(Node):
         self.declare_parameter(
             "scenario", "", ParameterDescriptor(description="scenario YAML; empty: the default")
         )
-        for field in dataclasses.fields(PlannerSettings):
-            default = field.default
-            value = list(default) if isinstance(default, tuple) else default
-            self.declare_parameter(
-                field.name, value, ParameterDescriptor(description="see docs/PLANNER.md")
-            )
+        self.parameters = DataclassParameters(
+            self, PlannerSettings, description="see docs/PLANNER.md"
+        )
         try:
             self.scenario = load_scenario(self.get_parameter("scenario").value or None)
-            settings = self._settings({})
+            settings = self.parameters.read()
         except (ScenarioError, ValueError, TypeError) as error:
             self.get_logger().fatal(f"cannot start: {error}")
             raise
@@ -134,25 +132,17 @@ class PlannerNode(Node):
         self.planner = PickPlacePlanner(self.scenario, settings)
         self.striker = StrikePlanner(self.scenario, settings, plants=self.planner.plants)
 
-    def _settings(self, overrides: dict) -> PlannerSettings:
-        values = {}
-        for field in dataclasses.fields(PlannerSettings):
-            value = overrides.get(field.name, self.get_parameter(field.name).value)
-            values[field.name] = tuple(value) if isinstance(field.default, tuple) else value
-        return PlannerSettings(**values)
-
     def _on_set_parameters(self, parameters) -> SetParametersResult:
-        overrides = {p.name: p.value for p in parameters if p.name != "scenario"}
         if any(p.name == "scenario" for p in parameters):
             return SetParametersResult(successful=False, reason="scenario is read at start only")
         try:
-            settings = self._settings(overrides)
+            settings = self.parameters.read(parameters)
         except (ValueError, TypeError) as error:
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
         with self.lock:
             self._make_planners(settings)
-        self.get_logger().info(f"settings updated: {sorted(overrides)}")
+        self.get_logger().info(f"settings updated: {sorted(p.name for p in parameters)}")
         return SetParametersResult(successful=True)
 
     def _on_joint_state(self, message: JointState) -> None:

@@ -47,6 +47,7 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.parameters import DataclassParameters, described
 from dombot_adapters.pose_messages import pose_message, seconds_of, time_message
 from dombot_description.robot_description import robot_urdf
 from dombot_msgs.msg import DominoState, DominoStateArray
@@ -79,14 +80,6 @@ RESULT_CODES = {
     Outcome.SUCCEEDED: FollowJointTrajectory.Result.SUCCESSFUL,
     Outcome.PATH_TOLERANCE_VIOLATED: FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED,
     Outcome.GOAL_TOLERANCE_VIOLATED: FollowJointTrajectory.Result.GOAL_TOLERANCE_VIOLATED,
-}
-RATE_FIELDS = {
-    "joint_state_rate": "joint_states",
-    "camera_rate": "cameras",
-    "ground_truth_rate": "ground_truth",
-    "tf_rate": "tf",
-    "domino_tf_rate": "domino_tf",
-    "real_time_factor": "real_time_factor",
 }
 RESTART_PARAMETERS = (
     "scenario",
@@ -141,139 +134,113 @@ class WorldLock:
 
 
 @dataclass(frozen=True)
-class Rates:
-    joint_states: float
-    cameras: float
-    ground_truth: float
-    tf: float
-    domino_tf: float
-    real_time_factor: float
+class SimParameters:
+    """sim_node's parameters (RESTART_PARAMETERS are read at start-up only)."""
+
+    scenario: str = described("", "scenario file; empty: dombot_description's default")
+    domino_count: int = described(30, f"dominoes poured into the pile, 0..{MAX_DOMINOES}")
+    seed: int = described(0, "seed of the pile pour (>= 0)")
+    time_step: float = described(0.001, "physics time step [s], (0, 0.01]")
+    contact_approximation: str = described("similar", "Drake's contact approximation")
+    real_time_factor: float = described(1.0, "simulated per wall second; 0: as fast as it can")
+    joint_state_rate: float = described(100.0, "/joint_states rate [Hz]: the simulation tick")
+    camera_rate: float = described(2.0, "camera image rate [Hz]; 0: none")
+    ground_truth_rate: float = described(2.0, "/sim/domino_ground_truth rate [Hz]; 0: none")
+    tf_rate: float = described(100.0, "/tf rate of the robot links [Hz], at most one per tick")
+    domino_tf_rate: float = described(2.0, "/tf rate of the domino_N frames [Hz]; 0: none")
+    cameras: bool = described(True, "render the cameras")
+    meshcat: bool = described(False, "serve Meshcat")
+    meshcat_recording_path: str = described(
+        "", "with meshcat: record what Meshcat shows, written here as HTML on shutdown"
+    )
+    sleeping: bool = described(True, "dominoes at rest sleep (docs/SIM.md)")
+    log_moved_mm: float = described(
+        1.0, "log the dominoes that moved this far [mm] during a goal; 0: no log"
+    )
+
+    def __post_init__(self) -> None:
+        problems = parameter_problems(self)
+        if problems:
+            raise ValueError("; ".join(problems))
+
+
+def parameter_problems(values: SimParameters) -> list[str]:
+    """What is wrong with ``values``, one phrase each (none: they are good)."""
+    problems = []
+    for name in RATES:
+        rate = getattr(values, name)
+        if not (rate >= 0.0 and math.isfinite(rate)):
+            problems.append(f"{name} must be a finite rate >= 0 Hz, got {rate}")
+    if not values.joint_state_rate > 0.0:
+        problems.append("joint_state_rate must be > 0 Hz (it is the simulation tick)")
+    if not values.real_time_factor >= 0.0:
+        problems.append(
+            f"real_time_factor must be >= 0 (0: as fast as possible), got {values.real_time_factor}"
+        )
+    if not 0.0 < values.time_step <= 0.01:
+        problems.append(f"time_step must be in (0, 0.01] s, got {values.time_step}")
+    if values.contact_approximation not in CONTACT_APPROXIMATIONS:
+        problems.append(
+            f"contact_approximation must be one of {sorted(CONTACT_APPROXIMATIONS)}, "
+            f"got {values.contact_approximation!r}"
+        )
+    if not 0.0 <= values.log_moved_mm < math.inf:
+        problems.append(f"log_moved_mm must be a finite distance >= 0, got {values.log_moved_mm}")
+    if values.meshcat_recording_path and not values.meshcat:
+        problems.append("meshcat_recording_path needs meshcat:=true")
+    if not 0 <= values.domino_count <= MAX_DOMINOES:
+        problems.append(f"domino_count must be 0..{MAX_DOMINOES}, got {values.domino_count}")
+    if values.seed < 0:
+        problems.append(f"seed must be >= 0, got {values.seed}")
+    return problems
 
 
 class SimNode(Node):
     def __init__(self) -> None:
         super().__init__("sim_node")
-        self._declare_parameters()
+        self.parameters = DataclassParameters(self, SimParameters)
+        self.settings = self.parameters.read()  # raises ValueError: bad parameters
         self._lock = WorldLock()
         self._loop_tasks: queue.Queue[Callable[[], None]] = queue.Queue()
         self._generation = 0  # bumped by reset and by new trajectory goals (preemption)
         self._resets = 0
-        self.rates = self._read_rates()
         config = WorldConfig(
-            scenario_path=self._param("scenario") or None,
-            time_step=self._param("time_step"),
-            contact_approximation=self._param("contact_approximation"),
-            cameras=self._param("cameras"),
-            meshcat=self._param("meshcat"),
-            domino_capacity=self._param("domino_count"),
-            sleep=SleepSettings(enabled=self._param("sleeping")),
+            scenario_path=self.settings.scenario or None,
+            time_step=self.settings.time_step,
+            contact_approximation=self.settings.contact_approximation,
+            cameras=self.settings.cameras,
+            meshcat=self.settings.meshcat,
+            domino_capacity=self.settings.domino_count,
+            sleep=SleepSettings(enabled=self.settings.sleeping),
         )
         self.world = CellWorld(config)
         self.world.trouble_listener = self.get_logger().warning
         if self.world.meshcat_url():
             self.get_logger().info(f"Meshcat: {self.world.meshcat_url()}")
-            if self._param("meshcat_recording_path"):
+            if self.settings.meshcat_recording_path:
                 self.world.start_meshcat_recording()
         self._make_interfaces()
         self._publish_description()
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._reset(self._param("domino_count"), self._param("seed"))
+        self._reset(self.settings.domino_count, self.settings.seed)
 
     # ------------------------------------------------------------------ parameters
-    def _declare_parameters(self) -> None:
-        defaults = {
-            "scenario": "",
-            "domino_count": 30,
-            "seed": 0,
-            "time_step": 0.001,
-            "contact_approximation": "similar",
-            "real_time_factor": 1.0,
-            "joint_state_rate": 100.0,
-            "camera_rate": 2.0,
-            "ground_truth_rate": 2.0,
-            "tf_rate": 100.0,  # at most one /tf message per tick (joint_state_rate)
-            "domino_tf_rate": 2.0,  # 0: no domino_N frames
-            "cameras": True,
-            "meshcat": False,
-            # with meshcat: record what Meshcat shows, written here as HTML on shutdown
-            "meshcat_recording_path": "",
-            "sleeping": True,
-            "log_moved_mm": 1.0,  # 0: no log of the dominoes that moved during a goal
-        }
-        for name, value in defaults.items():
-            self.declare_parameter(name, value)
-        problems = self._parameter_problems(
-            {name: self.get_parameter(name).value for name in defaults}
-        )
-        if problems:
-            raise ValueError("; ".join(problems))
-
-    def _param(self, name: str):
-        return self.get_parameter(name).value
-
-    @staticmethod
-    def _parameter_problems(values: dict) -> list[str]:
-        problems = []
-        for name in RATES:
-            if name in values and not (values[name] >= 0.0 and math.isfinite(values[name])):
-                problems.append(f"{name} must be a finite rate >= 0 Hz, got {values[name]}")
-        if "joint_state_rate" in values and not values["joint_state_rate"] > 0.0:
-            problems.append("joint_state_rate must be > 0 Hz (it is the simulation tick)")
-        if "real_time_factor" in values and not values["real_time_factor"] >= 0.0:
-            problems.append(
-                f"real_time_factor must be >= 0 (0: as fast as possible), "
-                f"got {values['real_time_factor']}"
-            )
-        if "time_step" in values and not 0.0 < values["time_step"] <= 0.01:
-            problems.append(f"time_step must be in (0, 0.01] s, got {values['time_step']}")
-        approximation = values.get("contact_approximation")
-        if approximation is not None and approximation not in CONTACT_APPROXIMATIONS:
-            problems.append(
-                f"contact_approximation must be one of {sorted(CONTACT_APPROXIMATIONS)}, "
-                f"got {approximation!r}"
-            )
-        if "log_moved_mm" in values and not 0.0 <= values["log_moved_mm"] < math.inf:
-            problems.append(
-                f"log_moved_mm must be a finite distance >= 0, got {values['log_moved_mm']}"
-            )
-        if values.get("meshcat_recording_path") and not values.get("meshcat", True):
-            problems.append("meshcat_recording_path needs meshcat:=true")
-        if "domino_count" in values and not 0 <= values["domino_count"] <= MAX_DOMINOES:
-            problems.append(f"domino_count must be 0..{MAX_DOMINOES}, got {values['domino_count']}")
-        if "seed" in values and values["seed"] < 0:
-            problems.append(f"seed must be >= 0, got {values['seed']}")
-        return problems
-
-    def _read_rates(self) -> Rates:
-        return Rates(
-            joint_states=self._param("joint_state_rate"),
-            cameras=self._param("camera_rate"),
-            ground_truth=self._param("ground_truth_rate"),
-            tf=self._param("tf_rate"),
-            domino_tf=self._param("domino_tf_rate"),
-            real_time_factor=self._param("real_time_factor"),
-        )
-
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         fixed = [p.name for p in parameters if p.name in RESTART_PARAMETERS]
         if fixed:
             return SetParametersResult(
                 successful=False, reason=f"{', '.join(fixed)} can only be set at start-up"
             )
-        problems = self._parameter_problems({p.name: p.value for p in parameters})
-        if problems:
-            self.get_logger().error("rejected parameters: " + "; ".join(problems))
-            return SetParametersResult(successful=False, reason="; ".join(problems))
-        current = dict(self.rates.__dict__)
-        for parameter in parameters:
-            if parameter.name in RATE_FIELDS:
-                current[RATE_FIELDS[parameter.name]] = parameter.value
-        self.rates = Rates(**current)
+        try:
+            self.settings = self.parameters.read(parameters)
+        except (ValueError, TypeError) as error:
+            self.get_logger().error(f"rejected parameters: {error}")
+            return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
 
     def save_meshcat_recording(self) -> None:
         """Write Meshcat's recording to ``meshcat_recording_path`` (if asked for)."""
-        path = self._param("meshcat_recording_path")
+        path = self.settings.meshcat_recording_path
         if not path or self.world.meshcat is None:
             return
         try:
@@ -323,9 +290,9 @@ class SimNode(Node):
         """Advance the world tick by tick, publish, and keep pace with the real-time factor."""
         next_camera = next_truth = next_tf = next_domino_tf = 0.0
         wall_start, sim_start = time.monotonic(), self.world.time
-        factor = self.rates.real_time_factor
+        factor = self.settings.real_time_factor
         while not stop.is_set() and rclpy.ok():
-            rates = self.rates
+            rates = self.settings
             if rates.real_time_factor != factor:
                 wall_start, sim_start, factor = (
                     time.monotonic(),
@@ -335,21 +302,21 @@ class SimNode(Node):
             with self._lock.loop_turn():
                 while not self._loop_tasks.empty():
                     self._loop_tasks.get()()
-                self.world.advance(1.0 / rates.joint_states)
+                self.world.advance(1.0 / rates.joint_state_rate)
                 now = self.world.time
                 self._publish_state(now)
-                if rates.cameras > 0.0 and now >= next_camera and self.world.camera_names:
+                if rates.camera_rate > 0.0 and now >= next_camera and self.world.camera_names:
                     self._publish_cameras(self.world.render(labels=False))
-                    next_camera = now + 1.0 / rates.cameras
-                if rates.ground_truth > 0.0 and now >= next_truth:
+                    next_camera = now + 1.0 / rates.camera_rate
+                if rates.ground_truth_rate > 0.0 and now >= next_truth:
                     self._publish_truth(now)
-                    next_truth = now + 1.0 / rates.ground_truth
-                if rates.tf > 0.0 and now >= next_tf:
+                    next_truth = now + 1.0 / rates.ground_truth_rate
+                if rates.tf_rate > 0.0 and now >= next_tf:
                     self._publish_tf(now, self.world.link_frames())
-                    next_tf = now + 1.0 / rates.tf
-                if rates.domino_tf > 0.0 and now >= next_domino_tf:
+                    next_tf = now + 1.0 / rates.tf_rate
+                if rates.domino_tf_rate > 0.0 and now >= next_domino_tf:
                     self._publish_tf(now, self.world.domino_frames())
-                    next_domino_tf = now + 1.0 / rates.domino_tf
+                    next_domino_tf = now + 1.0 / rates.domino_tf_rate
             if factor > 0.0:
                 ahead = sim_start + (time.monotonic() - wall_start) * factor
                 delay = (now - ahead) / factor
@@ -496,7 +463,7 @@ class SimNode(Node):
     # ------------------------------------------------------------------ goals, watched
     def _watched(self, motion: str, execute: Callable[[object], T], goal_handle) -> T:
         """Execute the goal; then log which dominoes moved meanwhile (not across a reset)."""
-        threshold = self._param("log_moved_mm") * 1e-3
+        threshold = self.settings.log_moved_mm * 1e-3
         if threshold <= 0.0:
             return execute(goal_handle)
         with self._lock:
