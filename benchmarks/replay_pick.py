@@ -13,7 +13,7 @@ plan's segments) and the simulator's truth at the time, so this script can say:
   ``--carry`` also the carry to above the slot: how far the domino turned and slid in
   the hand on the way (or whether it left it); with ``--place`` on through the release
   and the retreat: whether it is still in the hand, where it lies and how far from the
-  release pose (records written after 4e6913a hold it).
+  release pose (records that hold the release pose).
 
 Prints one JSON object. In ``./dombot shell``: ``python benchmarks/replay_pick.py RECORD
 [--physics]``.

@@ -227,7 +227,7 @@ def test_with_pads_into_pile_only_gripper_body_and_arm_keep_clear_of_it(planner)
     """The bring-up's pick with the pile's cores: the boxed-in domino above plans with the
     pads reaching into its neighbours (their cores, as pile_points, bound how far), while
     gripper body and arm keep pile_arm_clearance: sent without the boxes, 2 of the 3 such
-    picks that missed in the benchmark of 4e6913a had the body 6-9 mm inside one. A pile
+    picks that missed in one bring-up benchmark had the body 6-9 mm inside one. A pile
     domino lying 6 cm above the picked one leaves the body no way down."""
     domino = flat_pose(0.60, -0.28, 0.4)
     sides = tuple(
@@ -276,8 +276,8 @@ def test_seen_points_in_the_fingers_gap_keep_the_pads_away(planner) -> None:
     ],
 )
 def test_only_the_usual_branch_is_taken(planner, q, up: bool) -> None:
-    """Picks and places in the benchmarks of 7e0fa63, be29dc3 and f611c37 came from random
-    IK seeds in other branches; the moves to and from them swung the TCP 0.6-1.4 m up at
+    """Picks and places in the bring-up benchmarks that came from random IK seeds in
+    other branches: the moves to and from them swung the TCP 0.6-1.4 m up at
     up to 2.7 m/s and threw held dominoes out of the hand. All hold the TCP low in front;
     the usual branch has the shoulder forward and the elbow up."""
     q = np.array(q)
@@ -289,7 +289,7 @@ def test_only_the_usual_branch_is_taken(planner, q, up: bool) -> None:
 
 
 def test_a_coarse_move_between_ik_branches_is_refused_for_its_swing(planner) -> None:
-    """7500eb1's benchmark: a pick with joint 3 turned over (2.6 rad) and a place in the
+    """From a bring-up benchmark: a pick with joint 3 turned over (2.6 rad) and a place in the
     usual branch; the transfer between them took the TCP 0.54 m up at 1.8 m/s and threw
     the domino onto the run. Between two ends in the usual branch the move stays low."""
     scene = Scene(planner.plants.get(DOMINO_SIZE[1]), SCENARIO.tcp_frame)

@@ -1,15 +1,14 @@
 """Pushes that spread a crowded pile (no ROS).
 
 When no pick plans with the pile's boxes or its cores, the dominoes lie too close for the
-fingers. Picked ignoring the pile, 4 of 6 such picks closed on nothing (7500eb1). Instead
-one of them is pushed out of the crowd with the planner's sweep (/plan_strike with a
-sweep direction: the closed pads push it low along the table), and the pile is looked at
-again. Here is which way and how far: where the pusher has room to come down behind it,
-and the shortest push after which the fingers have room beside it. When no such push
-exists (a jam: every push is blocked by a neighbour, or none frees the fingers within
-MAX_SWEEP), ``stir_pushes``: a fixed push through the neighbours, which move along.
-Picked ignoring the pile instead, 6 of 7 such picks failed (S-curve seeds 1 and 3 of
-4b0c505: 5 closed on nothing, 1 was held 7° off and felled a run domino when placed).
+fingers, and picked ignoring the pile most close on nothing. Instead one of them is
+pushed out of the crowd with the planner's sweep (/plan_strike with a sweep direction:
+the closed pads push it low along the table), and the pile is looked at again. Here is
+which way and how far: where the pusher has room to come down behind it, and the
+shortest push after which the fingers have room beside it. When no such push exists (a
+jam: every push is blocked by a neighbour, or none frees the fingers within MAX_SWEEP),
+``stir_pushes``: a fixed push through the neighbours, which move along
+(docs/decisions/0007-spread-and-stir.md).
 """
 
 from __future__ import annotations
@@ -43,7 +42,7 @@ PUSHER_STEP = 0.005  # m between the pusher's spots checked along the push
 PUSHER_BELOW = PlannerSettings().fine_obstacle_clearance  # m
 FINGERS_END = 0.005  # m beyond its ends that the fingers' room must reach
 # m a jammed domino is pushed through its neighbours: a missed grasp in a jam moved them
-# 3-25 mm (replays of 4b0c505's misses), after which the next pick planned
+# 3-25 mm, after which the next pick planned
 STIR_DISTANCE = 0.04
 
 

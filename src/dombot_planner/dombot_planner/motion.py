@@ -458,8 +458,8 @@ def faces_away(q: np.ndarray, position: np.ndarray) -> bool:
     """Whether the arm reaches ``position`` (world; the arm base at the origin) from
     behind: joint 1 turned away from it and the shoulder (joint 2) leaning backwards over
     the top. Moving between that branch and the usual one swings the arm overhead (the
-    TCP up to 1.2-1.4 m at up to 2.7 m/s in the benchmarks of 7e0fa63 and f611c37,
-    throwing held dominoes out of the cell); its elbow may point up or not."""
+    TCP up to 1.2-1.4 m at up to 2.7 m/s in the bring-up benchmarks, throwing held
+    dominoes out of the cell); its elbow may point up or not."""
     azimuth = np.arctan2(position[1], position[0])
     return bool(q[1] < 0.0 and np.cos(q[0] - azimuth) < 0.0)
 
@@ -468,7 +468,7 @@ def elbow_not_up(scene: Scene, arm_joints: Sequence[str], q: np.ndarray) -> bool
     """Whether the arm at ``q`` holds its elbow sideways or down: its offset from the line
     from shoulder (joint 2) to wrist (joint 6) points up less than ELBOW_UP (an arm
     stretched nearly straight has no elbow to speak of). Moving between such a branch
-    and the usual elbow-up one swings the arm overhead: in the benchmark of be29dc3 the
+    and the usual elbow-up one swings the arm overhead: in one bring-up benchmark the
     elbow turned sideways (offset -0.01 up; the usual postures 0.54-1.0), the TCP rose
     to 0.69 m at 1.3 m/s and threw the held domino onto the run."""
     plant, context = scene.plant, scene.plant_context

@@ -40,7 +40,7 @@ class PlannerSettings:
     kto_attempts: int = 4
     # m a coarse move's TCP may rise above the higher of its ends. Moves between IK
     # branches (joint 3 turned over at one end only) swung it 0.4-0.7 m higher and threw a
-    # held domino onto the run in the benchmark of 7500eb1; the raised via rises 0.15 m.
+    # held domino onto the run (decision 0015); the raised via rises 0.15 m.
     max_coarse_rise: float = 0.25
     ik_random_seeds: int = 6
     # Retiming.
