@@ -10,15 +10,15 @@ laid so far, so the whole laying loop runs over ROS with no hardware. Frames:
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from geometry_msgs.msg import Pose, PoseArray
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
-from dombot_adapters.parameters import DataclassParameters
+from dombot_adapters.parameters import DataclassParameters, described
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.layer_node import GEOMETRY_PREFIX, spin
 from dombot_layer.vehicle_sim import VehicleSimulator
@@ -27,22 +27,26 @@ START_FRAME = "layer_start"
 BASE_FRAME = "layer_base"
 
 
+@dataclass(frozen=True)
+class VehicleSimSettings:
+    """vehicle_sim_node's own parameters (read at start-up)."""
+
+    deposit_spacing: float = described(0.03, "domino spacing [m]")
+    rate: float = described(50.0, "integration/publish rate [Hz]")
+
+
 class VehicleSimNode(Node):
     def __init__(self) -> None:
         super().__init__("vehicle_sim_node")
         geometry = DataclassParameters(
             self, VehicleGeometry, GEOMETRY_PREFIX, "vehicle dimension [m], see docs/LAYER.md"
         )
-        spacing = self.declare_parameter(
-            "deposit_spacing", 0.03, ParameterDescriptor(description="domino spacing [m]")
-        ).value
-        rate = self.declare_parameter(
-            "rate", 50.0, ParameterDescriptor(description="integration/publish rate [Hz]")
-        ).value
+        settings = DataclassParameters(self, VehicleSimSettings).read()
+        spacing = settings.deposit_spacing
         self.simulator = VehicleSimulator(geometry.read(), spacing)
         self.command = (0.0, 0.0)
         self.deposits: list[np.ndarray] = []
-        self.period = 1.0 / rate
+        self.period = 1.0 / settings.rate
         self.odom_pub = self.create_publisher(Odometry, "layer/odom", 10)
         self.deposit_pub = self.create_publisher(PoseArray, "layer/deposits", 10)
         self.create_subscription(
