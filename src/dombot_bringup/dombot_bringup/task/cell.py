@@ -1,9 +1,10 @@
 """What the arm job asks of the cell, in plain types: the ``Cell`` protocol.
 
 Poses are 4x4 homogeneous transforms (numpy) in the world frame, domino body frames as
-in dombot_msgs/DominoDetection; points are N x 3 arrays. ``cell_client.CellClient``
-implements it over the nodes' services and actions; anything else that answers the
-same (an in-process simulation, a test's script) runs the same task core.
+in dombot_msgs/DominoDetection; points are N x 3 arrays (types that hold arrays compare
+by identity). ``cell_client.CellClient`` implements it over the nodes' services and
+actions; anything else that answers the same (an in-process simulation, a test's
+script) runs the same task core.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ class GripperEvent(IntEnum):
     CLOSE = 2
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Detection:
     """One pile domino perception found."""
 
@@ -61,7 +62,7 @@ class Detection:
     grasp: Pose | None = None  # perception's grasp (TCP pose), clear of every seen point
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Detections:
     """A look at the pile: the detections (best grasp first) and the points seen on none."""
 
@@ -71,7 +72,7 @@ class Detections:
     unexplained: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PlacementCheck:
     """Perception's look at where dominoes should stand, one entry per expected pose."""
 
@@ -83,7 +84,7 @@ class PlacementCheck:
     tilt: tuple[float, ...] = ()  # rad of the length axis from vertical
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Trajectory:
     """Joint positions and velocities at times [s] from its start."""
 
@@ -111,7 +112,7 @@ class Trajectory:
 NO_TRAJECTORY = Trajectory((), np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Segment:
     """One piece of a plan: a trajectory, then a gripper event."""
 
@@ -122,7 +123,7 @@ class Segment:
     gripper_max_effort: float = 0.0  # N
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Plan:
     """The planner's answer to a place or strike request."""
 
@@ -133,7 +134,7 @@ class Plan:
     held_above_place: Pose | None = None  # the hold where "transfer" ends, as planned
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PlaceRequest:
     """Pick ``domino`` and place it at ``place`` (or, ``holding``: carry it from the hand)."""
 
@@ -148,7 +149,7 @@ class PlaceRequest:
     time_budget: float = 0.0  # s; 0: the planner's default
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StrikeRequest:
     """Knock ``domino`` over (``sweep`` None) or push it along ``sweep`` (x, y) that far."""
 
