@@ -53,6 +53,7 @@ def bringup(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str
     )
 
 
+@pytest.mark.slow
 def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> None:
     recording = ["--record", "--record-image-rate", "0.5", "--visual"]
     result = bringup("--out", str(tmp_path), *LINE, *recording)
@@ -134,6 +135,7 @@ def test_bad_layouts_are_refused_before_any_node_starts(
     assert not (tmp_path / "run_report.json").exists()
 
 
+@pytest.mark.slow
 def test_perception_and_planner_killed_mid_run_are_restarted_and_the_run_completes(
     tmp_path: Path,
 ) -> None:
@@ -167,6 +169,7 @@ def test_perception_and_planner_killed_mid_run_are_restarted_and_the_run_complet
     assert report["summary"]["placed"] == 3 and report["toppled_by_truth"]
 
 
+@pytest.mark.slow
 def test_a_dead_simulator_stops_the_job_with_a_report(tmp_path: Path) -> None:
     """The simulator's state cannot be restored: the job stops and says what it built."""
     process = subprocess.Popen(

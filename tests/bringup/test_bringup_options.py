@@ -7,9 +7,10 @@ import io
 import pytest
 
 from dombot_bringup import layouts
-from dombot_bringup.arm_job import ArmJobSettings, hold_viewer, recorder_command
+from dombot_bringup.arm_job import hold_viewer, recorder_command
 from dombot_bringup.bringup import main, make_layout, parse_args, run_arm
 from dombot_bringup.layouts import LayoutError
+from dombot_bringup.task.settings import ArmJobSettings
 from dombot_description.scenario import load_scenario
 
 

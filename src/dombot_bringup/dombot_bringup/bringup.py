@@ -28,11 +28,12 @@ from pathlib import Path
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
 from dombot_bringup import layouts
-from dombot_bringup.arm_job import ArmJobSettings, run_arm_job
-from dombot_bringup.cell_client import CallFailedError
+from dombot_bringup.arm_job import run_arm_job
 from dombot_bringup.layer_job import PathRejectedError, run_layer_job
 from dombot_bringup.process_group import NodeDiedError
 from dombot_bringup.recording import FOXGLOVE_MISSING, foxglove_available
+from dombot_bringup.task.cell import CellError
+from dombot_bringup.task.settings import ArmJobSettings
 from dombot_description.scenario import ScenarioError, load_scenario
 
 
@@ -291,7 +292,7 @@ def main(argv: list[str] | None = None) -> int:
         FileNotFoundError,
         PackageNotFoundError,
         PathRejectedError,
-        CallFailedError,
+        CellError,
         ScenarioError,
     ) as error:
         print(f"bringup: {error}", file=sys.stderr)

@@ -1,7 +1,8 @@
-"""The bring-up's ROS side: blocking calls to the cell's services and actions.
+"""The bring-up's ROS side: the task core's ``Cell`` over the nodes' services and actions.
 
 One node spins on a background executor; each method sends a request and waits for
-its answer with a timeout, so the task loop reads like the procedure it is.
+its answer with a timeout, so the task loop reads like the procedure it is. Messages
+become the plain types of ``task.cell`` here, once, at the door.
 """
 
 from __future__ import annotations
@@ -17,18 +18,42 @@ from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from control_msgs.msg import GripperCommand as GripperGoal
 from control_msgs.msg import JointTolerance
-from geometry_msgs.msg import Pose
+from geometry_msgs.msg import Point, Vector3
+from geometry_msgs.msg import Pose as PoseMessage
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, JointState
-from trajectory_msgs.msg import JointTrajectory
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from dombot_adapters.pose_messages import seconds_of, time_message
 from dombot_bringup.record_node import matching_qos
-from dombot_msgs.msg import DominoStateArray
+from dombot_bringup.task.cell import (
+    CellError,
+    Detection,
+    Detections,
+    GripperEvent,
+    Motion,
+    PlacementCheck,
+    PlaceRequest,
+    Plan,
+    Pose,
+    Posture,
+    Seen,
+    Segment,
+    StrikeRequest,
+    Trajectory,
+)
+from dombot_adapters.pose_messages import (
+    duration_message,
+    pose_matrix,
+    pose_message,
+    seconds_of,
+    time_message,
+)
+from dombot_msgs.msg import DominoDetection, DominoStateArray, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
+from dombot_planner.errors import ErrorCode
 
 # The arm's and gripper's controllers, at ros2_control's names (a real cell's too).
 TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
@@ -68,10 +93,6 @@ ACTIVITIES = {
 _RESTARTED = object()  # a call's server was started again before it answered
 
 
-class CallFailedError(RuntimeError):
-    """A service or action did not answer, or refused the goal."""
-
-
 class SerialActionClient(ActionClient):
     """rclpy's ActionClient with sending a request and taking a response serialized.
 
@@ -104,7 +125,7 @@ class SerialActionClient(ActionClient):
 
 
 class CellClient:
-    """Blocking access to sim, perception and planner; ``close()`` when done.
+    """The ``Cell`` of sim, perception and planner nodes; ``close()`` when done.
 
     ``watchdog`` is called while waiting for any answer; the bring-up passes its process
     group's check, so a node that dies mid-call is reported at once, by name, or
@@ -165,7 +186,7 @@ class CellClient:
         with self._lock:
             self._images[topic] = message
 
-    def color_frame(self, camera: str, not_before: float, timeout: float = 30.0) -> np.ndarray:
+    def picture(self, camera: str, not_before: float, timeout: float = 30.0) -> np.ndarray:
         """An RGB frame (height x width x 3) of ``camera`` stamped at or after ``not_before``
         [s simulated]. Subscribes on first use (the bring-up wants a few pictures, not a
         stream), with the QoS the camera offers: in a run at load 17-20 a best-effort
@@ -190,14 +211,15 @@ class CellClient:
 
         image = self._wait(fresh, timeout, topic)
         if image.encoding != "rgb8":
-            raise CallFailedError(f"{topic} sends {image.encoding}, not rgb8")
+            raise CellError(f"{topic} sends {image.encoding}, not rgb8")
         rows = np.frombuffer(bytes(image.data), np.uint8).reshape(image.height, image.step)
         return rows[:, : 3 * image.width].reshape(image.height, image.width, 3)
 
-    def joint_state(self) -> JointState:
+    def joints(self) -> tuple[list[str], list[float]]:
         """The latest /joint_states (arm and fingers)."""
         with self._lock:
-            return self._joint_state or JointState()
+            state = self._joint_state or JointState()
+        return list(state.name), list(state.position)
 
     @property
     def sim_time(self) -> float:
@@ -205,7 +227,11 @@ class CellClient:
         with self._lock:
             return self._sim_time
 
-    def ground_truth(self, newer_than: float = -1.0, timeout: float = 10.0) -> DominoStateArray:
+    @property
+    def time_spent(self) -> dict[str, float]:
+        return self.simulated_by_activity
+
+    def truth(self, newer_than: float = -1.0, timeout: float = 10.0) -> list[tuple[str, Pose]]:
         """The simulator's ground truth (for the report only), stamped after ``newer_than``."""
 
         def fresh() -> DominoStateArray | None:
@@ -216,7 +242,8 @@ class CellClient:
             stamp = truth.header.stamp.sec + truth.header.stamp.nanosec * 1e-9
             return truth if stamp > newer_than else None
 
-        return self._wait(fresh, timeout, "/sim/domino_ground_truth")
+        truth = self._wait(fresh, timeout, "/sim/domino_ground_truth")
+        return [(domino.name, pose_matrix(domino.pose)) for domino in truth.dominoes]
 
     def wait_for_sim_time(self, seconds: float, timeout: float = 120.0) -> None:
         """Block until simulated time has advanced by ``seconds`` from now.
@@ -287,61 +314,99 @@ class CellClient:
         readers = self.node.get_subscriptions_info_by_topic(f"rq{name}Request", no_mangle=True)
         return frozenset(bytes(reader.endpoint_gid) for reader in readers)
 
-    def reset(self, count: int, seed: int) -> ResetSim.Response:
-        return self.call("/sim/reset", ResetSim.Request(domino_count=count, seed=seed), 600.0)
+    def reset(self, pile: int, seed: int) -> str:
+        request = ResetSim.Request(domino_count=pile, seed=seed)
+        return self.call("/sim/reset", request, 600.0).message
 
-    def detect(self, not_before: float = 0.0) -> DetectDominoes.Response:
+    def detect(self, not_before: float = 0.0) -> Detections:
         """Perception's detections in frames stamped at or after ``not_before`` [s]."""
         request = DetectDominoes.Request(not_before=time_message(not_before))
-        return self.call("/perception/detect", request, 30.0)
+        answer = self.call("/perception/detect", request, 30.0)
+        return Detections(
+            answer.success,
+            answer.message,
+            tuple(detection_of(d) for d in answer.detections.detections),
+            np.array([(p.x, p.y, p.z) for p in answer.unexplained_points]).reshape(-1, 3),
+        )
 
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
-    ) -> CheckPlacement.Response:
+    ) -> PlacementCheck:
         request = CheckPlacement.Request(
-            expected=list(expected), in_hand=in_hand, not_before=time_message(not_before)
+            expected=[pose_message(pose) for pose in expected],
+            in_hand=in_hand,
+            not_before=time_message(not_before),
         )
-        return self.call("/perception/check_placement", request, 30.0)
+        answer = self.call("/perception/check_placement", request, 30.0)
+        return PlacementCheck(
+            answer.success,
+            answer.message,
+            tuple(Seen(s) for s in answer.status),
+            tuple(pose_matrix(p) for p in answer.measured),
+            tuple(answer.position_error),
+            tuple(answer.tilt),
+        )
 
-    def plan_place(self, request: PlanPlace.Request, timeout: float) -> PlanPlace.Response:
-        return self.call("/plan_place", request, timeout)
+    def plan_place(self, request: PlaceRequest) -> Plan:
+        message = PlanPlace.Request(
+            domino_pose=pose_message(request.domino),
+            grasp_pose=geometry_pose(request.grasp),
+            grasp_width=0.0,
+            place_pose=pose_message(request.place),
+            standing_dominoes=[pose_message(p) for p in request.standing],
+            pile_dominoes=[pose_message(p) for p in request.pile],
+            pile_points=[Point(x=x, y=y, z=z) for x, y, z in request.pile_points.tolist()],
+            pads_into_pile=request.pads_into_pile,
+            time_budget=request.time_budget,
+            holding=request.holding,
+        )
+        answer = self.call("/plan_place", message, request.time_budget + 30.0)
+        return plan_of(answer, pose_or_none(answer.held_above_place))
 
-    def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
-        return self.call("/plan_strike", request, timeout)
+    def plan_strike(self, request: StrikeRequest) -> Plan:
+        sweep = np.zeros(2) if request.sweep is None else request.sweep
+        message = PlanStrike.Request(
+            domino_pose=pose_message(request.domino),
+            standing_dominoes=[pose_message(p) for p in request.standing],
+            sweep_direction=Vector3(x=float(sweep[0]), y=float(sweep[1]), z=0.0),
+            push_distance=request.push_distance,
+            time_budget=request.time_budget,
+        )
+        return plan_of(self.call("/plan_strike", message, request.time_budget + 30.0), None)
 
     # ------------------------------------------------------------------ actions
-    def execute(
-        self, trajectory: JointTrajectory, timeout: float, goal_tolerance: float = 0.0
-    ) -> FollowJointTrajectory.Result:
+    def execute(self, trajectory: Trajectory, goal_tolerance: float = 0.0) -> Motion:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
-        point (0: the controller's default) within a second."""
+        point (0: the controller's default) within a second. The wall-clock timeout is
+        generous: the simulator may run well below real time."""
         goal = FollowJointTrajectory.Goal(
-            trajectory=trajectory,
+            trajectory=trajectory_message(trajectory),
             goal_tolerance=[
                 JointTolerance(name=name, position=goal_tolerance)
                 for name in trajectory.joint_names
             ],
             goal_time_tolerance=Duration(sec=1),
         )
-        return self._run_action(self._trajectory, goal, timeout, TRAJECTORY_ACTION)
+        timeout = trajectory.duration * 60 + 120
+        result = self._run_action(self._trajectory, goal, timeout, TRAJECTORY_ACTION)
+        return Motion(result.error_code == 0, result.error_string)
 
-    def gripper(
-        self, position: float, max_effort: float, timeout: float = 180.0
-    ) -> GripperCommand.Result:
+    def gripper(self, position: float, max_effort: float, timeout: float = 180.0) -> float:
         """Move the fingers to the opening ``position`` [m] (the gap between them)."""
         command = GripperGoal(position=float(position), max_effort=float(max_effort))
-        return self._run_action(
+        result = self._run_action(
             self._gripper, GripperCommand.Goal(command=command), timeout, GRIPPER_ACTION
         )
+        return result.position
 
     def _run_action(self, client: ActionClient, goal, timeout: float, name: str):
         if not client.wait_for_server(timeout_sec=10.0):
-            raise CallFailedError(f"{name} is not available")
+            raise CellError(f"{name} is not available")
         with self._spending(name):
             sent = client.send_goal_async(goal)
             handle = self._wait(lambda: sent.result() if sent.done() else None, 10.0, name)
             if not handle.accepted:
-                raise CallFailedError(f"{name} refused the goal")
+                raise CellError(f"{name} refused the goal")
             result = handle.get_result_async()
             done = self._wait(lambda: result.result() if result.done() else None, timeout, name)
             return done.result
@@ -363,4 +428,76 @@ class CellClient:
                 return value
             self._watchdog()
             time.sleep(0.01)
-        raise CallFailedError(f"no answer from {what} within {timeout:.0f} s")
+        raise CellError(f"no answer from {what} within {timeout:.0f} s")
+
+
+def geometry_pose(pose: Pose | None) -> PoseMessage:
+    """``pose`` as a message; None as the default pose at the origin (a request's unset)."""
+    return PoseMessage() if pose is None else pose_message(pose)
+
+
+def pose_or_none(message: PoseMessage) -> Pose | None:
+    """The transform of ``message``; None for a field left at the origin (inside the arm
+    base: unset, as planner_node reads a grasp_pose)."""
+    p = message.position
+    return pose_matrix(message) if any((p.x, p.y, p.z)) else None
+
+
+def detection_of(message: DominoDetection) -> Detection:
+    return Detection(
+        pose_matrix(message.pose),
+        Posture(message.posture),
+        message.score,
+        message.clearance,
+        pose_or_none(message.grasp_pose),
+    )
+
+
+def plan_of(answer: PlanPlace.Response | PlanStrike.Response, held: Pose | None) -> Plan:
+    return Plan(
+        answer.success,
+        ErrorCode(answer.error_code),
+        answer.message,
+        tuple(segment_of(s) for s in answer.segments),
+        held,
+    )
+
+
+def segment_of(message: TrajectorySegment) -> Segment:
+    return Segment(
+        message.label,
+        trajectory_of(message.trajectory),
+        GripperEvent(message.gripper_after),
+        message.gripper_position,
+        message.gripper_max_effort,
+    )
+
+
+def trajectory_of(message: JointTrajectory) -> Trajectory:
+    points, joints = message.points, len(message.joint_names)
+    with_velocities = all(len(p.velocities) == joints for p in points)  # else none given
+    return Trajectory(
+        tuple(message.joint_names),
+        np.array([seconds_of(p.time_from_start) for p in points]),
+        np.array([list(p.positions) for p in points]).reshape(len(points), joints),
+        np.array([list(p.velocities) for p in points if with_velocities]).reshape(
+            len(points) if with_velocities else 0, joints
+        ),
+    )
+
+
+def trajectory_message(trajectory: Trajectory) -> JointTrajectory:
+    velocities = trajectory.velocities.tolist() or [[]] * len(trajectory.times)
+    return JointTrajectory(
+        joint_names=list(trajectory.joint_names),
+        points=[
+            JointTrajectoryPoint(
+                positions=positions,
+                velocities=speeds,
+                time_from_start=duration_message(time),
+            )
+            for time, positions, speeds in zip(
+                trajectory.times.tolist(), trajectory.positions.tolist(), velocities, strict=True
+            )
+        ],
+    )

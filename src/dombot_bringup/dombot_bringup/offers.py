@@ -23,7 +23,7 @@ NEIGHBOUR_RADIUS = 0.25
 # How a pick's pile goes to the planner: as boxes the pads keep clear of (or nudge a few
 # millimetres); as boxes only the gripper body and arm keep clear of, with the points of
 # their cores for the pads' path (it may reach into a box up to the core); or not at all,
-# the last resort (see ArmJob._attempt).
+# the last resort (see task.attempts.attempt).
 PILE_BOXES, PILE_CORES, PILE_IGNORED = "boxes", "cores", "ignored"
 CORE_RADIUS = 0.08  # m: neighbours whose centres are farther cannot meet the pads' path
 CORE_STEP = 0.002  # m between the points of a core's faces

@@ -1,0 +1,148 @@
+"""One attempt at a slot: offer candidates until one plans, pick it, carry it, place it,
+check the placement."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from dombot_bringup.offers import (
+    PILE_BOXES,
+    PILE_CORES,
+    PILE_IGNORED,
+    roomiest_first,
+    with_pile_first,
+)
+from dombot_bringup.task.checks import check
+from dombot_bringup.task.clearing import spread
+from dombot_bringup.task.geometry import near_any
+from dombot_bringup.task.picking import PILE_WORDS, Offer, candidates, first_plan
+from dombot_bringup.task.placing import REGRASP_PREFIX, Hold, Ran, execute
+from dombot_bringup.task.records import nearest_truth, pick_record, truth, write_pick_record
+from dombot_bringup.task.state import Job, log
+
+
+class Outcome(Enum):
+    """How an attempt ended."""
+
+    PLACED = "placed"  # the slot's domino stands
+    NOT_PLACED = "not placed"  # carried (or put back, or a call failed): the arm moved
+    MISSED = "missed"  # the pick failed (blocked or missed): the run is as it was
+    NO_PLAN = "no plan"  # nothing planned: the arm has not moved
+
+
+@dataclass(frozen=True)
+class Attempt:
+    outcome: Outcome
+    why: str  # the check's words when placed, else what failed
+    spot: np.ndarray | None = None  # MISSED: where the domino lay that was not picked
+
+    @property
+    def moved(self) -> bool:
+        return self.outcome is not Outcome.NO_PLAN
+
+
+def attempt(
+    job: Job, index: int, failed: list[np.ndarray], ignore_pile: bool = False, turned: bool = False
+) -> Attempt:
+    """Offer the planner candidates until one plans; execute and check it.
+
+    First with their pile neighbours as obstacles (the planner keeps the pads clear of
+    them, or lets them nudge one a few millimetres), in ``offers.with_pile_first``'s
+    order; when every one is refused, the roomiest with their pile's cores (the pads may
+    push a neighbour up to pile_core_shrink, the gripper body keeps clear); then, unless a
+    refusal was about the slot and not ``ignore_pile`` (other slots may be built first;
+    refusals about the dominoes would recur at every slot), a pile domino is pushed out of
+    its crowd (``clearing.spread``) and the attempt starts again from a fresh look (up to
+    max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught by the
+    grasp check and backed out of, and stirs the pile). A refusal costs a planning call,
+    not an attempt: the arm has not moved (NO_PLAN). Refusals and failed picks are
+    remembered for the run (refused with the pile: not offered with it again; refused
+    ignoring it, or the pick blocked or missed: not offered at all), until a pick within
+    DISTURBED_RADIUS moves it.
+
+    A pile domino the planner turns in place first (no grasp reached it as it lay) is
+    turned, then looked at again and the attempt goes on from there (once: ``turned``):
+    picked blind where the plan expected it to settle, 3 of 7 such picks missed
+    (f611c37 and the first runs of 7500eb1).
+    """
+    found = candidates(job, failed)
+    settings = job.settings
+    ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
+    roomiest = roomiest_first(found)[: settings.last_resort_candidates]
+    slot_refusals: list[np.ndarray] = []
+    with_pile = [
+        *((c, PILE_BOXES) for c in ranked[: settings.max_candidates]),
+        *((c, PILE_CORES) for c in roomiest),
+    ]
+    offer, refused = first_plan(job, index, with_pile, failed, slot_refusals)
+    if offer is None and (ignore_pile or not slot_refusals):
+        spreads = job.report.dominoes[index].spreads
+        if len(spreads) < settings.max_spreads and spread(job, index, found):
+            return attempt(job, index, failed, ignore_pile, turned)
+        ignoring = [(c, PILE_IGNORED) for c in roomiest]
+        offer, more = first_plan(job, index, ignoring, failed, slot_refusals)
+        refused += more
+    if offer is None:
+        why = f"planning: {refused} offers refused" if refused else "no graspable domino seen"
+        return Attempt(Outcome.NO_PLAN, why)
+    return pick(job, index, offer, failed, ignore_pile, turned)
+
+
+def pick(
+    job: Job, index: int, offer: Offer, failed: list[np.ndarray], ignore_pile: bool, turned: bool
+) -> Attempt:
+    """Execute ``offer``'s plan and check the placement."""
+    candidate, plan, state = offer.candidate, offer.plan, job.state
+    spot = candidate.spot()
+    log(
+        f"{job.domino(index)}: picking {candidate.source} ({candidate.posture_name}) at "
+        f"{spot.round(3).tolist()}, {plan.message}{PILE_WORDS[offer.pile]}"
+    )
+    state.forget_refusals_near(spot)  # the pick disturbs its neighbours
+    dominoes = truth(job)
+    truth_name, seen_off = nearest_truth(dominoes, candidate.pose)
+    job.report.dominoes[index].pick_seen_off_mm.append(seen_off)
+    record = pick_record(job, index, candidate, offer.pile, plan, dominoes)
+    turn = [s for s in plan.segments if s.label.startswith(REGRASP_PREFIX)]
+    look_again = bool(turn) and candidate.run_index is None and not turned
+    segments = turn if look_again else plan.segments
+    held = plan.held_above_place
+    execution = execute(job, segments, None if held is None else Hold(index, held, candidate.pose))
+    write_pick_record(job, record, execution.why or ("turned in place only" if look_again else ""))
+    if candidate.run_index is not None and execution.ran is not Ran.FAILED:
+        state.fallen.pop(candidate.run_index, None)  # carried away
+    if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
+        return Attempt(Outcome.NOT_PLACED, execution.why)
+    if execution.ran is Ran.FAILED:  # blocked or missed: unless it moved, it would recur
+        if seen_off is not None:  # the name finds it in sim_node's "during the" lines
+            log(f"(truth, report only: {truth_name} lay {seen_off:.1f} mm from where seen)")
+        # A run domino stays where it was: an obstacle for every later carry (a new
+        # domino was once built into one that still stood there).
+        state.unpickable.append(spot)
+        if candidate.run_index is not None:
+            return keep_if_standing(job, index, candidate.run_index, execution.why, spot)
+        return Attempt(Outcome.MISSED, execution.why, spot)
+    if look_again:
+        log(f"{job.domino(index)}: turned it in place; looking again")
+        return attempt(job, index, failed, ignore_pile, turned=True)
+    placed = Outcome.PLACED if check(job, index) else Outcome.NOT_PLACED
+    return Attempt(placed, job.report.dominoes[index].check)
+
+
+def keep_if_standing(job: Job, index: int, run_index: int, why: str, spot: np.ndarray) -> Attempt:
+    """After a failed pick of run domino ``run_index``: if it still stands upright within
+    keep_when_stuck of its target, it stays as that slot's domino (when that is the slot
+    being built, the attempt succeeded); otherwise the pick failed with ``why``."""
+    job.state.stuck.add(run_index)
+    if not check(job, run_index):
+        return Attempt(Outcome.MISSED, why, spot)
+    job.state.fallen.pop(run_index, None)
+    outcome = job.report.dominoes[run_index]
+    outcome.placed = True
+    if run_index == index:
+        return Attempt(Outcome.PLACED, outcome.check)
+    log(f"domino {run_index + 1} kept standing where it is ({outcome.check})")
+    return Attempt(Outcome.MISSED, why, spot)

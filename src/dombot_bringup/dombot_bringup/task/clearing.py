@@ -1,0 +1,130 @@
+"""Clearing the way with pushes (/plan_strike's sweep): fallen debris out of a slot it
+blocks, a crowded pile spread, a jammed one stirred."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from dombot_bringup.debris import sweep_pushes
+from dombot_bringup.layouts import DOMINO_LENGTH
+from dombot_bringup.offers import roomiest_first
+from dombot_bringup.spread import spread_pushes, stir_pushes
+from dombot_bringup.task.cell import Pose, StrikeRequest
+from dombot_bringup.task.checks import check
+from dombot_bringup.task.geometry import near, near_any, spot_of
+from dombot_bringup.task.picking import Candidate
+from dombot_bringup.task.placing import execute
+from dombot_bringup.task.state import Job, log
+
+SPREAD_TRIES = 2  # pushes of one pile domino offered to the planner (the shortest first)
+
+
+def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
+    """Push aside the nearest fallen domino within a domino length of slot ``index`` that
+    no grasp reached (refused, or its pick failed); True once one was pushed (or the push
+    failed after the arm moved)."""
+    state = job.state
+    place, avoid = spot_of(job.releases[index]), failed + state.unpickable
+    debris = sorted(
+        (float(np.linalg.norm(spot_of(pose) - place)), k)
+        for k, pose in state.fallen.items()
+        if near(spot_of(pose), place, DOMINO_LENGTH) and near_any(spot_of(pose), avoid)
+    )
+    for _, k in debris:
+        pose = state.fallen[k]
+        others = [p for i, p in state.fallen.items() if i != k]
+        for direction, distance in sweep_pushes(pose, job.layout[index], job.settings.sweep_margin):
+            what = f"domino {k + 1} lying at {spot_of(pose).round(3).tolist()}"
+            swept = sweep(job, pose, others, direction, distance, what, "across the run")
+            if swept is None:
+                continue
+            job.report.dominoes[index].sweeps.append(swept)
+            log(f"{job.domino(index)}: {swept}")
+            state.fallen.pop(k)
+            check(job, k, just_placed=False)  # still there (fallen again) or gone
+            return True
+    return False
+
+
+def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:
+    """Push one of the pile ``candidates`` (none of which planned; roomiest first) out of
+    its crowd (``spread.spread_pushes``, the planner keeping it clear of its neighbours),
+    or when no such push plans, through them (``spread.stir_pushes``: the pile is
+    jammed), asking the planner at most spread_plans times for each; True once the arm
+    moved."""
+    settings, asked = job.settings, [0, 0]
+    pile = roomiest_first([c for c in candidates if c.run_index is None])
+    for jammed in (False, True):
+        for candidate in pile:
+            if asked[jammed] == settings.spread_plans:
+                break
+            choices, obstacles, how = pushes(job, candidate, jammed)
+            what = f"pile domino at {candidate.spot().round(3).tolist()}"
+            for direction, distance in choices[:SPREAD_TRIES]:
+                if asked[jammed] == settings.spread_plans:
+                    break
+                asked[jammed] += 1
+                spread = sweep(job, candidate.pose, obstacles, direction, distance, what, how)
+                if spread is not None:
+                    job.report.dominoes[index].spreads.append(spread)
+                    log(f"{job.domino(index)}: spreading the pile: {spread}")
+                    return True
+    if not any(asked):
+        log(f"{job.domino(index)}: no push would spread the pile")
+    return False
+
+
+def pushes(
+    job: Job, candidate: Candidate, jammed: bool
+) -> tuple[list[tuple[np.ndarray, float]], list[Pose], str]:
+    """The pushes of pile ``candidate`` to ask for (out of its crowd, or ``jammed``:
+    through it), what the planner keeps it clear of, and how the log says it went."""
+    settings, state = job.settings, job.state
+    seen = [*candidate.neighbours, *state.standing.values()]
+    centre = np.asarray(settings.pile_center)
+    fallen = list(state.fallen.values())
+    if jammed:  # the neighbours are pushed along: only the run is an obstacle
+        found = stir_pushes(candidate.pose, seen, candidate.points, centre, settings.spread_radius)
+        return found, fallen, "through its neighbours"
+    found = spread_pushes(
+        candidate.pose,
+        seen,
+        candidate.points,
+        centre,
+        settings.spread_radius,
+        settings.spread_clearance,
+    )
+    return found, [*candidate.neighbours, *fallen], ""
+
+
+def sweep(
+    job: Job,
+    pose: Pose,
+    others: Sequence[Pose],
+    direction: np.ndarray,
+    distance: float,
+    what: str,
+    where: str = "",
+) -> str | None:
+    """Push the domino at ``pose`` ``distance`` along ``direction`` (/plan_strike's
+    sweep), keeping clear of ``others`` and the standing run: what was done, or None if
+    the planner refused (the arm has not moved)."""
+    plan = job.cell.plan_strike(
+        StrikeRequest(
+            domino=pose,
+            standing=(*job.state.standing.values(), *others),
+            sweep=np.asarray(direction)[:2],
+            push_distance=distance,
+            time_budget=job.settings.plan_budget,
+        )
+    )
+    if not plan.success:
+        log(f"sweeping {what} refused: {plan.message.split(' (')[0]}")
+        return None
+    execution = execute(job, plan.segments, holds_domino=False)
+    job.state.forget_refusals_near(spot_of(pose))
+    job.state.forget_refusals_near(spot_of(pose) + distance * np.asarray(direction)[:2])
+    swept = f"{what}: swept {distance * 1e3:.0f} mm {where}".rstrip()
+    return swept + ("" if execution.done else f", stopped ({execution.why})")

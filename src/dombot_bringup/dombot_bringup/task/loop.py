@@ -1,0 +1,135 @@
+"""The slot loop: every slot of the layout gets turns until it stands, then the strike.
+
+Each turn (``place_slot``) makes attempts (``attempts.attempt``: offer, pick, carry,
+place, check) until the domino stands, the slot's attempts run out, or nothing plans
+and the slot is put off for others to go first.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from enum import Enum
+
+import numpy as np
+
+from dombot_bringup.layouts import safety_gaps
+from dombot_bringup.run_report import RunReport
+from dombot_bringup.task.attempts import Attempt, Outcome, attempt
+from dombot_bringup.task.cell import CellError
+from dombot_bringup.task.clearing import sweep_debris
+from dombot_bringup.task.records import add_spent, record_truth, take_picture
+from dombot_bringup.task.state import Job, log
+from dombot_bringup.task.strike import strike
+
+
+class Turn(Enum):
+    """How a slot's turn ended."""
+
+    PLACED = "placed"
+    FAILED = "failed"  # its attempts ran out
+    DEFERRED = "deferred"  # nothing planned: put off for other slots to go first
+
+
+def run(job: Job, turn: Callable[[Job, int, bool], Turn] | None = None) -> RunReport:
+    """Pour the pile, build the layout (``turn``: one slot's turn, ``place_slot``), knock
+    it down when it stands; the report."""
+    started_wall, cell, report = time.monotonic(), job.cell, job.report
+    log(cell.reset(job.settings.pile, job.settings.seed))
+    started_sim = cell.sim_time
+    build(job, turn or place_slot)
+    report.built = len(job.state.standing) == len(job.layout)
+    record_truth(job, before_strike=True)
+    take_picture(job, "before_strike", cell.sim_time)
+    if report.built:
+        log("the run stands: knocking it down")
+        strike(job, range(len(job.layout)))
+    record_truth(job, before_strike=False)
+    report.simulated_s = cell.sim_time - started_sim
+    report.wall_s = time.monotonic() - started_wall
+    return report
+
+
+def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
+    """Give slots turns, safety gaps (``settings.section``) last, until every slot stands
+    or one failed; how each slot's last turn ended."""
+    gaps = safety_gaps(job.layout, job.settings.section)
+    queue = [i for i in range(len(job.layout)) if i not in gaps] + gaps
+    if gaps:
+        numbers = ", ".join(str(i + 1) for i in gaps)
+        log(f"safety gaps at dominoes {numbers}: built once the rest stands")
+    standing, ended = job.state.standing, {}
+    deferred: set[int] = set()  # slots put off since the last placement
+    while queue:
+        index = queue.pop(0)
+        if index in standing:
+            continue  # kept standing where it was (see attempts.keep_if_standing)
+        # Only slots still to build count: a standing one left behind in the queue kept two
+        # slots nothing planned for putting each other off for ever (S-curve seed 2).
+        settled = deferred | set(standing)  # no turn to wait for
+        ended[index] = turn(job, index, any(i not in settled for i in queue))
+        if ended[index] is Turn.DEFERRED:
+            deferred.add(index)
+            # before the safety gaps (filled last), but after at least one other slot that
+            # was not put off (its turn may free this one): behind only gaps it came
+            # straight back (S-curve 4); behind a slot put off too, the two took turns for
+            # ever while a gap behind them never had one (S-curve 3)
+            first_open = next((k for k, i in enumerate(queue) if i not in settled), len(queue) - 1)
+            first_gap = next((k for k, i in enumerate(queue) if i in gaps), len(queue))
+            queue.insert(max(first_gap, first_open + 1), index)
+            continue
+        if ended[index] is Turn.FAILED:
+            job.report.message = f"domino {index + 1} could not be placed; stopping the build"
+            log(job.report.message)
+            break
+        deferred.clear()
+        # Slots built earlier that no longer stand (knocked over, or their fallen domino
+        # was picked up for another slot) are built again first.
+        empty = [i for i in range(len(job.layout)) if i not in standing]
+        queue = [i for i in empty if i not in queue] + queue
+    return ended
+
+
+def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
+    """Attempts at slot ``index`` until PLACED; FAILED after max_attempts carries or
+    max_missed_picks picks that failed; or DEFERRED: nothing planned (e.g. fallen dominoes
+    lie where it stands) and other slots may be built first, which may use up those fallen
+    dominoes. A deferral costs planning calls, not an attempt; so does a sweep of debris
+    out of the slot."""
+    outcome, settings, cell = job.report.dominoes[index], job.settings, job.cell
+    failed: list[np.ndarray] = []  # spots refused for this slot, or whose pick failed
+    missed = sweeps = 0
+    sim_start, wall_start, spent = cell.sim_time, time.monotonic(), dict(cell.time_spent)
+    while outcome.attempts - missed < settings.max_attempts and missed < settings.max_missed_picks:
+        try:
+            tried = attempt(job, index, failed, ignore_pile=not may_defer)
+        except CellError as error:
+            tried = Attempt(Outcome.NOT_PLACED, str(error))
+        outcome.simulated_s += cell.sim_time - sim_start
+        outcome.wall_s += time.monotonic() - wall_start
+        sim_start, wall_start = cell.sim_time, time.monotonic()
+        spent = add_spent(outcome.simulated_by_activity, cell.time_spent, spent)
+        if not tried.moved and sweeps < settings.max_sweeps and sweep_debris(job, index, failed):
+            sweeps += 1
+            failed.clear()  # refused while the debris lay there (missed picks: unpickable)
+            continue
+        if not tried.moved and may_defer:
+            outcome.deferrals.append(tried.why)
+            log(f"{job.domino(index)} put off ({tried.why}): others first")
+            return Turn.DEFERRED
+        outcome.attempts += 1
+        if tried.outcome is Outcome.PLACED:
+            outcome.placed = True
+            kept = " (off target, left standing: it still topples the next)"
+            log(
+                f"{job.domino(index)} placed (attempt {outcome.attempts}): {outcome.check}"
+                f"{kept if outcome.off_target else ''}; "
+                f"{outcome.simulated_s:.1f} s simulated, {outcome.wall_s:.1f} s wall"
+            )
+            return Turn.PLACED
+        outcome.failures.append(tried.why)
+        if tried.outcome is Outcome.MISSED:
+            failed.append(tried.spot)
+            missed += 1
+        log(f"{job.domino(index)} attempt {outcome.attempts} failed: {tried.why}")
+    return Turn.FAILED

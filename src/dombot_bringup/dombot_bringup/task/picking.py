@@ -1,0 +1,219 @@
+"""What to pick for a slot: candidates from the pile and the fallen run dominoes, offered
+to the planner in tiers of how the pile is treated, until one plans."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dombot_bringup.layouts import DOMINO_LENGTH
+from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED, pile_cores
+from dombot_bringup.task.cell import CellError, Detection, PlaceRequest, Plan, Pose, Posture
+from dombot_bringup.task.checks import settle
+from dombot_bringup.task.geometry import near, near_any, neighbours_of, points_near, spot_of
+from dombot_bringup.task.state import Job, log
+from dombot_planner.errors import ErrorCode
+
+DETECT_TRIES = 5
+PICKABLE_POSTURES = (Posture.FLAT, Posture.TILTED)  # the planner has the last word
+# Refusals about the domino, not the slot: remembered for the run. A search that used up
+# its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
+GRASP_REFUSALS = (ErrorCode.GRASP_UNREACHABLE, ErrorCode.TIMEOUT)
+POSTURE_NAMES = {
+    Posture.FLAT: "flat",
+    Posture.ON_EDGE: "on edge",
+    Posture.UPRIGHT: "upright",
+    Posture.TILTED: "leaning",
+}
+PILE_WORDS = {
+    PILE_BOXES: "",
+    PILE_CORES: " with its pile's cores",
+    PILE_IGNORED: " ignoring its pile",
+}
+
+
+@dataclass
+class Candidate:
+    """Something to pick: a pile detection or a fallen run domino, with what lies near it."""
+
+    pose: Pose
+    run_index: int | None = None  # layout index of a fallen run domino; None: the pile
+    neighbours: list[Pose] = field(default_factory=list)
+    posture: Posture | None = None  # None: a fallen run domino
+    scored: bool = True  # perception found room for the fingers
+    clearance: float = math.inf  # m beside the finger contact sides, as perception measured
+    # Perception's grasp, clear of every point the cameras saw (undetected dominoes too);
+    # None for a fallen run domino: the planner chooses.
+    grasp: Pose | None = None
+    # seen points near it on no detected domino: the planner keeps the pads' path clear
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def spot(self) -> np.ndarray:
+        return spot_of(self.pose)
+
+    @property
+    def leaning(self) -> bool:
+        return self.posture == Posture.TILTED
+
+    @property
+    def posture_name(self) -> str:
+        return "fallen" if self.posture is None else POSTURE_NAMES[self.posture]
+
+    @property
+    def source(self) -> str:
+        return "pile" if self.run_index is None else f"run domino {self.run_index + 1}"
+
+
+@dataclass(frozen=True)
+class Offer:
+    """A candidate that planned, with how its pile went to the planner (offers.PILE_*)."""
+
+    candidate: Candidate
+    pile: str
+    plan: Plan
+
+
+def candidates(job: Job, failed: list[np.ndarray]) -> list[Candidate]:
+    """Fallen run dominoes first (they block the run), then the pile's detections in
+    perception's order (best grasp first); none where an attempt failed or no grasp
+    reaches."""
+    avoid = failed + job.state.unpickable
+    fallen = job.state.fallen
+    run = [
+        Candidate(pose, index, neighbours_of(pose, fallen.values()))
+        for index, pose in sorted(fallen.items())
+        if not near_any(spot_of(pose), avoid)
+    ]
+    detections, unexplained = look_at_pile(job)
+    return run + [
+        pile_candidate(d, detections, unexplained)
+        for d in detections
+        if d.posture in PICKABLE_POSTURES and not near_any(spot_of(d.pose), avoid)
+    ]
+
+
+def pile_candidate(
+    detection: Detection, detections: Sequence[Detection], unexplained: np.ndarray
+) -> Candidate:
+    return Candidate(
+        detection.pose,
+        None,
+        neighbours_of(detection.pose, [d.pose for d in detections]),
+        posture=detection.posture,
+        scored=detection.score > 0.0,
+        clearance=detection.clearance,
+        grasp=detection.grasp,
+        points=points_near(detection.pose, unexplained),
+    )
+
+
+def look_at_pile(job: Job) -> tuple[list[Detection], np.ndarray]:
+    """Perception's detections in fresh frames, and the points seen on none of them.
+    A failure or an empty pile (e.g. the cameras' first frames after the reset not yet
+    through) is asked again a camera period on (a run whose first looks came at once
+    after the reset found no frames for four attempts); an empty answer after that is
+    taken as the pile's end. Nothing moved since the last placement check: its frames
+    serve (no frame to wait for)."""
+    period = 1.0 / job.settings.camera_rate
+    for attempt in range(DETECT_TRIES):
+        if attempt:  # a camera period on: frames asked for at once may not be out yet
+            not_before = settle(job, period)
+        else:
+            not_before = settle(job) if job.still_since is None else job.still_since
+        answer = job.cell.detect(not_before)
+        if answer.success and answer.dominoes:
+            return list(answer.dominoes), answer.unexplained
+        log(f"perception: {answer.message}; asking again")
+    if answer.success:
+        return [], np.zeros((0, 3))
+    raise CellError(f"perception: {answer.message}")
+
+
+def first_plan(
+    job: Job,
+    index: int,
+    offers: Sequence[tuple[Candidate, str]],
+    failed: list[np.ndarray],
+    slot_refusals: list[np.ndarray],
+) -> tuple[Offer | None, int]:
+    """The first of ``offers`` (candidate, pile tier) that plans for slot ``index`` and how
+    many were refused before it. Refusals about the slot go to ``failed`` and
+    ``slot_refusals``; those about the domino are remembered for the run (see
+    ``attempts.attempt``)."""
+    refused = 0
+    for candidate, pile in offers:
+        spot = candidate.spot()
+        if near_any(spot, failed):
+            continue  # refused for this slot already
+        plan = job.cell.plan_place(place_request(job, index, candidate, pile))
+        if plan.success:
+            return Offer(candidate, pile, plan), refused
+        refused += 1
+        where = f"{candidate.source} at {spot.round(3).tolist()}{PILE_WORDS[pile]}"
+        log(f"{job.domino(index)}: refused {where}: {plan.message.split(' (')[0]}")
+        if plan.error not in GRASP_REFUSALS:
+            failed.append(spot)
+            slot_refusals.append(spot)
+        elif pile == PILE_BOXES:
+            job.state.crowded.append(spot)
+        elif pile == PILE_IGNORED:
+            job.state.unpickable.append(spot)
+    return None, refused
+
+
+def place_request(job: Job, index: int, candidate: Candidate, pile: str) -> PlaceRequest:
+    """What the planner is asked to pick ``candidate`` for slot ``index`` with ``pile``."""
+    with_pile = pile != PILE_IGNORED
+    release = job.releases[index]
+    return PlaceRequest(
+        domino=candidate.pose,
+        place=release,
+        standing=(
+            *job.state.standing.values(),
+            *debris(job, candidate, with_pile, spot_of(release)),
+        ),
+        # tried first, then the planner's own (regrasp included): the planner knows only
+        # the detected pile, and grasps missed as the fingers closed on dominoes
+        # perception had within 1.2 mm of the truth
+        grasp=candidate.grasp,
+        pile=tuple(candidate.neighbours) if with_pile else (),
+        # unlike the pile's boxes, kept in the last resort too: it missed 8 of 11
+        # (58ee708), and a domino never detected is nothing the pads may push
+        pile_points=pile_points(job, candidate, pile),
+        # with the cores, only the gripper body and arm keep clear of the boxes: in 2 of
+        # 3 such picks that missed (4e6913a), the body was 6-9 mm inside one
+        pads_into_pile=pile == PILE_CORES,
+        time_budget=job.settings.plan_budget,
+    )
+
+
+def pile_points(job: Job, candidate: Candidate, pile: str) -> np.ndarray:
+    """The points the planner keeps the pads' path from: those seen on no detected
+    domino, and with PILE_CORES the cores of the pile neighbours (``offers.pile_cores``)."""
+    if pile != PILE_CORES:
+        return candidate.points
+    cores = pile_cores(candidate.spot(), candidate.neighbours, job.settings.pile_core_shrink)
+    return np.concatenate([candidate.points.reshape(-1, 3), cores])
+
+
+def debris(
+    job: Job, candidate: Candidate, with_pile: bool = True, place: np.ndarray | None = None
+) -> list[Pose]:
+    """Fallen run dominoes lying in the build area (not the one to pick): the carry and
+    the placement must keep clear of them as of the standing ones (a placement that met
+    one fell). Its pile neighbours go to the planner as its pile instead; ignoring its
+    pile, those within a domino length of the ``place`` stay obstacles: a run domino
+    picked so was placed onto the fallen ones beside it, and fell (S-curve seed 2)."""
+    pile = [
+        pose
+        for pose in candidate.neighbours
+        if with_pile or place is None or not near(spot_of(pose), place, DOMINO_LENGTH)
+    ]
+    return [
+        pose
+        for pose in job.state.fallen.values()
+        if pose is not candidate.pose and not any(pose is p for p in pile)
+    ]

@@ -1,0 +1,206 @@
+"""Running a plan in the cell: each grasp checked by the finger opening (a failed one
+backed out of), the hold looked at above the slot (carried again from where it is held,
+or put back on the pile)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
+
+from dombot_bringup.task.cell import GripperEvent, PlaceRequest, Pose, Seen, Segment, Trajectory
+from dombot_bringup.task.checks import settle
+from dombot_bringup.task.geometry import foot_distance
+from dombot_bringup.task.state import Job, log
+from dombot_description import DOMINO_SIZE
+
+BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto its path
+LET_GO_OPENING = 0.04  # m the fingers open to, around a 24 mm domino, to let go of it
+# ends straight above the slot, where the hold is looked at (a regrasp's own is prefixed)
+HOLD_CHECK_SEGMENT = "transfer"
+REGRASP_PREFIX = "regrasp_"  # the planner's turn in place before the pick proper
+# What the in-hand check says when it cannot measure the held domino.
+IN_HAND_WORDS = {
+    Seen.FALLEN: "no upright domino fitted below the pads",
+    Seen.MISSING: "nothing seen below the pads (dropped?)",
+    Seen.NOT_SEEN: "not seen well enough (hidden, or seen edge-on)",
+}
+
+
+class Ran(Enum):
+    """How a plan's execution ended."""
+
+    DONE = "done"
+    FAILED = "failed"  # a motion or a grasp failed (a failed grasp was backed out of)
+    PUT_BACK = "put back"  # the hold could not be placed: dropped back onto the pile
+
+
+@dataclass(frozen=True)
+class Execution:
+    ran: Ran
+    why: str = ""  # what failed, or how the hold was found
+
+    @property
+    def done(self) -> bool:
+        return self.ran is Ran.DONE
+
+
+@dataclass(frozen=True)
+class Hold:
+    """A domino being carried to slot ``index``: where the plan holds it above the slot,
+    and where it was picked (a fallen run domino is no obstacle there any more)."""
+
+    index: int
+    held_above: Pose
+    picked: Pose
+
+
+@dataclass(frozen=True)
+class InHand:
+    """What the look at the hold above its slot decided."""
+
+    again: tuple[Segment, ...] = ()  # a plan from where it is held; none: place as planned
+    put_back: str = ""  # why it is not to be placed but dropped back onto the pile
+
+
+def execute(
+    job: Job, segments: Sequence[Segment], hold: Hold | None = None, holds_domino: bool = True
+) -> Execution:
+    """Run the segments and their gripper events.
+
+    A close that should hold a domino is checked by where the fingers stopped (the strike
+    closes them on nothing). When a grasp fails, the arm backs out the way it came before
+    anything else is tried. With a ``hold``, the domino is looked at in the hand where
+    "transfer" ends above its slot (``in_hand``).
+    """
+    job.still_since = None
+    cell = job.cell
+    for segment in segments:
+        approach = is_approach(segment)
+        if len(segment.trajectory.times):
+            tolerance = job.settings.approach_goal_tolerance if approach else 0.0
+            motion = cell.execute(segment.trajectory, tolerance)
+            if not motion.ok:
+                if approach:
+                    back_out(job, segment)
+                return Execution(Ran.FAILED, f"{segment.label}: {motion.error}")
+        if segment.gripper_after == GripperEvent.CLOSE:
+            opening = cell.gripper(segment.gripper_position, segment.gripper_max_effort)
+            problem = grasp_problem(job, opening)
+            if holds_domino and problem:
+                back_out(job, segment)
+                return Execution(
+                    Ran.FAILED,
+                    f"{segment.label}: grasp {problem} (fingers stopped at "
+                    f"{opening * 1e3:.1f} mm, domino {DOMINO_SIZE[1] * 1e3:.0f} mm)",
+                )
+        elif segment.gripper_after == GripperEvent.OPEN:
+            cell.gripper(segment.gripper_position, 0.0)
+        if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
+            verdict = in_hand(job, hold)
+            if verdict.put_back:
+                put_back(job, segment)
+                return Execution(Ran.PUT_BACK, verdict.put_back)
+            if verdict.again:
+                return execute(job, verdict.again)
+    return Execution(Ran.DONE)
+
+
+def in_hand(job: Job, hold: Hold) -> InHand:
+    """The held domino straight above its slot, seen by perception: when it turned or
+    slid in the hand on the way (``in_hand_tolerance``), a plan from where it is held to
+    its release pose (down onto it from above, the fingers open there, then the retreat).
+    No plan: placed as planned (within the tolerance, read beyond ``in_hand_max_off``, not
+    seen well, or no plan for a hold that may still stand). Put back: no plan, and leaning
+    over ``put_back_lean`` it would fall."""
+    settings, name = job.settings, job.domino(hold.index)
+    if settings.in_hand_tolerance <= 0.0:
+        return InHand()
+    fresh = settle(job)
+    answer = job.cell.check_placement([hold.held_above], in_hand=True, not_before=fresh)
+    if not (answer.success and answer.status[0] == Seen.STANDING):
+        status = IN_HAND_WORDS.get(answer.status[0], "?") if answer.success else answer.message
+        log(f"{name} in the hand: {status}; placing it")
+        return InHand()
+    measured, tilt = answer.measured[0], answer.tilt[0]
+    off = foot_distance(measured, hold.held_above)
+    seen = f"foot {off * 1e3:.1f} mm off, leaning {math.degrees(tilt):.1f}°"
+    if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
+        log(f"{name} in the hand: {seen}; placing it")
+        return InHand()
+    if off > settings.in_hand_max_off:
+        log(f"{name} in the hand: {seen}; too far off: a misreading, placing it")
+        return InHand()
+    outcome = job.report.dominoes[hold.index]
+    outcome.corrected_in_hand.append(seen)
+    plan = job.cell.plan_place(
+        PlaceRequest(
+            domino=measured,
+            place=job.releases[hold.index],
+            # a fallen run domino being carried is no obstacle where it lay (S-curve seed 5
+            # of ec6d172: its own pose "overlapped" its slot, every correction was
+            # refused, and the build stopped at that slot)
+            standing=(
+                *job.state.standing.values(),
+                *(pose for pose in job.state.fallen.values() if pose is not hold.picked),
+            ),
+            holding=True,
+            time_budget=settings.plan_budget,
+        )
+    )
+    if plan.success:
+        log(f"{name} in the hand: {seen}; carrying it again from where it is held")
+        return InHand(again=plan.segments)
+    refused = f"carrying it again refused ({plan.message.split(' (')[0]})"
+    if tilt > settings.put_back_lean:
+        outcome.put_back.append(seen)
+        log(f"{name} in the hand: {seen}; {refused}; it would fall")
+        return InHand(put_back=f"put back on the pile: held {seen}, {refused}")
+    log(f"{name} in the hand: {seen}; {refused}; placing it as it is")
+    return InHand()
+
+
+def put_back(job: Job, transfer: Segment) -> None:
+    """Carry the held domino back along ``transfer`` to above where it was picked (the way
+    it came, with this hold), let it drop onto the pile from there, and go back along
+    ``transfer``: out of the cameras' view of the pile before the next look, where the
+    next plan starts as after a placement."""
+    log("put back on the pile: carrying it back to where it was picked and letting it drop")
+    move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
+    job.cell.gripper(LET_GO_OPENING, 0.0)
+    move(job, transfer.trajectory, "leaving the pile")
+
+
+def grasp_problem(job: Job, opening: float) -> str:
+    """What the finger opening after a close says is wrong with the grasp, or ""."""
+    inside = DOMINO_SIZE[1] - opening
+    if abs(inside) > job.settings.grasp_width_tolerance:
+        return "missed"
+    if inside > job.settings.grasp_squeeze_limit:
+        return "on an edge"
+    return ""
+
+
+def back_out(job: Job, segment: Segment) -> None:
+    """After a failed grasp: open, and retrace the approach to where it started.
+
+    The way in was collision-free, so the way back is too, and it takes the arm out of
+    the cameras' view of the pile before perception looks again.
+    """
+    job.cell.gripper(segment.gripper_position + LET_GO_OPENING, 0.0)
+    if len(segment.trajectory.times):
+        move(job, segment.trajectory.reversed(BACK_OUT_LEAD), "backing out")
+
+
+def move(job: Job, trajectory: Trajectory, what: str) -> None:
+    """Run ``trajectory`` off plan (a way back); a failure is logged, not raised: the next
+    plan starts from wherever the arm stopped."""
+    motion = job.cell.execute(trajectory)
+    if not motion.ok:
+        log(f"{what} failed: {motion.error}")
+
+
+def is_approach(segment: Segment) -> bool:
+    """The segment that brings the open gripper down to a domino (regrasps included)."""
+    return segment.label.endswith("approach_grasp")

@@ -1,0 +1,144 @@
+"""What a run leaves for people: the report's truth and pictures, each slot's time by
+activity, and the pick records ``benchmarks/replay_pick.py`` replays. Nothing acts on
+these."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from dombot_bringup.layouts import DOMINO_LENGTH
+from dombot_bringup.run_report import TruthPose
+from dombot_bringup.task.cell import CellError, Plan, Pose, Segment
+from dombot_bringup.task.picking import Candidate, pile_points
+from dombot_bringup.task.state import Job, log
+from dombot_description import tilt_from_vertical
+
+REPORT_CAMERA = "camera_2"  # its frames of the run before and after the strike go in the report
+Truth = list[tuple[str, Pose]]  # the simulator's dominoes: names and poses
+
+
+def truth(job: Job) -> Truth:
+    """The simulator's dominoes now, for the report only."""
+    return job.cell.truth(newer_than=job.cell.sim_time - 0.01)
+
+
+def nearest_truth(dominoes: Truth, pose: Pose) -> tuple[str, float | None]:
+    """The simulator's domino whose centre is nearest ``pose``'s, and how far [mm]."""
+    if not dominoes:
+        return "", None
+    centres = np.array([matrix[:3, 3] for _, matrix in dominoes])
+    distances = np.linalg.norm(centres - pose[:3, 3], axis=1)
+    nearest = int(np.argmin(distances))
+    return dominoes[nearest][0], float(distances[nearest] * 1e3)
+
+
+def take_picture(job: Job, name: str, not_before: float) -> None:
+    """REPORT_CAMERA's view for the report (for people; nothing acts on it)."""
+    try:
+        job.pictures[name] = job.cell.picture(REPORT_CAMERA, not_before)
+    except CellError as error:
+        log(f"no picture {name} for the report: {error}")
+
+
+def record_truth(job: Job, before_strike: bool) -> None:
+    """Ground truth for the report: the simulator domino nearest each target."""
+    poses = [matrix for _, matrix in truth(job)]
+    if not poses:
+        return
+    report = job.report
+    centres = np.array([p[:2, 3] for p in poses])
+    down = 0
+    standing = 0
+    for outcome, target in zip(report.dominoes, job.layout, strict=True):
+        distances = np.linalg.norm(centres - [target.x, target.y], axis=1)
+        nearest = int(np.argmin(distances))
+        if distances[nearest] > (0.02 if before_strike else DOMINO_LENGTH):
+            continue
+        pose = poses[nearest]
+        tilt = math.degrees(tilt_from_vertical(pose))
+        along = pose[:3, 2]
+        record = TruthPose(
+            float(pose[0, 3]),
+            float(pose[1, 3]),
+            math.atan2(along[1], along[0]),
+            tilt,
+            float(distances[nearest] * 1e3),
+        )
+        if before_strike:
+            outcome.truth_built = record
+            standing += tilt < 10.0
+        else:
+            outcome.truth_after_strike = record
+            down += tilt > 45.0
+    if before_strike:
+        report.standing_by_truth = standing
+    elif report.struck:
+        report.toppled_by_truth = down == len(job.layout)
+
+
+def pick_record(
+    job: Job, index: int, candidate: Candidate, pile: str, plan: Plan, dominoes: Truth
+) -> dict | None:
+    """What a pick was planned from and the simulator's truth at the time, to replay it
+    offline (``settings.record_picks``); None when not recorded."""
+    if job.settings.record_picks is None:
+        return None
+    names, positions = job.cell.joints()
+    grasp = candidate.grasp
+    return {
+        "slot": index + 1,
+        "attempt": job.report.dominoes[index].attempts,
+        "source": candidate.source,
+        "domino_pose": candidate.pose.tolist(),
+        "grasp_pose": None if grasp is None else grasp.tolist(),
+        "pile": pile,
+        "pile_dominoes": [p.tolist() for p in candidate.neighbours],
+        "pile_points": pile_points(job, candidate, pile).tolist(),
+        "plan": plan.message,
+        "place_pose": job.releases[index].tolist(),
+        "start": {"names": names, "positions": positions},
+        "segments": [segment_record(s) for s in plan.segments],
+        "truth": {name: matrix.tolist() for name, matrix in dominoes},
+    }
+
+
+def write_pick_record(job: Job, record: dict | None, failure: str) -> None:
+    if record is None:
+        return
+    folder = job.settings.record_picks
+    folder.mkdir(parents=True, exist_ok=True)
+    record["failure"] = failure  # "": carried to the slot
+    path = folder / f"pick{job.picks_recorded:03d}_slot{record['slot']}.json"
+    path.write_text(json.dumps(record))
+    job.picks_recorded += 1
+
+
+def segment_record(segment: Segment) -> dict:
+    """A planned segment as plain numbers (times in s from its start)."""
+    trajectory = segment.trajectory
+    return {
+        "label": segment.label,
+        "joint_names": list(trajectory.joint_names),
+        "times": trajectory.times.tolist(),
+        "positions": trajectory.positions.tolist(),
+        "velocities": trajectory.velocities.tolist(),
+        "gripper_after": int(segment.gripper_after),
+        "gripper_position": segment.gripper_position,
+        "gripper_max_effort": segment.gripper_max_effort,
+    }
+
+
+def add_spent(
+    into: dict[str, float], spent: Mapping[str, float], before: Mapping[str, float]
+) -> dict[str, float]:
+    """Add to ``into`` the simulated seconds per activity that ``spent`` grew by since
+    ``before``; ``spent`` as it is now, to count from next."""
+    for activity, seconds in spent.items():
+        grown = seconds - before.get(activity, 0.0)
+        if grown:
+            into[activity] = round(into.get(activity, 0.0) + grown, 3)
+    return dict(spent)

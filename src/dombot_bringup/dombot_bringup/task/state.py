@@ -1,0 +1,76 @@
+"""One run's state: what the task learnt of the build and the pile so far."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dombot_bringup.layouts import DominoPlacement
+from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
+from dombot_bringup.task.cell import Cell, Pose
+from dombot_bringup.task.geometry import near, placement_pose
+from dombot_bringup.task.settings import ArmJobSettings
+
+DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
+
+
+def log(message: str) -> None:
+    print(f"[bringup] {message}", flush=True)
+
+
+@dataclass
+class BuildState:
+    standing: dict[int, Pose] = field(default_factory=dict)  # layout index → target pose
+    fallen: dict[int, Pose] = field(default_factory=dict)  # layout index → measured pose
+    # (x, y) of dominoes no grasp reaches or whose pick failed: not offered again
+    unpickable: list[np.ndarray] = field(default_factory=list)
+    stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
+    crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
+
+    def forget_refusals_near(self, spot: np.ndarray) -> None:
+        """A pick or push at ``spot`` moved the dominoes around it: offer them again."""
+        self.unpickable = [u for u in self.unpickable if not near(u, spot, DISTURBED_RADIUS)]
+        self.crowded = [u for u in self.crowded if not near(u, spot, DISTURBED_RADIUS)]
+
+
+@dataclass
+class Job:
+    """One run: the cell it runs in, the layout to build, and what is known so far."""
+
+    cell: Cell
+    layout: list[DominoPlacement]
+    settings: ArmJobSettings
+    report: RunReport
+    targets: list[Pose]  # each slot's target pose
+    releases: list[Pose]  # where each is let go (place_lead ahead)
+    state: BuildState = field(default_factory=BuildState)
+    # Simulated time since which nothing has moved (the arm at rest after a placement
+    # check): the pile cameras' frames from then on are fresh for the next look too.
+    still_since: float | None = None
+    pictures: dict[str, np.ndarray] = field(default_factory=dict)  # for the report
+    picks_recorded: int = 0  # files in settings.record_picks
+
+    @classmethod
+    def new(
+        cls, cell: Cell, layout: Sequence[DominoPlacement], name: str, settings: ArmJobSettings
+    ) -> Job:
+        report = RunReport(
+            layout=name,
+            dominoes=[DominoOutcome(p.index, target_of(p)) for p in layout],
+            pile=settings.pile,
+            seed=settings.seed,
+        )
+        return cls(
+            cell,
+            list(layout),
+            settings,
+            report,
+            [placement_pose(p) for p in layout],
+            [placement_pose(p, settings.place_lead) for p in layout],
+        )
+
+    def domino(self, index: int) -> str:
+        """How the log names slot ``index``: "domino 3/10"."""
+        return f"domino {index + 1}/{len(self.layout)}"
