@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from geometry_msgs.msg import Pose
 
+from dombot_adapters.pose_messages import pose_message
 from dombot_bringup.cell_client import (
     detection_of,
     geometry_pose,
@@ -14,7 +15,6 @@ from dombot_bringup.cell_client import (
     trajectory_of,
 )
 from dombot_bringup.task.cell import GripperEvent, Posture, Trajectory
-from dombot_adapters.pose_messages import pose_message
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import PlanPlace
 from dombot_planner.errors import ErrorCode

@@ -27,6 +27,13 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from dombot_adapters.pose_messages import (
+    duration_message,
+    pose_matrix,
+    pose_message,
+    seconds_of,
+    time_message,
+)
 from dombot_bringup.record_node import matching_qos
 from dombot_bringup.task.cell import (
     CellError,
@@ -43,13 +50,6 @@ from dombot_bringup.task.cell import (
     Segment,
     StrikeRequest,
     Trajectory,
-)
-from dombot_adapters.pose_messages import (
-    duration_message,
-    pose_matrix,
-    pose_message,
-    seconds_of,
-    time_message,
 )
 from dombot_msgs.msg import DominoDetection, DominoStateArray, TrajectorySegment
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
