@@ -25,7 +25,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from dombot_bringup.record_node import matching_qos
+from dombot_bringup.qos import matching_qos
 from dombot_description.pose_messages import seconds_of, time_message
 from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
