@@ -49,6 +49,7 @@ from dombot_bringup.offers import (
     with_pile_first,
 )
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
+from dombot_bringup.process_group import say as log
 from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
 from dombot_bringup.spread import spread_pushes, stir_pushes
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
@@ -253,10 +254,6 @@ def placement_pose(placement: DominoPlacement, lead: float = 0.0) -> Pose:
         position=Point(x=placement.x + ahead[0], y=placement.y + ahead[1], z=placement.z),
         orientation=Quaternion(x=x, y=y, z=z, w=w),
     )
-
-
-def log(message: str) -> None:
-    print(f"[bringup] {message}", flush=True)
 
 
 class ArmJob:
