@@ -63,8 +63,8 @@ def test_a_restartable_node_that_dies_is_started_again_until_it_used_its_restart
             group.check()
     assert died.value.name == "sleeper" and died.value.returncode == -9
     assert (
-        f"node 'sleeper' died with exit code -9; starting it again (restart 1 of {MAX_RESTARTS})"
-        in (sink.getvalue())
+        f"[bringup] node 'sleeper' died with exit code -9; starting it again "
+        f"(restart 1 of {MAX_RESTARTS})" in sink.getvalue().splitlines()
     )
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import signal
 from collections.abc import Iterator
 from pathlib import Path
+from subprocess import PIPE
 
 import numpy as np
 import pytest
@@ -134,8 +135,12 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Pa
         assert spin_until(probe, lambda: bool(images), 120), sim.poll()
         record = ("dombot_bringup", "record", "-o")
         with (
-            installed_node(*record, str(interrupted), "--image-rate", "100") as stopped,
-            installed_node(*record, str(path), "--duration", "5", "--image-rate", "1") as recorder,
+            installed_node(
+                *record, str(interrupted), "--image-rate", "100", output=PIPE
+            ) as stopped,
+            installed_node(
+                *record, str(path), "--duration", "5", "--image-rate", "1", output=PIPE
+            ) as recorder,
         ):
             assert spin_until(probe, lambda: recorder.poll() is not None, 120)
             output = recorder.stdout.read()
@@ -191,7 +196,7 @@ def test_replay_publishes_the_recorded_messages(recording) -> None:
         for m in (msg.ros_msg for msg in read_ros2_messages(str(path), topics=["/joint_states"]))
     }
     listener = Listener(probe)
-    with installed_node("dombot_bringup", "replay", str(path)) as replay:
+    with installed_node("dombot_bringup", "replay", str(path), output=PIPE) as replay:
         assert spin_until(probe, lambda: replay.poll() is not None, 120)
         assert replay.returncode == 0, replay.stdout.read()
     spin_until(probe, lambda: False, 0.5)  # the last messages' way
@@ -211,6 +216,6 @@ def test_a_recorder_stopped_by_sigint_leaves_a_readable_file(recording) -> None:
 def test_replay_refuses_what_is_not_a_recording(tmp_path: Path) -> None:
     bogus = tmp_path / "not.mcap"
     bogus.write_text("hello")
-    with installed_node("dombot_bringup", "replay", str(bogus)) as replay:
+    with installed_node("dombot_bringup", "replay", str(bogus), output=PIPE) as replay:
         assert replay.wait(timeout=60) == 2
         assert "cannot read" in replay.stdout.read()

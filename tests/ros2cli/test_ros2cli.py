@@ -210,7 +210,7 @@ def test_topic_pub_reaches_a_subscriber_process() -> None:
     node.create_subscription(Float64, "/cli/value", got, 10)
     rclpy.spin(node)
     """
-    with python_process(listener) as process:
+    with python_process(listener, output=subprocess.PIPE) as process:
         ros2(
             "topic",
             "pub",

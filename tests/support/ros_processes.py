@@ -18,15 +18,16 @@ from rclpy.node import Node
 
 
 @contextmanager
-def _supervised(command: list[str], output: IO | None = None) -> Iterator[subprocess.Popen[str]]:
-    """``output``: where the child's stdout and stderr go (default: a pipe, fine for a
-    test's few log lines; a child that logs more blocks once the pipe is full)."""
+def _supervised(
+    command: list[str], output: IO | int | None = None
+) -> Iterator[subprocess.Popen[str]]:
+    """``output``: where the child's stdout and stderr go. Default: this process's own,
+    which pytest captures into a file and shows with a failure. ``subprocess.PIPE`` only
+    for a child whose output the test reads: a child that logs into a pipe nobody reads
+    blocks in the write once 64 KiB are waiting (a perception_node stopped answering
+    /perception/detect that way)."""
     child = subprocess.Popen(
-        command,
-        env=dict(os.environ),
-        stdout=subprocess.PIPE if output is None else output,
-        stderr=subprocess.STDOUT,
-        text=True,
+        command, env=dict(os.environ), stdout=output, stderr=subprocess.STDOUT, text=True
     )
     try:
         yield child
@@ -40,15 +41,15 @@ def _supervised(command: list[str], output: IO | None = None) -> Iterator[subpro
 
 
 @contextmanager
-def python_process(source: str) -> Iterator[subprocess.Popen[str]]:
+def python_process(source: str, output: IO | int | None = None) -> Iterator[subprocess.Popen[str]]:
     """Run ``source`` in a child interpreter with this session's environment."""
-    with _supervised([sys.executable, "-c", textwrap.dedent(source)]) as child:
+    with _supervised([sys.executable, "-c", textwrap.dedent(source)], output) as child:
         yield child
 
 
 @contextmanager
 def installed_node(
-    package: str, executable: str, *args: str, output: IO | None = None
+    package: str, executable: str, *args: str, output: IO | int | None = None
 ) -> Iterator[subprocess.Popen[str]]:
     """Run an installed node executable, found through the ament index as ros2 run does."""
     path = Path(get_package_prefix(package)) / "lib" / package / executable

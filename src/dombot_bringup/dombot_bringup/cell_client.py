@@ -34,7 +34,7 @@ from dombot_adapters.pose_messages import (
     seconds_of,
     time_message,
 )
-from dombot_bringup.record_node import matching_qos
+from dombot_bringup.qos import matching_qos
 from dombot_bringup.task.cell import (
     CellError,
     Detection,

@@ -29,7 +29,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from scipy.spatial import cKDTree
 
-from dombot_bringup.process_group import ProcessGroup
+from dombot_bringup.process_group import ProcessGroup, say
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.paths import rig_length
 from dombot_msgs.msg import WheelVelocities
@@ -148,10 +148,7 @@ def run_layer_job(
             )
             if client.status.status != WheelVelocities.STATUS_OK:
                 raise PathRejectedError(client.status.message)
-            print(
-                f"[bringup] laying a {sweep_deg:.0f}° arc of radius {radius} m at {speed} m/s ...",
-                flush=True,
-            )
+            say(f"laying a {sweep_deg:.0f}° arc of radius {radius} m at {speed} m/s ...")
             spin_while(
                 group,
                 client,
@@ -200,7 +197,7 @@ def spin_while(
         rclpy.spin_once(node, timeout_sec=0.1)
         if progress is not None and len(progress.deposits) >= last_report + 10:
             last_report = len(progress.deposits)
-            print(f"[bringup] {last_report} dominoes laid", flush=True)
+            say(f"{last_report} dominoes laid")
 
 
 def spin_for(node: Node, seconds: float) -> None:
@@ -293,13 +290,12 @@ def write_outputs(
     fig.savefig(out_dir / "layer_run.png", dpi=110)
     plt.close(fig)
     verdict = "SUCCESS" if report.success else "FAILED"
-    print(
-        f"[bringup] {verdict}: {report.dominoes_laid}/{report.dominoes_expected} dominoes laid; "
+    say(
+        f"{verdict}: {report.dominoes_laid}/{report.dominoes_expected} dominoes laid; "
         f"settled arc radius {report.settled_radius_m:.5f} m for {report.deposit_radius_m} m "
         f"requested (error {error_mm:.4f} mm, limit {RADIUS_TOLERANCE * 1e3:.1f} mm); "
         f"spacing {report.spacing_min_m * 1e3:.1f}-{report.spacing_max_m * 1e3:.1f} mm; "
         f"max distance from the requested curve {deviation_mm:.1f} mm "
-        f"(turn-in and lead-out transients); {report.wall_time_s:.1f} s wall\n"
-        f"[bringup] report: {out_dir / 'layer_report.json'}, plot: {out_dir / 'layer_run.png'}",
-        flush=True,
+        f"(turn-in and lead-out transients); {report.wall_time_s:.1f} s wall"
     )
+    say(f"report: {out_dir / 'layer_report.json'}, plot: {out_dir / 'layer_run.png'}")

@@ -2,7 +2,8 @@
 
 ``launch``/``launch_ros`` cannot be installed on machines without a system ROS 2,
 so the bring-up starts its nodes with this small supervisor: each child gets its
-own process group, its output is forwarded line by line with a ``[name]`` prefix,
+own process group, its output is forwarded line by line with a ``[name]`` prefix
+(the bring-up's own lines, ``say``, are ``[bringup]``; no two lines interleave),
 the last lines are kept for the report when a node dies, and stopping sends
 SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses. A process
 started ``restartable`` (a stateless server: perception, planner) is started again
@@ -30,6 +31,22 @@ from typing import TextIO
 TAIL_LINES = 20
 MAX_RESTARTS = 3  # per process: one that keeps dying is reported, not restarted forever
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
+BRINGUP = "bringup"  # the name on the bring-up's own lines, beside its nodes' names
+# one line at a time into the output, from the forwarding threads and the bring-up alike
+_LINE_LOCK = threading.Lock()
+
+
+def write_line(name: str, line: str, sink: TextIO | None = None) -> None:
+    """``line`` as ``[name] line`` into ``sink`` (default: the current sys.stdout), whole."""
+    sink = sys.stdout if sink is None else sink
+    with _LINE_LOCK:
+        sink.write(f"[{name}] {line}\n")
+        sink.flush()
+
+
+def say(message: str, sink: TextIO | None = None) -> None:
+    """A line of the bring-up's own, named like the nodes' forwarded lines."""
+    write_line(BRINGUP, message, sink)
 
 
 def _die_with_parent() -> None:
@@ -65,7 +82,7 @@ class ManagedProcess:
     )
     _reader: threading.Thread | None = None
 
-    def start(self, sink: TextIO, lock: threading.Lock) -> None:
+    def start(self, sink: TextIO) -> None:
         self.process = subprocess.Popen(
             list(self.command),
             env=self.env,
@@ -77,19 +94,17 @@ class ManagedProcess:
             start_new_session=True,
             preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
         )
-        self._reader = threading.Thread(target=self._forward, args=(sink, lock), daemon=True)
+        self._reader = threading.Thread(target=self._forward, args=(sink,), daemon=True)
         self._reader.start()
 
-    def _forward(self, sink: TextIO, lock: threading.Lock) -> None:
+    def _forward(self, sink: TextIO) -> None:
         assert self.process is not None and self.process.stdout is not None
         for raw in self.process.stdout:
             line = raw.rstrip("\n")
             self.tail.append(line)
             if self.on_line is not None:
                 self.on_line(line)
-            with lock:
-                sink.write(f"[{self.name}] {line}\n")
-                sink.flush()
+            write_line(self.name, line, sink)
 
     @property
     def returncode(self) -> int | None:
@@ -118,7 +133,6 @@ class ProcessGroup:
 
     def __init__(self, sink: TextIO = sys.stdout, stop_timeout: float = 5.0) -> None:
         self._sink = sink
-        self._lock = threading.Lock()
         self._stop_timeout = stop_timeout
         self.processes: list[ManagedProcess] = []
 
@@ -133,7 +147,7 @@ class ProcessGroup:
         managed = ManagedProcess(
             name=name, command=command, env=env, restartable=restartable, on_line=on_line
         )
-        managed.start(self._sink, self._lock)
+        managed.start(self._sink)
         self.processes.append(managed)
         return managed
 
@@ -148,20 +162,16 @@ class ProcessGroup:
             if not managed.restartable or managed.restarts >= MAX_RESTARTS:
                 raise NodeDiedError(managed.name, code, managed.tail)
             managed.restarts += 1
-            self._say(
+            say(
                 f"node '{managed.name}' died with exit code {code}; starting it again "
-                f"(restart {managed.restarts} of {MAX_RESTARTS})"
+                f"(restart {managed.restarts} of {MAX_RESTARTS})",
+                self._sink,
             )
-            managed.start(self._sink, self._lock)
+            managed.start(self._sink)
 
     def restarts(self) -> dict[str, int]:
         """How often each process has been started again."""
         return {managed.name: managed.restarts for managed in self.processes}
-
-    def _say(self, line: str) -> None:
-        with self._lock:
-            self._sink.write(f"[bringup] {line}\n")
-            self._sink.flush()
 
     def wait_until(self, ready: Callable[[], bool], timeout: float, what: str) -> None:
         """Poll ``ready`` while checking that no node died; TimeoutError names ``what``."""

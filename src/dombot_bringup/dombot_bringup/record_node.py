@@ -29,14 +29,10 @@ from pathlib import Path
 import rclpy
 from ament_index_python.packages import get_package_share_directory
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-)
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
+from dombot_bringup.qos import matching_qos
 from dombot_bringup.recording import (
     BEST_EFFORT,
     DURABILITY,
@@ -61,21 +57,6 @@ def message_class(type_name: str) -> type:
     """The generated class of 'pkg/msg/Type'."""
     package, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
-
-
-def matching_qos(publishers: list, depth: int) -> QoSProfile:
-    """The subscription QoS that gets the most from these publishers (rosbag2's choice):
-    transient local if all offer it (a late subscriber still gets /tf_static), reliable if
-    all are (a best-effort subscriber would drop a large image whenever one of its
-    fragments is lost; a reliable one would not match a best-effort camera at all)."""
-    durable = all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers)
-    reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in publishers)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=depth,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-    )
 
 
 def is_hidden(topic: str) -> bool:

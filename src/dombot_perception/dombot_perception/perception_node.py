@@ -48,6 +48,7 @@ from dombot_perception.debug_image import draw_detections, mask_overlay
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline, PipelineResult, build_pipeline
 from dombot_perception.placement_check import PlacementConfig, check_placements
+from dombot_perception.repeat_filter import RepeatFilter
 from dombot_perception.segmentation import SegmenterError
 from dombot_perception.transforms import TransformBuffer
 
@@ -59,6 +60,7 @@ SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one
 # images of a frame arrive well after the joint states that tell the caller its time has
 # come (a stale frame from before a placement once made a standing domino MISSING)
 FRESH_WAIT = 10.0
+WARNING_REPEAT = 10.0  # s: a warning repeated request after request is logged once per this
 STAMP_SLACK = 1e-3  # s: stamps this much before not_before still count (rounding)
 MAX_EXPECTED = 500  # poses a placement check takes (a run in the build area has < 200)
 # s a request's not_before may lie after the newest frame; later ones are refused at once
@@ -202,6 +204,7 @@ class PerceptionNode(Node):
             callback_group=work,
         )
         self.last_processed: dict[str, float] = {}
+        self.repeated_warnings = RepeatFilter(WARNING_REPEAT)
         self.timer = self.create_timer(
             1.0 / self.settings.rate, self._on_timer, callback_group=work
         )
@@ -304,6 +307,14 @@ class PerceptionNode(Node):
                 (t.x, t.y, t.z),
                 (q.x, q.y, q.z, q.w),
             )
+
+    def _warn(self, warnings: list[str]) -> None:
+        """Log each warning, a repeated one once per WARNING_REPEAT s (the response of
+        every request carries it)."""
+        for warning in warnings:
+            admitted = self.repeated_warnings.admit(warning)
+            if admitted:
+                self.get_logger().warning(admitted)
 
     def _known(self, names: list[str]) -> list[str]:
         return [name for name in names if name in self.inputs]
@@ -457,8 +468,7 @@ class PerceptionNode(Node):
         except Exception as error:  # one bad frame set must never take the node down
             self.get_logger().error(f"placement check failed: {error!r}\n{traceback.format_exc()}")
             views, warnings, placements = [], [f"placement check failed: {error!r}"], []
-        for warning in warnings:
-            self.get_logger().warning(warning)
+        self._warn(warnings)
         if not views:
             response.success = False
             response.message = "; ".join(["no usable camera for the placement check", *warnings])
@@ -526,8 +536,7 @@ class PerceptionNode(Node):
                 f"{time.perf_counter() - started:.2f} s ({stages} ms); "
                 f"{len(result.rejected)} candidates rejected"
             )
-        for warning in warnings:
-            self.get_logger().warning(warning)
+        self._warn(warnings)
         detections = result.detections if result else []
         self._publish(detections)
         if result is not None and self.settings.publish_debug_image:
