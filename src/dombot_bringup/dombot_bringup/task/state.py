@@ -8,13 +8,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dombot_bringup.layouts import DominoPlacement
-from dombot_bringup.process_group import say as log
+from dombot_bringup.process_group import say
 from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
 from dombot_bringup.task.cell import Cell, Pose
 from dombot_bringup.task.geometry import near, placement_pose
 from dombot_bringup.task.settings import ArmJobSettings
 
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
+
+
+def log(message: str) -> None:
+    """A ``[bringup]`` line, written whole among the nodes' forwarded output."""
+    say(message)
 
 
 @dataclass
