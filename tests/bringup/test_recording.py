@@ -117,11 +117,16 @@ class Listener:
         node.create_subscription(String, "/latched", self.received["/latched"].append, LATCHED)
 
 
+RECORDED_TOPICS = ("/camera_2/depth/image_raw", "/joint_states", "/clock", "/latched")
+
+
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Path]]:
-    """5 s of a live sim_node (cameras at 2 Hz, images kept at 1 Hz) and a transient local
-    topic published once before the recorder started; the live graph's types; and the
-    file of a second recorder (every image) stopped by SIGINT as the bring-up stops it."""
+    """A live sim_node (cameras at 2 Hz, images kept at 1 Hz) and a transient local topic
+    published once before the recorder started, recorded until camera_2 sent 4 frames
+    after both recorders subscribed; the live graph's types; and the file of a second
+    recorder (every image). Both are stopped by SIGINT, as the bring-up stops them: how
+    much a fixed wall-clock span holds depends on the machine's load."""
     folder = tmp_path_factory.mktemp("record")
     path, interrupted = folder / "run.mcap", folder / "interrupted.mcap"
     rclpy.init()
@@ -138,14 +143,18 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Pa
             installed_node(
                 *record, str(interrupted), "--image-rate", "100", output=PIPE
             ) as stopped,
-            installed_node(
-                *record, str(path), "--duration", "5", "--image-rate", "1", output=PIPE
-            ) as recorder,
+            installed_node(*record, str(path), "--image-rate", "1", output=PIPE) as recorder,
         ):
-            assert spin_until(probe, lambda: recorder.poll() is not None, 120)
-            output = recorder.stdout.read()
-            assert recorder.returncode == 0, output
-            stopped.send_signal(signal.SIGINT)
+
+            def subscribed() -> bool:
+                return all(probe.count_subscribers(t) >= 2 for t in RECORDED_TOPICS)
+
+            assert spin_until(probe, subscribed, 120), "the recorders never subscribed"
+            images.clear()
+            assert spin_until(probe, lambda: len(images) >= 4, 120), "camera_2 stopped"
+            for process in (recorder, stopped):
+                process.send_signal(signal.SIGINT)
+            assert recorder.wait(timeout=60) == 0, recorder.stdout.read()
             assert stopped.wait(timeout=60) == 0, stopped.stdout.read()
         live = {
             topic: types[0]
@@ -211,6 +220,15 @@ def test_a_recorder_stopped_by_sigint_leaves_a_readable_file(recording) -> None:
     _, _, _, interrupted = recording
     topics = {m.topic for m in recorded_messages(interrupted)}  # reads every chunk
     assert {"/joint_states", "/camera_2/color/image_raw"} <= topics
+
+
+def test_a_recorder_with_a_duration_stops_by_itself(tmp_path: Path) -> None:
+    path = tmp_path / "short.mcap"
+    with installed_node(
+        "dombot_bringup", "record", "-o", str(path), "--duration", "1", output=PIPE
+    ) as recorder:
+        assert recorder.wait(timeout=120) == 0, recorder.stdout.read()
+    assert isinstance(recorded_channels(path), dict)  # a complete, readable file
 
 
 def test_replay_refuses_what_is_not_a_recording(tmp_path: Path) -> None:
