@@ -34,7 +34,9 @@ TRAJECTORY_START = re.compile(r"\[sim_node\].*executing a ([0-9.]+) s trajectory
 TRAJECTORY_END = re.compile(r"\[sim_node\].*(trajectory done|follow_joint_trajectory \w+:)")
 FRAMES = re.compile(r"\[sim_node\].*camera frames rendered: (.*)")
 # perception's words for a look that found no usable frame of a camera
-MISSED_FRAMES = re.compile(r"\[perception_node\].*(stopped publishing|no colour and depth images)")
+MISSED_FRAMES = re.compile(
+    r"\[perception_node\] \[WARN\].*(stopped publishing|no colour and depth images)"
+)
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
