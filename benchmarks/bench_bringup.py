@@ -1,10 +1,10 @@
 """Benchmark the arm job end to end: build runs from seeded piles and knock them down.
 
 Runs ``ros2 run dombot_bringup bringup`` (real node processes over DDS, the simulator
-paced to real time as for a user; on this 2-core machine it runs below that anyway) for
-a 10-domino arc and a 20-domino S-curve over a set of seeds and prints one JSON object:
-placement success per domino (first attempt and after retries), runs completed, full
-topples, simulated and wall seconds per domino. Reports and pictures of every run go to
+as fast as it can go, ``--real-time-factor 0``; docs/SPEED.md) for a 10-domino arc and
+a 20-domino S-curve over a set of seeds and prints one JSON object: placement success
+per domino (first attempt and after retries), runs completed, full topples, simulated
+and wall seconds per domino. Reports and pictures of every run go to
 ``--out`` (default out/bench_bringup); with ``--record-picks`` every pick's record too
 (``<out>/<case>_seed<N>/picks/``, for benchmarks/replay_pick.py).
 """
@@ -72,7 +72,9 @@ def run_logged(command: list[str], log_path: Path, name: str) -> tuple[int, str]
     return process.returncode, "".join(lines)
 
 
-def run_case(name: str, arguments: list[str], seed: int, out: Path, record: bool) -> dict:
+def run_case(
+    name: str, arguments: list[str], seed: int, out: Path, record: bool, factor: float
+) -> dict:
     folder = out / f"{name}_seed{seed}"
     bringup = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
     command = [
@@ -82,8 +84,10 @@ def run_case(name: str, arguments: list[str], seed: int, out: Path, record: bool
         *arguments,
         "--seed",
         str(seed),
+        "--real-time-factor",
+        str(factor),
         *(["--record-picks"] if record else []),
-    ]  # at the user's real-time factor (1): unpaced, the idle simulator floods perception
+    ]
     started = time.monotonic()
     exit_code, tail = run_logged(command, out / f"{name}_seed{seed}.log", f"{name} seed {seed}")
     wall = time.monotonic() - started
@@ -158,16 +162,21 @@ def main() -> None:
     parser.add_argument("--cases", nargs="+", choices=sorted(CASES), default=sorted(CASES))
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS))
     parser.add_argument("--record-picks", action="store_true", help="bringup --record-picks")
+    parser.add_argument(
+        "--real-time-factor", type=float, default=0.0, help="sim_node's (0: as fast as possible)"
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     report = {
         "benchmark": "bringup",
         "load_average_at_start": os.getloadavg(),
+        "real_time_factor": args.real_time_factor,
         "cases": {},
     }
     for name in args.cases:
         runs = [
-            run_case(name, CASES[name], seed, args.out, args.record_picks) for seed in args.seeds
+            run_case(name, CASES[name], seed, args.out, args.record_picks, args.real_time_factor)
+            for seed in args.seeds
         ]
         report["cases"][name] = {"arguments": CASES[name], **aggregate(runs), "per_seed": runs}
     report["load_average_at_end"] = os.getloadavg()

@@ -193,6 +193,34 @@ def test_one_camera_on_request(cameras: Cameras) -> None:
     assert [d.num_cameras for d in response.detections.detections] == [1]
 
 
+def watched(cameras: Cameras) -> list[str]:
+    """The cameras whose colour topic perception subscribes to now."""
+    return [
+        name for name, (color, *_) in cameras.publishers.items() if color.get_subscription_count()
+    ]
+
+
+def test_on_demand_it_listens_only_while_a_request_waits_and_still_detects(
+    cameras: Cameras,
+) -> None:
+    """With continuous off (the bring-up's setting) perception subscribes to a camera only
+    while a request waits for its frames, so a simulator that renders only what someone
+    watches renders nothing in between; a streaming camera (this player, a realsense)
+    serves it just the same."""
+    continuous = ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=False)
+    assert cameras.set_parameter("continuous", continuous).successful
+    try:
+        assert spin_until(cameras.node, lambda: not watched(cameras), timeout=30), watched(cameras)
+        response = cameras.detect()
+        assert response.success, response.message
+        assert [d.num_cameras for d in response.detections.detections] == [2], response.message
+        assert spin_until(cameras.node, lambda: not watched(cameras), timeout=30), watched(cameras)
+    finally:
+        continuous.bool_value = True
+        cameras.set_parameter("continuous", continuous)
+    assert spin_until(cameras.node, lambda: len(watched(cameras)) == 3, timeout=30)
+
+
 def test_unknown_camera_is_an_error_not_a_crash(cameras: Cameras) -> None:
     response = cameras.detect(["camera_9"])
     assert not response.success

@@ -150,7 +150,7 @@ class CellClient:
         self._lock = threading.Lock()
         self._joint_state: JointState | None = None
         self._truth: DominoStateArray | None = None
-        self._images: dict[str, Image | None] = {}  # latest frame of each camera asked for
+        self._images: dict[str, Image | None] = {}  # latest frame of a picture asked for
         self._sim_time = 0.0
         self._received = 0  # joint states so far
         # simulated seconds that passed while waiting for each kind of answer (ACTIVITIES)
@@ -188,19 +188,19 @@ class CellClient:
 
     def picture(self, camera: str, not_before: float, timeout: float = 30.0) -> np.ndarray:
         """An RGB frame (height x width x 3) of ``camera`` stamped at or after ``not_before``
-        [s simulated]. Subscribes on first use (the bring-up wants a few pictures, not a
-        stream), with the QoS the camera offers: in a run at load 17-20 a best-effort
-        reader of sim_node's reliable camera got no frame for 30 s after the strike."""
+        [s simulated]. Subscribed for this frame only (the bring-up wants a few pictures,
+        not a stream: sim_node renders a camera only while someone subscribes), with the
+        QoS the camera offers: in a run at load 17-20 a best-effort reader of sim_node's
+        reliable camera got no frame for 30 s after the strike."""
         topic = f"/{camera}/color/image_raw"
-        if topic not in self._images:
-            publishers = self._wait(
-                lambda: self.node.get_publishers_info_by_topic(topic) or None, timeout, topic
-            )
-            with self._lock:
-                self._images[topic] = None
-            self.node.create_subscription(
-                Image, topic, lambda m: self._on_image(topic, m), matching_qos(publishers, 2)
-            )
+        publishers = self._wait(
+            lambda: self.node.get_publishers_info_by_topic(topic) or None, timeout, topic
+        )
+        with self._lock:
+            self._images[topic] = None
+        subscription = self.node.create_subscription(
+            Image, topic, lambda m: self._on_image(topic, m), matching_qos(publishers, 2)
+        )
 
         def fresh() -> Image | None:
             with self._lock:
@@ -209,7 +209,10 @@ class CellClient:
                 return None
             return image
 
-        image = self._wait(fresh, timeout, topic)
+        try:
+            image = self._wait(fresh, timeout, topic)
+        finally:
+            self.node.destroy_subscription(subscription)
         if image.encoding != "rgb8":
             raise CellError(f"{topic} sends {image.encoding}, not rgb8")
         rows = np.frombuffer(bytes(image.data), np.uint8).reshape(image.height, image.step)

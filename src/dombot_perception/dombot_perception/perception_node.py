@@ -9,8 +9,11 @@ poses come from the scenario file, from ``<camera>.optical_pose`` parameters, or
 cell's calibration. Images are subscribed reliable by default (``image_reliability``):
 a best-effort reader drops a whole image whenever one of its fragments is lost, which
 starved the placement checks under load; ``best_effort`` (sensor-data QoS) is for a
-best-effort camera driver such as realsense-ros. Missing, stale or malformed
-images give an empty result and a warning; the node keeps serving.
+best-effort camera driver such as realsense-ros. With ``continuous`` off the camera
+topics are subscribed only while a request waits for frames: a simulator (or a lazy
+driver) then renders nothing while nobody looks, and a streaming camera serves just the
+same. Missing, stale or malformed images give an empty result and a warning; the node
+keeps serving.
 ``/perception/check_placement`` looks at where the dominoes of a run should stand
 (``placement_check``), with the build-area camera by default.
 """
@@ -18,9 +21,12 @@ images give an empty result and a warning; the node keeps serving.
 from __future__ import annotations
 
 import math
+import threading
 import time
 import traceback
-from collections import deque
+from collections import Counter, deque
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -56,6 +62,8 @@ DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
 MAX_IN_HAND_TILT = math.degrees(PlacementConfig().max_tilt)  # expected poses when in_hand
 SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
 SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one stream late
+# s (wall) to wait for a camera's first frames after subscribing (discovery, first render)
+FIRST_FRAME_WAIT = 10.0
 # s (wall) to wait for frames stamped after a request's not_before: on a loaded CPU the
 # images of a frame arrive well after the joint states that tell the caller its time has
 # come (a stale frame from before a placement once made a standing domino MISSING)
@@ -174,6 +182,11 @@ class PerceptionNode(Node):
                 ),
             )
         self.inputs = {name: CameraInput() for name in self.camera_names}
+        self._input_lock = threading.Lock()
+        self._camera_subscriptions: dict[str, list] = {}  # camera → its topics' subscriptions
+        self._holders: Counter[str] = Counter()  # requests (and continuous) holding each camera
+        self._streaming = False  # all cameras held for continuous processing
+        self._inputs_group = ReentrantCallbackGroup()
         try:
             self.pipeline = self._build_pipeline(self.settings)
         except (ValueError, SegmenterError, OSError, RuntimeError) as error:
@@ -184,14 +197,12 @@ class PerceptionNode(Node):
         self.poses_pub = self.create_publisher(PoseArray, "domino_poses", 10)
         self.detections_pub = self.create_publisher(DominoDetectionArray, "domino_detections", 10)
         self.debug_pub = self.create_publisher(Image, "perception/debug_image", 2)
-        inputs = ReentrantCallbackGroup()
-        for name in self.camera_names:
-            self._subscribe(name, inputs)
+        self._follow_continuous()
         self.transforms = TransformBuffer()
         if self.settings.extrinsics_from_tf:
             for topic, qos in (("/tf", TF_QOS), ("/tf_static", TF_STATIC_QOS)):
                 self.create_subscription(
-                    TFMessage, topic, self._on_transforms, qos, callback_group=inputs
+                    TFMessage, topic, self._on_transforms, qos, callback_group=self._inputs_group
                 )
         work = MutuallyExclusiveCallbackGroup()
         self.create_service(
@@ -276,7 +287,44 @@ class PerceptionNode(Node):
         return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ inputs
-    def _subscribe(self, name: str, group: ReentrantCallbackGroup) -> None:
+    @contextmanager
+    def _watching(self, names: list[str]) -> Iterator[None]:
+        """Subscribe to ``names`` (unless already) for as long as the block runs."""
+        self._hold(names)
+        try:
+            yield
+        finally:
+            self._release(names)
+
+    def _hold(self, names: list[str]) -> None:
+        with self._input_lock:
+            for name in names:
+                self._holders[name] += 1
+                if name not in self._camera_subscriptions:
+                    self._camera_subscriptions[name] = self._subscribe(name)
+
+    def _release(self, names: list[str]) -> None:
+        """Unsubscribe cameras nobody holds any more; their old frames go with them (a
+        later request must not take a frame from before it was asked)."""
+        with self._input_lock:
+            for name in names:
+                self._holders[name] -= 1
+                if self._holders[name] > 0:
+                    continue
+                for subscription in self._camera_subscriptions.pop(name, []):
+                    self.destroy_subscription(subscription)
+                self.inputs[name] = CameraInput()
+
+    def _follow_continuous(self) -> None:
+        """Hold every camera while ``continuous`` is on, none otherwise."""
+        continuous = bool(self.settings.continuous)
+        if continuous and not self._streaming:
+            self._hold(self.camera_names)
+        elif self._streaming and not continuous:
+            self._release(self.camera_names)
+        self._streaming = continuous
+
+    def _subscribe(self, name: str) -> list:
         camera = self.inputs[name]
         # a bad value was reported with the other parameters: the default then
         qos = IMAGE_QOS.get(self.settings.image_reliability, IMAGE_QOS["reliable"])
@@ -291,12 +339,14 @@ class PerceptionNode(Node):
         def on_info(message: CameraInfo) -> None:
             camera.info = message
 
-        for topic, kind, callback in (
-            (f"{name}/color/image_raw", Image, on_color),
-            (f"{name}/depth/image_raw", Image, on_depth),
-            (f"{name}/color/camera_info", CameraInfo, on_info),
-        ):
-            self.create_subscription(kind, topic, callback, qos, callback_group=group)
+        return [
+            self.create_subscription(kind, topic, callback, qos, callback_group=self._inputs_group)
+            for topic, kind, callback in (
+                (f"{name}/color/image_raw", Image, on_color),
+                (f"{name}/depth/image_raw", Image, on_depth),
+                (f"{name}/color/camera_info", CameraInfo, on_info),
+            )
+        ]
 
     def _on_transforms(self, message: TFMessage) -> None:
         for stamped in message.transforms:
@@ -331,7 +381,24 @@ class PerceptionNode(Node):
         self, names: list[str], not_before: float = -math.inf
     ) -> tuple[list[CameraView], list[str]]:
         """Usable synchronised views of ``names`` (stamped at or after ``not_before``) and
-        the warnings about the others."""
+        the warnings about the others; subscribed to for the time it takes."""
+        with self._watching(names):
+            self._await_first_frames(names)
+            return self._collect_views(names, not_before)
+
+    def _await_first_frames(self, names: list[str]) -> None:
+        """Wait (FIRST_FRAME_WAIT at most) until each camera has sent colour, depth and
+        camera_info: just subscribed, the first frames take discovery and a render."""
+        deadline = time.monotonic() + FIRST_FRAME_WAIT
+        while time.monotonic() < deadline and not all(
+            self.inputs[name].colors and self.inputs[name].depths and self.inputs[name].info
+            for name in names
+        ):
+            time.sleep(0.02)  # the input callbacks run on the executor's other thread
+
+    def _collect_views(
+        self, names: list[str], not_before: float
+    ) -> tuple[list[CameraView], list[str]]:
         views, warnings = [], []
         max_age = float(self.settings.max_frame_age)
         for name in names:
@@ -409,6 +476,7 @@ class PerceptionNode(Node):
 
     # ------------------------------------------------------------------ processing
     def _on_timer(self) -> None:
+        self._follow_continuous()
         if not self.settings.continuous:
             return
         names = self._known(self.settings.detect_cameras)
