@@ -72,9 +72,7 @@ class OrientedBox:
         local = (np.asarray(points, dtype=float) - self.pose.translation()) @ (
             self.pose.rotation().matrix()
         )
-        excess = np.abs(local) - self.size / 2.0
-        outside = np.linalg.norm(np.maximum(excess, 0.0), axis=1)
-        return np.where(np.all(excess <= 0.0, axis=1), excess.max(axis=1), outside)
+        return excess_signed_distance(np.abs(local) - self.size / 2.0)
 
     def surface(self, step: float) -> np.ndarray:
         """Points on the six faces (N×3, world), ``step`` apart or closer (corners included)."""
@@ -124,39 +122,56 @@ def nearest_distance(
     ``cap`` when that is smaller (inf: no points or boxes). Exact, but measured only where
     bounds leave it in question: none farther than ``cap`` from the boxes' common
     axis-aligned bounds, and each run of NEAREST_GROUP boxes in order (a swept pad's pieces
-    lie in a row) only to the points its bounding sphere leaves in question (measured to
-    every scene point, perception's grasp scoring took 4-5 s a pile)."""
+    lie in a row) only to the points its bounding sphere leaves in question, all boxes of a
+    run at once (measured box by box to every scene point, perception's grasp scoring took
+    4-5 s a pile)."""
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     if not len(points) or not len(boxes):
         return cap
+    rotations = np.array([box.pose.rotation().matrix() for box in boxes])
     centres = np.array([box.pose.translation() for box in boxes])
+    halves = np.array([box.size for box in boxes]) / 2.0
     if math.isfinite(cap):
-        reach = np.array([np.abs(box.pose.rotation().matrix()) @ box.size / 2 for box in boxes])
+        reach = np.einsum("kij,kj->ki", np.abs(rotations), halves)
         low, high = (centres - reach).min(axis=0) - cap, (centres + reach).max(axis=0) + cap
-        points = points[np.all((points >= low) & (points <= high), axis=1)]
-    radii = np.array([float(np.linalg.norm(box.size)) / 2.0 for box in boxes])
-    groups = [
-        range(k, min(k + NEAREST_GROUP, len(boxes))) for k in range(0, len(boxes), NEAREST_GROUP)
-    ]
+        inside = (points >= low) & (points <= high)
+        points = points[inside[:, 0] & inside[:, 1] & inside[:, 2]]
+        if not len(points):
+            return cap
+    radii = np.sqrt((halves**2).sum(axis=1))
+    groups = [slice(k, k + NEAREST_GROUP) for k in range(0, len(boxes), NEAREST_GROUP)]
     middles = np.array([centres[group].mean(axis=0) for group in groups])
     spans = np.array(
         [
-            max(np.linalg.norm(centres[k] - middle) + radii[k] for k in group)
+            (np.sqrt(((centres[group] - middle) ** 2).sum(axis=1)) + radii[group]).max()
             for group, middle in zip(groups, middles, strict=True)
         ]
     )
     # a point's distance to a sphere's centre less its radius never exceeds its distance to
     # a box inside (squared distances as a product: 5x faster; 1 µm for rounding)
-    squared = (middles**2).sum(axis=1)[:, None] + (points**2).sum(axis=1) - 2.0 * middles @ points.T
+    x, y, z = points[:, 0], points[:, 1], points[:, 2]
+    squared = (middles**2).sum(axis=1)[:, None] + (x * x + y * y + z * z) - 2.0 * middles @ points.T
     bounds = np.sqrt(np.maximum(squared, 0.0)) - spans[:, None] - 1e-6
-    nearest_bounds = bounds.min(axis=1, initial=math.inf)
+    nearest_bounds = bounds.min(axis=1)
     best = cap
     for g in np.argsort(nearest_bounds):
         if nearest_bounds[g] >= best:
             break  # nor any group after it
+        group = groups[g]
         near = points[bounds[g] < best]
-        best = min(best, *(float(boxes[k].signed_distance(near).min()) for k in groups[g]))
+        excess = np.abs((near - centres[group, None]) @ rotations[group]) - halves[group, None]
+        best = min(best, float(excess_signed_distance(excess).min()))
     return best
+
+
+def excess_signed_distance(excess: np.ndarray) -> np.ndarray:
+    """Signed distance to a box (< 0 inside) from each point's excess |local| - half size
+    (...×3):
+    written per component, as numpy reduces an axis of 3 ten times slower."""
+    x, y, z = excess[..., 0], excess[..., 1], excess[..., 2]
+    ox, oy, oz = np.maximum(x, 0.0), np.maximum(y, 0.0), np.maximum(z, 0.0)
+    outside = np.sqrt(ox * ox + oy * oy + oz * oz)
+    return outside + np.minimum(np.maximum(np.maximum(x, y), z), 0.0)
 
 
 @dataclass(frozen=True)
