@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dombot_perception.domino_model import dot3, norm3
 from dombot_perception.frames import CameraView
 
 
@@ -76,8 +77,8 @@ def image_normals(points: np.ndarray, camera_position: np.ndarray) -> np.ndarray
     dv[1:-1, :] = points[2:, :] - points[:-2, :]
     normals = np.cross(du, dv)
     with np.errstate(invalid="ignore", divide="ignore"):
-        normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
-        facing = np.einsum("hwk,hwk->hw", normals, camera_position - points)
+        normals /= norm3(normals)[..., None]
+        facing = dot3(normals, camera_position - points)
     normals[facing < 0] *= -1.0
     return normals
 

@@ -22,6 +22,7 @@ from scipy.spatial import ConvexHull, QhullError
 from dombot_perception.domino_model import (
     DOMINO_SIZE,
     HALF_SIZE,
+    argmax3,
     box_signed_distance,
     dominant_face,
 )
@@ -175,7 +176,7 @@ def refine_pose(
     rotation, centre = initial[:3, :3].copy(), initial[:3, 3].copy()
     for _ in range(config.iterations):
         body = (points - centre) @ rotation
-        axis = np.argmax(np.abs(body) - HALF_SIZE, axis=1)
+        axis = argmax3(np.abs(body) - HALF_SIZE)
         if outside is not None and outside_axis is not None and outside.shape[0]:
             body, axis = _with_outside(body, axis, (outside - centre) @ rotation, outside_axis)
         rows = np.arange(body.shape[0])

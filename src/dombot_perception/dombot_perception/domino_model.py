@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from dombot_description import DOMINO_SIZE as _SIZE
+from dombot_description.grasp import excess_signed_distance
 
 DOMINO_SIZE = np.asarray(_SIZE, dtype=float)  # m: length (x), width (y), thickness (z)
 HALF_SIZE = DOMINO_SIZE / 2.0
@@ -39,11 +40,25 @@ def face_areas() -> np.ndarray:
 
 def box_signed_distance(points_body: np.ndarray, half_size: np.ndarray = HALF_SIZE) -> np.ndarray:
     """Signed distance of body-frame points to the box surface (negative inside)."""
-    excess = np.abs(points_body) - half_size
-    beyond = np.maximum(excess, 0.0)
-    outside = np.sqrt((beyond * beyond).sum(axis=-1))  # np.linalg.norm's sum, without its checks
-    inside = np.minimum(excess.max(axis=-1), 0.0)
-    return outside + inside
+    return excess_signed_distance(np.abs(points_body) - half_size)
+
+
+def argmax3(vectors: np.ndarray) -> np.ndarray:
+    """``vectors.argmax(axis=-1)`` for 3-vectors (the first of equal maxima, as numpy)."""
+    x, y, z = vectors[..., 0], vectors[..., 1], vectors[..., 2]
+    return np.where(z > np.maximum(x, y), 2, (y > x).astype(np.intp))
+
+
+def norm3(vectors: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(vectors, axis=-1)`` for 3-vectors: numpy reduces an axis of 3 element
+    by element, ten times slower than three whole-array operations."""
+    x, y, z = vectors[..., 0], vectors[..., 1], vectors[..., 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of 3-vectors (``einsum("...k,...k->...")``, three times faster)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
 def overlap_fraction(first: np.ndarray, second: np.ndarray, margin: float = 0.0) -> float:

@@ -25,7 +25,9 @@ from dombot_perception.domino_model import (
     DOMINO_SIZE,
     box_signed_distance,
     dominant_face,
+    dot3,
     face_areas,
+    norm3,
 )
 from dombot_perception.frames import CameraView
 
@@ -95,10 +97,11 @@ def _linked_components(cloud: OrganisedCloud, config: GeometricSegmenterConfig) 
         p, q = points[here], points[there]
         n_p, n_q = normals[here], normals[there]
         both = valid[here] & valid[there]
-        gap = np.linalg.norm(p - q, axis=-1)
+        step = p - q
+        gap = norm3(step)
         limit = np.maximum(config.max_step, config.max_step_pixels * pixel_size[here])
-        smooth = np.einsum("hwk,hwk->hw", n_p, n_q) > cos_limit
-        convex = np.einsum("hwk,hwk->hw", p - q, n_p - n_q) > config.convex_margin
+        smooth = dot3(n_p, n_q) > cos_limit
+        convex = dot3(step, n_p - n_q) > config.convex_margin
         with np.errstate(invalid="ignore"):
             linked = both & (gap < limit) & (smooth | convex)
         sources.append(index[here][linked])
@@ -123,7 +126,7 @@ def _surface_areas(
     """Area [m^2] of the surface patch each pixel sees: its footprint over the view cosine."""
     rays = points - camera_position
     with np.errstate(invalid="ignore", divide="ignore"):
-        cosine = np.abs(np.einsum("nk,nk->n", normals, rays)) / np.linalg.norm(rays, axis=1)
+        cosine = np.abs(dot3(normals, rays)) / norm3(rays)
         return pixel_size**2 / np.maximum(cosine, 0.2)
 
 
