@@ -108,9 +108,10 @@ class OrientedBox:
             return [self.swept(translation)]
         pieces = math.ceil(length / step)
         part = translation / pieces
-        rotation, start = self.pose.rotation(), self.pose.translation()
+        first = self.swept(part)  # the others are copies of it, moved along
+        rotation, start = first.pose.rotation(), first.pose.translation()
         return [
-            OrientedBox(RigidTransform(rotation, start + k * part), self.size).swept(part)
+            OrientedBox(RigidTransform(rotation, start + k * part), first.size)
             for k in range(pieces)
         ]
 

@@ -120,21 +120,23 @@ def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
         hull = planar[ConvexHull(planar).vertices]
     except (QhullError, ValueError) as error:
         raise BoxFitError(f"points are degenerate in the face plane: {error}") from None
-    edges = np.roll(hull, -1, axis=0) - hull
+    edges = np.empty_like(hull)
+    edges[:-1] = hull[1:] - hull[:-1]
+    edges[-1] = hull[0] - hull[-1]
     angles = np.unique(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2))
     cos, sin = np.cos(angles), np.sin(angles)
-    axes_x = np.stack([cos, sin], axis=1)
-    axes_y = np.stack([-sin, cos], axis=1)
-    px, py = hull @ axes_x.T, hull @ axes_y.T
-    width = px.max(axis=0) - px.min(axis=0)
-    height = py.max(axis=0) - py.min(axis=0)
+    # hull points along each candidate rectangle's sides (rows: angles, columns: points)
+    x, y = hull[:, 0], hull[:, 1]
+    px = cos[:, None] * x + sin[:, None] * y
+    py = cos[:, None] * y - sin[:, None] * x
+    low_x, high_x, low_y, high_y = px.min(axis=1), px.max(axis=1), py.min(axis=1), py.max(axis=1)
+    width, height = high_x - low_x, high_y - low_y
     best = np.argmin(width * height)
-    mid_x = (px[:, best].max() + px[:, best].min()) / 2
-    mid_y = (py[:, best].max() + py[:, best].min()) / 2
-    center = mid_x * axes_x[best] + mid_y * axes_y[best]
+    axis_x, axis_y = np.array([cos[best], sin[best]]), np.array([-sin[best], cos[best]])
+    center = (high_x[best] + low_x[best]) / 2 * axis_x + (high_y[best] + low_y[best]) / 2 * axis_y
     if width[best] >= height[best]:
-        return center, axes_x[best], np.array([width[best], height[best]])
-    return center, axes_y[best], np.array([height[best], width[best]])
+        return center, axis_x, np.array([width[best], height[best]])
+    return center, axis_y, np.array([height[best], width[best]])
 
 
 def _which_face(dims_2d: np.ndarray, tolerance: float) -> int:
@@ -179,17 +181,15 @@ def refine_pose(
         axis = argmax3(np.abs(body) - HALF_SIZE)
         if outside is not None and outside_axis is not None and outside.shape[0]:
             body, axis = _with_outside(body, axis, (outside - centre) @ rotation, outside_axis)
-        rows = np.arange(body.shape[0])
-        signed = body[rows, axis]
-        normal = np.zeros_like(body)
-        normal[rows, axis] = np.sign(signed)
+        signed = body[np.arange(body.shape[0]), axis]
+        normal = IDENTITY_3[axis] * np.sign(signed)[:, None]
         residual = np.abs(signed) - HALF_SIZE[axis]
         jacobian = np.empty((body.shape[0], 6))
         jacobian[:, :3] = _cross(normal, body)  # -(body x normal)
         np.negative(normal, out=jacobian[:, 3:])
         weight = np.minimum(1.0, config.loss_scale / np.maximum(np.abs(residual), 1e-12))
         hessian = jacobian.T @ (weight[:, None] * jacobian)
-        hessian += config.damping * np.trace(hessian) / 6.0 * IDENTITY_6
+        hessian += config.damping * hessian.trace() / 6.0 * IDENTITY_6
         step = _solve(hessian, -jacobian.T @ (weight * residual))
         centre = centre + rotation @ step[3:]
         rotation = rotation @ _rodrigues(step[:3])
