@@ -7,7 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dombot_description.scenario import load_scenario
-from dombot_perception.backprojection import backproject
+from dombot_perception import geometric_segmentation
+from dombot_perception.backprojection import backproject, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, fit_statistics
 from dombot_perception.depth_check import DepthCheckConfig, correct_box, depth_evidence
 from dombot_perception.domino_model import HALF_SIZE, orientation_error
@@ -71,6 +72,39 @@ def test_two_dominoes_touching_end_to_end_are_separated(pipeline, render_scene):
     assert len(result.detections) == 2, result.rejected
     assert_found(result.detections, first)
     assert_found(result.detections, second)
+
+
+def test_after_a_pick_unchanged_regions_keep_their_parts_unsplit(
+    pipeline, render_scene, monkeypatch
+):
+    """The segmenter remembers the last frame's regions: a pair left as it was is not split
+    again, and every mask is what a segmenter that never saw the first frame finds."""
+    first = flat(X0, Y0, 0.3)
+    second = first.copy()
+    second[:3, 3] += Rotation.from_euler("z", 0.3).as_matrix() @ np.array([0.012, 0.024, 0.0])
+    picked = flat(X0 - 0.06, Y0 + 0.06, 1.0)
+    config = pipeline.config
+
+    def masks(segmenter, view) -> list[tuple[int, ...]]:
+        cloud = organised_cloud(view, config.region, config.depth_range)
+        return sorted(tuple(mask) for mask in segmenter.segment(view, cloud))
+
+    remembering = geometric_segmentation.GeometricSegmenter()
+    for view in render_scene({0: first, 1: second, 2: picked}):
+        assert len(masks(remembering, view)) == 3  # the pair was split
+    splits = []
+    split = geometric_segmentation.split_oversized
+    monkeypatch.setattr(
+        geometric_segmentation,
+        "split_oversized",
+        lambda *args: splits.append(args[0].size) or split(*args),
+    )
+    for view in render_scene({0: first, 1: second}):
+        remembered = masks(remembering, view)
+        assert not splits, "the pair's region was split again"
+        assert remembered == masks(geometric_segmentation.GeometricSegmenter(), view)
+        assert splits, "a segmenter that never saw the first frame splits it"
+        splits.clear()
 
 
 def test_upright_domino_is_classified_upright(pipeline, render_scene):

@@ -12,6 +12,7 @@ on their surfaces (see ``split_oversized``).
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,6 +58,9 @@ class GeometricSegmenter:
 
     def __init__(self, config: GeometricSegmenterConfig | None = None) -> None:
         self.config = config or GeometricSegmenterConfig()
+        # each camera's regions of the previous frame and their parts, by content: after a
+        # pick most of the pile looks as it did, and splitting a region is most of the work
+        self._previous: dict[str, dict[bytes, list[np.ndarray]]] = {}
 
     def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
         """Flat pixel indices of each mask, one per domino candidate."""
@@ -70,17 +74,31 @@ class GeometricSegmenter:
             flat_points, flat_normals, cloud.pixel_size.ravel(), view.X_WC[:3, 3]
         )
         masks: list[np.ndarray] = []
+        previous, current = self._previous.get(view.name, {}), {}
         for pixels in components:
-            parts = split_oversized(
-                pixels,
+            region = (
+                cloud.full_index(pixels),  # the image's pixels: the crop may move between frames
                 flat_points[pixels],
                 flat_normals[pixels],
                 surface_areas[pixels],
-                config.oversize_margin,
-                config.seed,
             )
-            masks.extend(cloud.full_index(part) for part in parts if part.size >= config.min_pixels)
+            key = _content_key(region)
+            parts = previous.get(key)
+            if parts is None:
+                parts = split_oversized(*region, config.oversize_margin, config.seed)
+            current[key] = parts
+            masks.extend(part for part in parts if part.size >= config.min_pixels)
+        self._previous[view.name] = current
         return masks
+
+
+def _content_key(arrays: tuple[np.ndarray, ...]) -> bytes:
+    """A digest of everything ``split_oversized`` reads of a region: equal digests, equal
+    parts."""
+    digest = hashlib.blake2b(digest_size=20)
+    for array in arrays:
+        digest.update(np.ascontiguousarray(array).data)
+    return digest.digest()
 
 
 def _linked_components(cloud: OrganisedCloud, config: GeometricSegmenterConfig) -> list[np.ndarray]:
