@@ -110,41 +110,75 @@ def flattest_first(detections: list[Detection]) -> list[Detection]:
     return copies
 
 
-def evaluate_pile(
-    world: CellWorld, pipeline: PerceptionPipeline, offset: float, figures: Path | None
-) -> dict:
+def evaluate_pile(world: CellWorld, offset: float, figures: Path | None) -> dict:
+    """Each camera set on the pile as rendered (a fresh pipeline each: no regions remembered
+    from another run), then both cameras again after the first choice was picked."""
     frames = {n: f for n, f in world.render().items() if n in CAMERA_SETS["both"]}
     views = views_of(frames, offset)
-    config = EvaluationConfig()
     truths = truth_of(world)
+    top = top_unoccluded(frames, truths)
+    pile = {"dominoes": len(truths), "top_unoccluded": int(top.sum())}
+    for name, cameras in CAMERA_SETS.items():
+        pipeline = build_pipeline(world.scenario)
+        chosen = [v for v in views if v.name in cameras]
+        result, entry, matches = detect(chosen, pipeline, truths, top)
+        if name == "both":
+            config = EvaluationConfig()
+            entry.update(grasp_outcomes(result.detections, matches, truths, pipeline, config))
+            if figures is not None:
+                write_figures(figures, views, result)
+            first = [m.truth for m in matches if m.detection == 0]
+            if first:
+                pile["after_pick"] = detect_after_pick(world, pipeline, truths[first[0]], offset)
+        pile[name] = entry
+    return pile
+
+
+def top_unoccluded(frames: dict, truths: list[TruthDomino]) -> np.ndarray:
+    """Mask of the dominoes nothing lies on that some camera sees at least mostly."""
     covered = covered_from_above(truths)
     visible = np.array(
         [max(visible_fraction(t, f.label, f.K, f.X_WC) for f in frames.values()) for t in truths]
     )
-    top = ~covered & (visible >= config.min_visible)
-    pile = {"dominoes": len(truths), "top_unoccluded": int(top.sum())}
-    for name, cameras in CAMERA_SETS.items():
-        chosen = [v for v in views if v.name in cameras]
-        started, cpu_started = time.perf_counter(), time.process_time()
-        result = pipeline.run(chosen)
-        total, cpu = time.perf_counter() - started, time.process_time() - cpu_started
-        matches = match_detections(result.detections, truths, config.max_match_distance)
-        matched_truth = {m.truth for m in matches}
-        entry = {
-            "detections": len(result.detections),
-            "matched": len(matches),
-            "matched_top": int(sum(top[t] for t in matched_truth)),
-            "position_errors": [m.position_error for m in matches],
-            "orientation_errors": [m.orientation_error for m in matches],
-            "latency": {**result.timings, "total": total, "cpu_total": cpu},
-            "cpu": result.cpu_timings,
-        }
-        if name == "both":
-            entry.update(grasp_outcomes(result.detections, matches, truths, pipeline, config))
-            if figures is not None:
-                write_figures(figures, views, result)
-        pile[name] = entry
-    return pile
+    return ~covered & (visible >= EvaluationConfig().min_visible)
+
+
+def detect(
+    views: list[CameraView],
+    pipeline: PerceptionPipeline,
+    truths: list[TruthDomino],
+    top: np.ndarray,
+) -> tuple:
+    """The pipeline's result on ``views``, its figures against the ``truths`` (``top``:
+    mask of the top, unoccluded ones), the matches."""
+    started, cpu_started = time.perf_counter(), time.process_time()
+    result = pipeline.run(views)
+    total, cpu = time.perf_counter() - started, time.process_time() - cpu_started
+    matches = match_detections(result.detections, truths, EvaluationConfig().max_match_distance)
+    entry = {
+        "detections": len(result.detections),
+        "matched": len(matches),
+        "matched_top": int(sum(top[m.truth] for m in matches)),
+        "position_errors": [m.position_error for m in matches],
+        "orientation_errors": [m.orientation_error for m in matches],
+        "latency": {**result.timings, "total": total, "cpu_total": cpu},
+        "cpu": result.cpu_timings,
+    }
+    return result, entry, matches
+
+
+def detect_after_pick(
+    world: CellWorld, pipeline: PerceptionPipeline, picked: TruthDomino, offset: float
+) -> dict:
+    """The next detect of the bring-up: the first choice taken away (the rest left as it
+    lies), rendered again and detected by the same pipeline, which remembers the regions
+    of the last frame."""
+    world.set_domino_poses({t.index: t.X_WD for t in truth_of(world) if t.index != picked.index})
+    frames = {n: f for n, f in world.render().items() if n in CAMERA_SETS["both"]}
+    truths = truth_of(world)
+    top = top_unoccluded(frames, truths)
+    _, entry, _ = detect(views_of(frames, offset), pipeline, truths, top)
+    return {**entry, "dominoes": len(truths), "top_unoccluded": int(top.sum())}
 
 
 def grasp_outcomes(detections, matches, truths, pipeline, config) -> dict:
@@ -199,8 +233,12 @@ def _pile_window(view: CameraView, masks: list[np.ndarray], margin: int = 30):
 
 def summarise(piles: list[dict]) -> dict:
     summary = {}
-    for name in CAMERA_SETS:
-        entries = [p[name] for p in piles]
+    for name in (*CAMERA_SETS, "after_pick"):
+        # after_pick: the pile less the first choice, detected next by the same pipeline
+        counted = [(p[name], p if name in CAMERA_SETS else p[name]) for p in piles if name in p]
+        if not counted:
+            continue
+        entries = [entry for entry, _ in counted]
         detections = sum(e["detections"] for e in entries)
         matched = sum(e["matched"] for e in entries)
         positions = np.concatenate([e["position_errors"] for e in entries] or [[]])
@@ -212,9 +250,9 @@ def summarise(piles: list[dict]) -> dict:
         cpu = {stage: float(np.median([e["cpu"][stage] for e in entries])) for stage in STAGES}
         summary[name] = {
             "precision": matched / detections if detections else None,
-            "recall_all": matched / sum(p["dominoes"] for p in piles),
+            "recall_all": matched / sum(c["dominoes"] for _, c in counted),
             "recall_top": sum(e["matched_top"] for e in entries)
-            / max(1, sum(p["top_unoccluded"] for p in piles)),
+            / max(1, sum(c["top_unoccluded"] for _, c in counted)),
             "median_position_error_mm": _percentile(positions * 1000, 50),
             "p90_position_error_mm": _percentile(positions * 1000, 90),
             "median_orientation_error_deg": _percentile(angles, 50),
@@ -453,7 +491,6 @@ def _statuses(rows: list[dict]) -> str:
 def pile_benchmark(count: int, seeds: list[int], args: argparse.Namespace) -> dict:
     """Every seeded pile of ``count``: detections against the truth, three camera sets."""
     world = CellWorld(WorldConfig(cameras=True, domino_capacity=count))
-    pipeline = build_pipeline(world.scenario)
     piles, failed = [], []
     for seed in seeds:
         poses = settled_pile(count, seed, args.pile_cache)
@@ -463,7 +500,7 @@ def pile_benchmark(count: int, seeds: list[int], args: argparse.Namespace) -> di
         world.set_domino_poses(poses)
         figures = args.figures if count == 30 and not piles else None
         offset = args.principal_point_offset
-        piles.append({"seed": seed, **evaluate_pile(world, pipeline, offset, figures)})
+        piles.append({"seed": seed, **evaluate_pile(world, offset, figures)})
         found = {k: piles[-1]["both"][k] for k in ("detections", "matched", "matched_top")}
         log(f"  N={count} seed {seed}: {json.dumps(found)}")
     return {
