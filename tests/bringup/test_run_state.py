@@ -41,7 +41,9 @@ from dombot_bringup.run_report import (
     TruthPose,
     plot_run,
     target_of,
+    write_report,
 )
+from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, count_refusal
 from dombot_bringup.spread import STIR_DISTANCE
 from dombot_description import DOMINO_SIZE
 from dombot_description.pose_messages import duration_message, pose_matrix
@@ -173,6 +175,108 @@ def test_a_slot_nothing_plans_for_is_put_off_until_the_others_had_their_turn() -
     assert not report.built and report.message.startswith("domino 1 could not be placed")
 
 
+class StrikingClient(ResetOnlyClient):
+    """/plan_strike planning every strike (its requests kept) and a placement check after
+    the strikes that sees every domino down."""
+
+    def __init__(self) -> None:
+        self.strikes: list[PlanStrike.Request] = []
+
+    def wait_for_sim_time(self, seconds: float) -> None:
+        pass
+
+    def plan_strike(self, request: PlanStrike.Request, timeout: float) -> PlanStrike.Response:
+        self.strikes.append(request)
+        return PlanStrike.Response(success=True)
+
+    def check_placement(self, expected: list[Pose], not_before: float = 0.0):
+        return CheckPlacement.Response(success=True, status=[FALLEN] * len(expected))
+
+
+def test_a_slot_that_cannot_be_filled_is_built_around_and_what_stands_struck_in_sections(
+    tmp_path: Path,
+) -> None:
+    """Slots 3 and 6 of 7 given up: the run goes on; dominoes 1-2, 4-5 and 7 are struck
+    from their own first domino, from the run's end backwards, the other standing ones
+    obstacles; the report says which slots are empty and why; the exit status is 3."""
+    run = job()
+    run.layout = layouts.line((0.45, 0.0), math.pi / 2, 7)
+    run.targets = run.releases = [placement_pose(p) for p in run.layout]
+    run.report.dominoes = [DominoOutcome(p.index, target_of(p)) for p in run.layout]
+    run.settings = ArmJobSettings(section=0)
+    run.client = StrikingClient()
+    run._execute = lambda segments, *_, **__: (True, "")
+    turns: list[int] = []
+
+    def turn(index: int, may_defer: bool) -> str:
+        turns.append(index)
+        if index in (2, 5):
+            run.report.dominoes[index].failures.append("planning: 4 offers refused")
+            count_refusal(run.report.dominoes[index].refusals, PlanPlace.Response.PLACE_UNREACHABLE)
+            return FAILED
+        run.state.standing[index] = run.targets[index]
+        run.report.dominoes[index].placed = True
+        return PLACED
+
+    run._place_with_retries = turn
+    report = run.run()
+    assert turns == list(range(7))  # each slot once: the given-up ones are not queued again
+    assert [(e.slot, e.reason) for e in report.empty_slots] == [
+        (3, "planning: 4 offers refused; the planner refused: PLACE_UNREACHABLE x1"),
+        (6, "planning: 4 offers refused; the planner refused: PLACE_UNREACHABLE x1"),
+    ]
+    struck = [r.domino_pose for r in run.client.strikes]
+    assert struck == [run.targets[6], run.targets[3], run.targets[0]]
+    for request in run.client.strikes:  # every other standing domino an obstacle
+        others = [run.targets[i] for i in (0, 1, 3, 4, 6) if run.targets[i] != request.domino_pose]
+        assert list(request.standing_dominoes) == others
+    assert [
+        (s.first_slot, s.last_slot, s.struck, s.toppled_by_perception) for s in report.sections
+    ] == [
+        (1, 2, True, 2),
+        (4, 5, True, 2),
+        (7, 7, True, 1),
+    ]
+    assert report.struck and report.toppled_by_perception and not report.built
+    assert report.message.startswith("domino 3 could not be placed (planning: 4 offers refused")
+    assert report.exit_status == EXIT_PARTIAL
+    written = json.loads(write_report(report, tmp_path)[0].read_text())
+    assert written["summary"]["empty_slots"] == [3, 6]
+    assert written["summary"]["exit_status"] == EXIT_PARTIAL
+    assert written["sections"][2] == {
+        "first_slot": 7,
+        "last_slot": 7,
+        "struck": True,
+        "toppled_by_perception": 1,
+        "message": "",
+    }
+
+
+def test_a_section_whose_strike_is_refused_fails_the_run_the_others_are_still_struck() -> None:
+    run = job()  # 4 in a line; slot 2 given up: dominoes 1 and 3-4
+    run.client = StrikingClient()
+    refused = PlanStrike.Response(success=False, message="PLACE_UNREACHABLE: no strike pose")
+    plan = run.client.plan_strike
+    run.client.plan_strike = lambda r, timeout: (
+        refused if r.domino_pose == run.targets[0] else plan(r, timeout)
+    )
+    run._execute = lambda segments, *_, **__: (True, "")
+
+    def turn(index: int, may_defer: bool) -> str:
+        if index == 1:
+            return FAILED
+        run.state.standing[index] = run.targets[index]
+        run.report.dominoes[index].placed = True
+        return PLACED
+
+    run._place_with_retries = turn
+    report = run.run()
+    assert [(s.first_slot, s.struck) for s in report.sections] == [(1, False), (3, True)]
+    assert report.sections[0].message == "strike planning failed: PLACE_UNREACHABLE: no strike pose"
+    assert not report.struck and report.exit_status == EXIT_FAILED
+    assert "domino 1: strike planning failed" in report.message
+
+
 class RefusingClient:
     """Perception sees three flat dominoes; the planner refuses each with its own code."""
 
@@ -289,8 +393,9 @@ def test_two_slots_nothing_plans_for_do_not_put_each_other_off_for_ever() -> Non
     run.settings = ArmJobSettings(section=2)  # gaps at the 3rd and 6th
     run.state.standing[5] = run.targets[5]
     turns, report = turns_with_one_slot_put_off(run, put_off=6, also=(2,))
-    assert turns == [(0, True), (1, True), (3, True), (4, True), (6, True), (2, False)]
+    assert turns == [(0, True), (1, True), (3, True), (4, True), (6, True), (2, False), (6, False)]
     assert not report.built and report.message.startswith("domino 3 could not be placed")
+    assert [e.slot for e in report.empty_slots] == [3, 7]  # each given up once, built around
 
 
 def test_a_slot_and_a_gap_nothing_plans_for_let_a_later_gap_have_its_turn() -> None:
@@ -304,8 +409,10 @@ def test_a_slot_and_a_gap_nothing_plans_for_let_a_later_gap_have_its_turn() -> N
     run.settings = ArmJobSettings(section=2)  # gaps at the 3rd and 6th
     turns, report = turns_with_one_slot_put_off(run, put_off=1, also=(2,))
     assert 5 in [slot for slot, _ in turns]  # the 6th had its turn
-    assert turns[-1] == (2, False) and report.message.startswith("domino 3 could not be placed")
-    assert len(turns) == 11
+    assert turns[-2:] == [(2, False), (1, False)]  # each given up once: the run goes on
+    assert report.message.startswith("domino 3 could not be placed")
+    assert [e.slot for e in report.empty_slots] == [3, 2]
+    assert len(turns) == 12
 
 
 class CheckingClient:

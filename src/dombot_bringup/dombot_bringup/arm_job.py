@@ -14,8 +14,11 @@ A fallen domino that no grasp reaches and that lies where a slot goes is swept a
 (``/plan_strike`` with a sweep direction: pushed low across the run); so is a pile
 domino out of a crowd that no pick plans for.
 
-When the run stands, ``/plan_strike`` knocks the first domino over and perception
-checks that every domino fell. The simulator's ground truth goes into the report only.
+A slot that cannot be filled (its attempts used up) is left empty and the run is built
+around it. Then ``/plan_strike`` knocks over the first domino of each section (consecutive
+standing dominoes; the whole run when every slot was filled), from the run's end
+backwards (``sections``), and perception checks that every one fell. The simulator's
+ground truth goes into the report only.
 """
 
 from __future__ import annotations
@@ -49,7 +52,24 @@ from dombot_bringup.offers import (
     with_pile_first,
 )
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
-from dombot_bringup.run_report import DominoOutcome, RunReport, TruthPose, target_of, write_report
+from dombot_bringup.run_report import (
+    DominoOutcome,
+    EmptySlot,
+    RunReport,
+    SectionOutcome,
+    TruthPose,
+    target_of,
+    write_report,
+)
+from dombot_bringup.sections import (
+    VERDICTS,
+    Section,
+    count_refusal,
+    empty_message,
+    empty_reason,
+    sections_of,
+    strike_order,
+)
 from dombot_bringup.spread import spread_pushes, stir_pushes
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from dombot_description.pose_messages import duration_message, pose_matrix, seconds_of
@@ -319,19 +339,26 @@ class ArmJob:
                 first_gap = next((k for k, i in enumerate(queue) if i in gaps), len(queue))
                 queue.insert(max(first_gap, first_open + 1), index)
                 continue
-            if result == FAILED:
-                self.report.message = f"domino {index + 1} could not be placed; stopping the build"
-                log(self.report.message)
-                break
-            deferred.clear()
+            if result == FAILED:  # given up: left empty, the run is built around it
+                outcome = self.report.dominoes[index]
+                reason = empty_reason(outcome.failures, outcome.deferrals, outcome.refusals)
+                self.report.empty_slots.append(EmptySlot(index + 1, reason))
+                log(empty_message(index, reason))
+            else:
+                deferred.clear()
             # Slots built earlier that no longer stand (knocked over, or their fallen domino
-            # was picked up for another slot) are built again first.
+            # was picked up for another slot) are built again first; given-up ones are not.
+            given_up = {e.slot - 1 for e in self.report.empty_slots}
             empty = [i for i in range(len(self.layout)) if i not in self.state.standing]
-            queue = [i for i in empty if i not in queue] + queue
+            queue = [i for i in empty if i not in queue and i not in given_up] + queue
         self.report.built = len(self.state.standing) == len(self.layout)
+        if self.report.empty_slots:
+            self.report.message = "; ".join(
+                empty_message(e.slot - 1, e.reason) for e in self.report.empty_slots
+            )
         self._record_truth(before_strike=True)
         self._take_picture("before_strike", self.client.sim_time)
-        if self.report.built:
+        if self.state.standing:
             self._strike()
         self._record_truth(before_strike=False)
         self.report.simulated_s = self.client.sim_time - started_sim
@@ -503,6 +530,7 @@ class ArmJob:
                 return (candidate, pile, plan), refused
             refused += 1
             self._log_refusal(index, candidate, pile, plan.message)
+            count_refusal(self.report.dominoes[index].refusals, plan.error_code)
             if plan.error_code not in GRASP_REFUSALS:
                 failed.append(spot)
                 slot_refusals.append(spot)
@@ -973,31 +1001,52 @@ class ArmJob:
 
     # ------------------------------------------------------------------ knock-down
     def _strike(self) -> None:
-        log("the run stands: knocking it down")
+        """Knock down what stands as sections (each group of consecutive standing slots
+        struck from its own first domino), in ``sections.strike_order``: from the run's
+        end backwards, so that no strike reaches a section still standing. Then perception
+        counts what fell, section by section."""
+        built = sorted(self.state.standing)
+        sections = sections_of(built)
+        self.report.sections = [SectionOutcome(s.first + 1, s.last + 1) for s in sections]
+        outcomes = dict(zip(sections, self.report.sections, strict=True))
+        for section in strike_order(sections, self.layout):
+            outcome = outcomes[section]
+            outcome.message = self._strike_section(section, built)
+            outcome.struck = not outcome.message
+            if outcome.message:
+                words = f"{section}: {outcome.message}"
+                self.report.message = "; ".join(m for m in (self.report.message, words) if m)
+                log(words)
+        if not any(s.struck for s in self.report.sections):
+            return
+        self.report.struck = all(s.struck for s in self.report.sections)
+        fresh = self._settle(self.settings.topple_wait)
+        self._take_picture("after_strike", fresh)
+        answer = self.client.check_placement([self.targets[i] for i in built], not_before=fresh)
+        down = [s != CheckPlacement.Response.STANDING for s in answer.status]
+        fallen = dict(zip(built, down if answer.success else [False] * len(built), strict=True))
+        for section, outcome in outcomes.items():
+            outcome.toppled_by_perception = sum(fallen[i] for i in section.slots)
+        self.report.toppled_by_perception = answer.success and all(fallen.values())
+        log(f"after the strike perception sees {sum(fallen.values())}/{len(built)} dominoes down")
+
+    def _strike_section(self, section: Section, built: Sequence[int]) -> str:
+        """Strike ``section``'s first domino, every other of the ``built`` slots an
+        obstacle; "" once the arm pushed it, or why not."""
+        whole = len(built) == len(self.layout)
+        log("the run stands: knocking it down" if whole else f"knocking down {section}")
         plan = self.client.plan_strike(
             PlanStrike.Request(
-                domino_pose=self.targets[0],
-                standing_dominoes=self.targets[1:],
+                domino_pose=self.targets[section.first],
+                standing_dominoes=[self.targets[i] for i in built if i != section.first],
                 time_budget=self.settings.plan_budget,
             ),
             timeout=self.settings.plan_budget + 30.0,
         )
         if not plan.success:
-            self.report.message = f"strike planning failed: {plan.message}"
-            log(self.report.message)
-            return
+            return f"strike planning failed: {plan.message}"
         executed, why = self._execute(plan.segments, holds_domino=False)
-        if not executed:
-            self.report.message = f"strike failed: {why}"
-            log(self.report.message)
-            return
-        self.report.struck = True
-        fresh = self._settle(self.settings.topple_wait)
-        self._take_picture("after_strike", fresh)
-        answer = self.client.check_placement(self.targets, not_before=fresh)
-        fallen = [s != CheckPlacement.Response.STANDING for s in answer.status]
-        self.report.toppled_by_perception = answer.success and all(fallen)
-        log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")
+        return "" if executed else f"strike failed: {why}"
 
     def _take_picture(self, name: str, not_before: float) -> None:
         """REPORT_CAMERA's view for the report (for people; nothing acts on it)."""
@@ -1076,13 +1125,13 @@ class ArmJob:
             if before_strike:
                 outcome.truth_built = record
                 standing += tilt < 10.0
-            else:
+            elif outcome.placed:  # an empty slot's nearest is a neighbour's
                 outcome.truth_after_strike = record
                 down += tilt > 45.0
         if before_strike:
             self.report.standing_by_truth = standing
         elif self.report.struck:
-            self.report.toppled_by_truth = down == len(self.layout)
+            self.report.toppled_by_truth = down == sum(d.placed for d in self.report.dominoes)
 
 
 PICKABLE_POSTURES = (  # lying flat or leaning; the planner has the last word
@@ -1224,7 +1273,8 @@ def run_arm_job(
     settings: ArmJobSettings,
     node_command: NodeCommand,
 ) -> int:
-    """Start the nodes, run the job, write the report; exit status 0 only on full success."""
+    """Start the nodes, run the job, write the report; the exit status: 0 full success,
+    3 partial (slots left empty, what stood knocked down), 1 failed."""
     sim_parameters = {
         "domino_count": 0,  # the job's reset pours the pile
         "real_time_factor": settings.real_time_factor,
@@ -1310,7 +1360,7 @@ def recorder_command(out_dir: Path, settings: ArmJobSettings, node_command: Node
 
 
 def finish_report(report: RunReport, out_dir: Path, pictures: dict[str, np.ndarray]) -> int:
-    """Write the report, print its summary; the exit status (0 only on full success)."""
+    """Write the report, print its summary; the exit status (``sections.exit_status``)."""
     json_path, png_path = write_report(report, out_dir, pictures)
     summary = report.summary()
     log(
@@ -1321,12 +1371,9 @@ def finish_report(report: RunReport, out_dir: Path, pictures: dict[str, np.ndarr
         f"{report.simulated_s:.0f} s simulated, {report.wall_s:.0f} s wall"
     )
     log(f"report: {json_path}  picture: {png_path}")
-    print(
-        "SUCCESS" if report.success else "FAILED",
-        file=sys.stderr if not report.success else sys.stdout,
-        flush=True,
-    )
-    return 0 if report.success else 1
+    status = report.exit_status
+    print(VERDICTS[status], file=sys.stderr if status else sys.stdout, flush=True)
+    return status
 
 
 def hold_viewer(url: str, stdin: TextIO = sys.stdin) -> None:
