@@ -18,7 +18,8 @@ import pytest
 from dombot_bringup import layouts
 from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED
-from dombot_bringup.run_report import DominoOutcome, TruthPose, plot_run
+from dombot_bringup.run_report import DominoOutcome, TruthPose, plot_run, write_report
+from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, count_refusal
 from dombot_bringup.spread import STIR_DISTANCE
 from dombot_bringup.task.attempts import Outcome, attempt
 from dombot_bringup.task.cell import GripperEvent, Posture, Seen, Segment
@@ -207,8 +208,9 @@ def test_two_slots_nothing_plans_for_do_not_put_each_other_off_for_ever() -> Non
     run_job = job(count=7, section=2)  # gaps at the 3rd and 6th
     run_job.state.standing[5] = run_job.targets[5]
     turns, report = turns_with_slots_put_off(run_job, {6, 2})
-    assert turns == [(0, True), (1, True), (3, True), (4, True), (6, True), (2, False)]
+    assert turns == [(0, True), (1, True), (3, True), (4, True), (6, True), (2, False), (6, False)]
     assert not report.built and report.message.startswith("domino 3 could not be placed")
+    assert [e.slot for e in report.empty_slots] == [3, 7]  # each given up once, built around
 
 
 def test_a_slot_and_a_gap_nothing_plans_for_let_a_later_gap_have_its_turn() -> None:
@@ -217,8 +219,88 @@ def test_a_slot_and_a_gap_nothing_plans_for_let_a_later_gap_have_its_turn() -> N
     ever (151 deferrals): a slot put off goes behind one that was not."""
     turns, report = turns_with_slots_put_off(job(count=7, section=2), {1, 2})
     assert 5 in [slot for slot, _ in turns]  # the 6th had its turn
-    assert turns[-1] == (2, False) and report.message.startswith("domino 3 could not be placed")
-    assert len(turns) == 11
+    assert turns[-2:] == [(2, False), (1, False)]  # each given up once: the run goes on
+    assert report.message.startswith("domino 3 could not be placed")
+    assert [e.slot for e in report.empty_slots] == [3, 2]
+    assert len(turns) == 12
+
+
+def slot_of(run_job: Job, pose: np.ndarray) -> int:
+    """The layout index whose target ``pose`` is (by identity: the task sends its own)."""
+    return next(i for i, target in enumerate(run_job.targets) if target is pose)
+
+
+def built_around(run_job: Job, given_up: set[int]) -> list[int]:
+    """Run the job where every slot is placed at once but those ``given_up`` (their attempts
+    used up, the planner refusing their place); the slots that had a turn, in order."""
+    turns: list[int] = []
+
+    def turn(the_job: Job, index: int, may_defer: bool) -> Turn:
+        turns.append(index)
+        outcome = the_job.report.dominoes[index]
+        if index in given_up:
+            outcome.failures.append("planning: 4 offers refused")
+            count_refusal(outcome.refusals, ErrorCode.PLACE_UNREACHABLE)
+            return Turn.FAILED
+        the_job.state.standing[index] = the_job.targets[index]
+        outcome.placed = True
+        return Turn.PLACED
+
+    run(run_job, turn)
+    return turns
+
+
+def test_a_slot_that_cannot_be_filled_is_built_around_and_what_stands_struck_in_sections(
+    tmp_path: Path,
+) -> None:
+    """Slots 3 and 6 of 7 given up: the run goes on; dominoes 1-2, 4-5 and 7 are struck
+    from their own first domino, from the run's end backwards, the other standing ones
+    obstacles; the report says which slots are empty and why; the exit status is 3."""
+    cell = ScriptedCell(strike=lambda request: planned("strike"))
+    cell.placements = lambda expected, in_hand: seen([FALLEN] * len(expected))(expected, in_hand)
+    run_job = job(cell, count=7, section=0)
+    assert built_around(run_job, {2, 5}) == list(range(7))  # given-up slots not queued again
+    report = run_job.report
+    why = "planning: 4 offers refused; the planner refused: PLACE_UNREACHABLE x1"
+    assert [(e.slot, e.reason) for e in report.empty_slots] == [(3, why), (6, why)]
+    assert [slot_of(run_job, r.domino) for r in cell.strike_requests] == [6, 3, 0]
+    for request in cell.strike_requests:  # every other standing domino an obstacle
+        others = [i for i in (0, 1, 3, 4, 6) if i != slot_of(run_job, request.domino)]
+        assert [slot_of(run_job, p) for p in request.standing] == others
+    (checked, _, _) = cell.checks[-1]  # one look after every strike, at what stood
+    assert len(cell.checks) == 1 and [slot_of(run_job, p) for p in checked] == [0, 1, 3, 4, 6]
+    assert [
+        (s.first_slot, s.last_slot, s.struck, s.toppled_by_perception) for s in report.sections
+    ] == [(1, 2, True, 2), (4, 5, True, 2), (7, 7, True, 1)]
+    assert report.struck and report.toppled_by_perception and not report.built
+    assert report.message.startswith("domino 3 could not be placed (planning: 4 offers refused")
+    assert report.exit_status == EXIT_PARTIAL
+    written = json.loads(write_report(report, tmp_path)[0].read_text())
+    assert written["summary"]["empty_slots"] == [3, 6]
+    assert written["summary"]["exit_status"] == EXIT_PARTIAL
+    assert written["sections"][2] == {
+        "first_slot": 7,
+        "last_slot": 7,
+        "struck": True,
+        "toppled_by_perception": 1,
+        "message": "",
+    }
+
+
+def test_a_section_whose_strike_is_refused_fails_the_run_the_others_are_still_struck() -> None:
+    """4 in a line, slot 2 given up: dominoes 1 and 3-4; the strike at 1 is refused."""
+    cell = ScriptedCell()
+    cell.placements = lambda expected, in_hand: seen([FALLEN] * len(expected))(expected, in_hand)
+    run_job = job(cell, section=0)
+    no_strike = refused(ErrorCode.PLACE_UNREACHABLE, "PLACE_UNREACHABLE: no strike pose")
+    cell.strike = lambda r: no_strike if r.domino is run_job.targets[0] else planned("strike")
+    built_around(run_job, {1})
+    report = run_job.report
+    assert [slot_of(run_job, r.domino) for r in cell.strike_requests] == [2, 0]
+    assert [(s.first_slot, s.struck) for s in report.sections] == [(1, False), (3, True)]
+    assert report.sections[0].message == "strike planning failed: PLACE_UNREACHABLE: no strike pose"
+    assert not report.struck and report.exit_status == EXIT_FAILED
+    assert "domino 1: strike planning failed" in report.message
 
 
 def refusing(codes: dict[float, ErrorCode]) -> ScriptedCell:
@@ -266,6 +348,11 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
     assert [c.tolist() for c in run_job.state.crowded] == [[0.50, -0.3], [0.55, -0.3]]
     assert [c.tolist() for c in run_job.state.unpickable] == [[0.50, -0.3], [0.55, -0.3]]
     assert [f.tolist() for f in failed] == [[0.60, -0.3]]
+    assert run_job.report.dominoes[0].refusals == {  # by code, for the report
+        "GRASP_UNREACHABLE": 3,
+        "TIMEOUT": 3,
+        "PLACE_IN_COLLISION": 1,
+    }
     cell.place_requests.clear()
     attempt(run_job, 1, [], ignore_pile=True)  # the next slot: only the one refused for its place
     assert offered(cell) == [(0.60, 2, False)]

@@ -23,6 +23,7 @@ from dombot_bringup.cell_client import CellClient
 from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import RunReport, write_report
+from dombot_bringup.sections import VERDICTS
 from dombot_bringup.task.loop import run
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job, log
@@ -51,7 +52,8 @@ def run_arm_job(
     settings: ArmJobSettings,
     node_command: NodeCommand,
 ) -> int:
-    """Start the nodes, run the job, write the report; exit status 0 only on full success."""
+    """Start the nodes, run the job, write the report; the exit status: 0 full success,
+    3 partial (slots left empty, what stood knocked down), 1 failed."""
     sim_parameters = {
         "domino_count": 0,  # the job's reset pours the pile
         "real_time_factor": settings.real_time_factor,
@@ -137,7 +139,7 @@ def recorder_command(out_dir: Path, settings: ArmJobSettings, node_command: Node
 
 
 def finish_report(report: RunReport, out_dir: Path, pictures: dict[str, np.ndarray]) -> int:
-    """Write the report, print its summary; the exit status (0 only on full success)."""
+    """Write the report, print its summary; the exit status (``sections.exit_status``)."""
     json_path, png_path = write_report(report, out_dir, pictures)
     summary = report.summary()
     log(
@@ -148,12 +150,9 @@ def finish_report(report: RunReport, out_dir: Path, pictures: dict[str, np.ndarr
         f"{report.simulated_s:.0f} s simulated, {report.wall_s:.0f} s wall"
     )
     log(f"report: {json_path}  picture: {png_path}")
-    print(
-        "SUCCESS" if report.success else "FAILED",
-        file=sys.stderr if not report.success else sys.stdout,
-        flush=True,
-    )
-    return 0 if report.success else 1
+    status = report.exit_status
+    print(VERDICTS[status], file=sys.stderr if status else sys.stdout, flush=True)
+    return status
 
 
 def hold_viewer(url: str, stdin: TextIO = sys.stdin) -> None:

@@ -16,6 +16,11 @@ Examples::
     bringup --layout s-curve --start 0.45 -0.05 --heading 80 --length 0.45 --amplitude 0.05
     bringup --layout csv --csv my_run.csv --visual
     bringup --job layer --radius 0.5 --sweep 270
+
+Exit status: 0 the run was built and knocked down; 3 partial: slots that could not be
+filled were left empty (report: ``empty_slots`` and why), the rest was built and knocked
+down section by section, every domino seen down; 1 otherwise (nothing stood, a strike
+failed or left dominoes standing, a node died); 2 layout or options refused; 130 Ctrl-C.
 """
 
 from __future__ import annotations

@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.patches import Polygon
 
 from dombot_bringup.layouts import DOMINO_THICKNESS, DOMINO_WIDTH, DominoPlacement
+from dombot_bringup.sections import VERDICTS, exit_status
 
 LABEL_GAP = 0.008  # m between a domino's end and its number in the picture
 TRUTH_TOLERANCE = (3.0, 3.0)  # mm, deg: "standing where intended" in the simulator's truth
@@ -43,6 +44,7 @@ class DominoOutcome:
     attempts: int = 0
     failures: list[str] = field(default_factory=list)
     deferrals: list[str] = field(default_factory=list)  # turns put off: nothing planned
+    refusals: dict[str, int] = field(default_factory=dict)  # the planner's, by error code
     check: str = ""  # perception's verdict after placing
     measured_error_mm: float | None = None
     measured_tilt_deg: float | None = None
@@ -69,13 +71,34 @@ class DominoOutcome:
 
 
 @dataclass
+class EmptySlot:
+    """A slot given up: the run was built around it."""
+
+    slot: int  # counted from 1, as in the log
+    reason: str
+
+
+@dataclass
+class SectionOutcome:
+    """Consecutive standing dominoes struck from their own first (see ``sections``)."""
+
+    first_slot: int  # counted from 1, as in the log
+    last_slot: int
+    struck: bool = False
+    toppled_by_perception: int = 0  # of its dominoes, seen down after every strike
+    message: str = ""  # why it was not struck
+
+
+@dataclass
 class RunReport:
     layout: str
     dominoes: list[DominoOutcome]
     pile: int
     seed: int
-    built: bool = False
-    struck: bool = False
+    built: bool = False  # every slot filled
+    empty_slots: list[EmptySlot] = field(default_factory=list)  # given up, built around
+    sections: list[SectionOutcome] = field(default_factory=list)  # in run order
+    struck: bool = False  # every section
     toppled_by_perception: bool = False
     toppled_by_truth: bool | None = None
     standing_by_truth: int | None = None
@@ -91,12 +114,24 @@ class RunReport:
     def success(self) -> bool:
         return self.built and self.toppled_by_perception and self.toppled_by_truth is not False
 
+    @property
+    def exit_status(self) -> int:
+        """The arm job's exit status (``sections.exit_status``): 0, 3 partial, or 1."""
+        return exit_status(
+            len(self.empty_slots),
+            len(self.sections),
+            sum(s.struck for s in self.sections),
+            self.toppled_by_perception,
+            self.toppled_by_truth,
+        )
+
     def summary(self) -> dict:
         placed = [d for d in self.dominoes if d.placed]
         first_try = [d for d in placed if d.attempts == 1 and not d.off_target]
         per_domino = [d.simulated_s for d in placed]
         return {
             "success": self.success,
+            "exit_status": self.exit_status,
             "dominoes": len(self.dominoes),
             "placed": len(placed),
             "placed_first_attempt": len(first_try),  # within the tolerance
@@ -107,6 +142,9 @@ class RunReport:
             "put_back_on_pile": sum(len(d.put_back) for d in self.dominoes),
             "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
             "pile_spread": sum(len(d.spreads) for d in self.dominoes),
+            "empty_slots": [e.slot for e in self.empty_slots],
+            "sections_struck": sum(s.struck for s in self.sections),
+            "sections": len(self.sections),
             "standing_before_strike_by_truth": self.standing_by_truth,
             "toppled_by_perception": self.toppled_by_perception,
             "toppled_by_truth": self.toppled_by_truth,
@@ -175,9 +213,15 @@ def plot_run(report: RunReport, path: Path) -> Path:
     as perception's check counted them."""
     figure, axes = plt.subplots(figsize=(8, 7))
     unseen_by_truth = False
+    empty = {e.slot - 1 for e in report.empty_slots}
     for domino in report.dominoes:
         x, y, heading = domino.target
-        axes.add_patch(Polygon(_footprint(x, y, heading), fill=False, edgecolor="0.4", lw=1))
+        outline = ("tab:red", "--") if domino.index in empty else ("0.4", "-")
+        axes.add_patch(
+            Polygon(
+                _footprint(x, y, heading), fill=False, edgecolor=outline[0], ls=outline[1], lw=1
+            )
+        )
         beside = DOMINO_WIDTH / 2 + LABEL_GAP  # on the run's left, not on the next domino
         axes.annotate(
             str(domino.index + 1),  # counted from 1, as in the log
@@ -200,6 +244,8 @@ def plot_run(report: RunReport, path: Path) -> Path:
         if fallen is not None and fallen.tilt_deg > 45:
             axes.plot(fallen.x, fallen.y, "x", color="tab:red", ms=6)
     axes.plot([], [], "s", mfc="none", mec="0.4", label="target")
+    if empty:
+        axes.plot([], [], "s", mfc="none", mec="tab:red", label="empty slot (given up)")
     axes.plot([], [], "s", color="tab:green", label="standing after the build (truth)")
     axes.plot([], [], "s", color="tab:orange", label="placed but not upright (truth)")
     axes.plot([], [], "x", color="tab:red", label="fallen after the strike (truth)")
@@ -211,7 +257,7 @@ def plot_run(report: RunReport, path: Path) -> Path:
     axes.set_xlabel("x [m] (world)")
     axes.set_ylabel("y [m] (world)")
     summary = report.summary()
-    verdict = "SUCCESS" if report.success else "FAILED"
+    verdict = VERDICTS[report.exit_status]
     axes.set_title(
         f"{report.layout}: {summary['placed']}/{summary['dominoes']} placed "
         f"({summary['placed_first_attempt']} first try), toppled: "

@@ -1,8 +1,11 @@
-"""The slot loop: every slot of the layout gets turns until it stands, then the strike.
+"""The slot loop: every slot of the layout gets turns until it stands or is given up,
+then the strike.
 
 Each turn (``place_slot``) makes attempts (``attempts.attempt``: offer, pick, carry,
 place, check) until the domino stands, the slot's attempts run out, or nothing plans
-and the slot is put off for others to go first.
+and the slot is put off for others to go first. A slot whose attempts ran out is left
+empty and the run is built around it; what stands is then struck section by section
+(``strike``).
 """
 
 from __future__ import annotations
@@ -14,7 +17,8 @@ from enum import Enum
 import numpy as np
 
 from dombot_bringup.layouts import safety_gaps
-from dombot_bringup.run_report import RunReport
+from dombot_bringup.run_report import EmptySlot, RunReport
+from dombot_bringup.sections import empty_message, empty_reason
 from dombot_bringup.task.attempts import Attempt, Outcome, attempt
 from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.clearing import sweep_debris
@@ -32,18 +36,19 @@ class Turn(Enum):
 
 
 def run(job: Job, turn: Callable[[Job, int, bool], Turn] | None = None) -> RunReport:
-    """Pour the pile, build the layout (``turn``: one slot's turn, ``place_slot``), knock
-    it down when it stands; the report."""
+    """Pour the pile, build the layout (``turn``: one slot's turn, ``place_slot``) around
+    the slots given up, knock down what stands; the report."""
     started_wall, cell, report = time.monotonic(), job.cell, job.report
     log(cell.reset(job.settings.pile, job.settings.seed))
     started_sim = cell.sim_time
     build(job, turn or place_slot)
     report.built = len(job.state.standing) == len(job.layout)
+    if report.empty_slots:
+        report.message = "; ".join(empty_message(e.slot - 1, e.reason) for e in report.empty_slots)
     record_truth(job, before_strike=True)
     take_picture(job, "before_strike", cell.sim_time)
-    if report.built:
-        log("the run stands: knocking it down")
-        strike(job, range(len(job.layout)))
+    if job.state.standing:
+        strike(job, list(job.state.standing))
     record_truth(job, before_strike=False)
     report.simulated_s = cell.sim_time - started_sim
     report.wall_s = time.monotonic() - started_wall
@@ -52,7 +57,8 @@ def run(job: Job, turn: Callable[[Job, int, bool], Turn] | None = None) -> RunRe
 
 def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
     """Give slots turns, safety gaps (``settings.section``) last, until every slot stands
-    or one failed; how each slot's last turn ended."""
+    or was given up (FAILED: recorded in ``report.empty_slots``, not queued again); how
+    each slot's last turn ended."""
     gaps = safety_gaps(job.layout, job.settings.section)
     queue = [i for i in range(len(job.layout)) if i not in gaps] + gaps
     if gaps:
@@ -78,15 +84,18 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
             first_gap = next((k for k, i in enumerate(queue) if i in gaps), len(queue))
             queue.insert(max(first_gap, first_open + 1), index)
             continue
-        if ended[index] is Turn.FAILED:
-            job.report.message = f"domino {index + 1} could not be placed; stopping the build"
-            log(job.report.message)
-            break
-        deferred.clear()
+        if ended[index] is Turn.FAILED:  # given up: left empty, the run is built around it
+            outcome = job.report.dominoes[index]
+            reason = empty_reason(outcome.failures, outcome.deferrals, outcome.refusals)
+            job.report.empty_slots.append(EmptySlot(index + 1, reason))
+            log(empty_message(index, reason))
+        else:
+            deferred.clear()
         # Slots built earlier that no longer stand (knocked over, or their fallen domino
-        # was picked up for another slot) are built again first.
+        # was picked up for another slot) are built again first; given-up ones are not.
+        given_up = {e.slot - 1 for e in job.report.empty_slots}
         empty = [i for i in range(len(job.layout)) if i not in standing]
-        queue = [i for i in empty if i not in queue] + queue
+        queue = [i for i in empty if i not in queue and i not in given_up] + queue
     return ended
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED, pile_cores
+from dombot_bringup.sections import count_refusal
 from dombot_bringup.task.cell import CellError, Detection, PlaceRequest, Plan, Pose, Posture
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.geometry import near, near_any, neighbours_of, points_near, spot_of
@@ -154,6 +155,7 @@ def first_plan(
         refused += 1
         where = f"{candidate.source} at {spot.round(3).tolist()}{PILE_WORDS[pile]}"
         log(f"{job.domino(index)}: refused {where}: {plan.message.split(' (')[0]}")
+        count_refusal(job.report.dominoes[index].refusals, plan.error)
         if plan.error not in GRASP_REFUSALS:
             failed.append(spot)
             slot_refusals.append(spot)

@@ -45,7 +45,8 @@ def take_picture(job: Job, name: str, not_before: float) -> None:
 
 
 def record_truth(job: Job, before_strike: bool) -> None:
-    """Ground truth for the report: the simulator domino nearest each target."""
+    """Ground truth for the report: the simulator domino nearest each target (after the
+    strike, each placed one's only)."""
     poses = [matrix for _, matrix in truth(job)]
     if not poses:
         return
@@ -71,13 +72,13 @@ def record_truth(job: Job, before_strike: bool) -> None:
         if before_strike:
             outcome.truth_built = record
             standing += tilt < 10.0
-        else:
+        elif outcome.placed:  # an empty slot's nearest is a neighbour's
             outcome.truth_after_strike = record
             down += tilt > 45.0
     if before_strike:
         report.standing_by_truth = standing
     elif report.struck:
-        report.toppled_by_truth = down == len(job.layout)
+        report.toppled_by_truth = down == sum(d.placed for d in report.dominoes)
 
 
 def pick_record(

@@ -1,9 +1,13 @@
-"""Knocking the run down: the first domino struck, perception's word on what fell."""
+"""Knocking down what stands: each section (consecutive standing slots) struck from its
+own first domino, from the run's end backwards (``sections``); perception's word on what
+fell."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+from dombot_bringup.run_report import SectionOutcome
+from dombot_bringup.sections import Section, sections_of, strike_order
 from dombot_bringup.task.cell import Seen, StrikeRequest
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.placing import execute
@@ -11,30 +15,50 @@ from dombot_bringup.task.records import take_picture
 from dombot_bringup.task.state import Job, log
 
 
-def strike(job: Job, run: Sequence[int]) -> None:
-    """Knock over the dominoes at layout indices ``run`` (in run order, all standing) by
-    striking the first, the rest kept clear of on the way; perception then checks that
-    every one fell."""
-    targets = [job.targets[i] for i in run]
+def strike(job: Job, standing: Sequence[int]) -> None:
+    """Knock over the dominoes at layout indices ``standing`` as sections, in
+    ``sections.strike_order`` so that no strike reaches a section still standing; then one
+    look by perception counts what fell, section by section. A full run is one section."""
+    built = sorted(standing)
+    sections = sections_of(built)
     report = job.report
+    report.sections = [SectionOutcome(s.first + 1, s.last + 1) for s in sections]
+    outcomes = dict(zip(sections, report.sections, strict=True))
+    for section in strike_order(sections, job.layout):
+        outcome = outcomes[section]
+        outcome.message = strike_section(job, section, built)
+        outcome.struck = not outcome.message
+        if outcome.message:
+            words = f"{section}: {outcome.message}"
+            report.message = "; ".join(m for m in (report.message, words) if m)
+            log(words)
+    if not any(s.struck for s in report.sections):
+        return
+    report.struck = all(s.struck for s in report.sections)
+    fresh = settle(job, job.settings.topple_wait)
+    take_picture(job, "after_strike", fresh)
+    answer = job.cell.check_placement([job.targets[i] for i in built], not_before=fresh)
+    down = [s != Seen.STANDING for s in answer.status] if answer.success else [False] * len(built)
+    fallen = dict(zip(built, down, strict=True))
+    for section, outcome in outcomes.items():
+        outcome.toppled_by_perception = sum(fallen[i] for i in section.slots)
+    report.toppled_by_perception = answer.success and all(fallen.values())
+    log(f"after the strike perception sees {sum(fallen.values())}/{len(built)} dominoes down")
+
+
+def strike_section(job: Job, section: Section, built: Sequence[int]) -> str:
+    """Strike ``section``'s first domino, every other of the ``built`` slots an obstacle;
+    "" once the arm pushed it, or why not."""
+    whole = len(built) == len(job.layout)
+    log("the run stands: knocking it down" if whole else f"knocking down {section}")
     plan = job.cell.plan_strike(
         StrikeRequest(
-            domino=targets[0], standing=tuple(targets[1:]), time_budget=job.settings.plan_budget
+            domino=job.targets[section.first],
+            standing=tuple(job.targets[i] for i in built if i != section.first),
+            time_budget=job.settings.plan_budget,
         )
     )
     if not plan.success:
-        report.message = f"strike planning failed: {plan.message}"
-        log(report.message)
-        return
+        return f"strike planning failed: {plan.message}"
     execution = execute(job, plan.segments, holds_domino=False)
-    if not execution.done:
-        report.message = f"strike failed: {execution.why}"
-        log(report.message)
-        return
-    report.struck = True
-    fresh = settle(job, job.settings.topple_wait)
-    take_picture(job, "after_strike", fresh)
-    answer = job.cell.check_placement(targets, not_before=fresh)
-    fallen = [s != Seen.STANDING for s in answer.status]
-    report.toppled_by_perception = answer.success and all(fallen)
-    log(f"after the strike perception sees {sum(fallen)}/{len(fallen)} dominoes down")
+    return "" if execution.done else f"strike failed: {execution.why}"
