@@ -21,6 +21,8 @@ from dombot_bringup.process_group import ProcessGroup
 from dombot_bringup.recording import header_stamp, recorded_channels, recorded_messages
 from support.planning_clock import UNHURRIED
 
+pytestmark = pytest.mark.spread  # the end-to-end runs share nothing
+
 BRINGUP = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
 LINE = [
     "--layout",
@@ -53,6 +55,7 @@ def bringup(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str
     )
 
 
+@pytest.mark.slow
 def test_three_dominoes_in_a_line_are_built_and_knocked_down(tmp_path: Path) -> None:
     recording = ["--record", "--record-image-rate", "0.5", "--visual"]
     result = bringup("--out", str(tmp_path), *LINE, *recording)
@@ -134,6 +137,7 @@ def test_bad_layouts_are_refused_before_any_node_starts(
     assert not (tmp_path / "run_report.json").exists()
 
 
+@pytest.mark.slow
 def test_perception_and_planner_killed_mid_run_are_restarted_and_the_run_completes(
     tmp_path: Path,
 ) -> None:
@@ -167,6 +171,7 @@ def test_perception_and_planner_killed_mid_run_are_restarted_and_the_run_complet
     assert report["summary"]["placed"] == 3 and report["toppled_by_truth"]
 
 
+@pytest.mark.slow
 def test_a_dead_simulator_stops_the_job_with_a_report(tmp_path: Path) -> None:
     """The simulator's state cannot be restored: the job stops and says what it built."""
     process = subprocess.Popen(

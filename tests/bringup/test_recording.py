@@ -141,7 +141,7 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Pa
             output = recorder.stdout.read()
             assert recorder.returncode == 0, output
             stopped.send_signal(signal.SIGINT)
-            assert stopped.wait(timeout=60) == 0, stopped.stdout.read()
+            assert stopped.wait(timeout=120) == 0, stopped.stdout.read()
         live = {
             topic: types[0]
             for topic, types in probe.get_topic_names_and_types()
@@ -154,6 +154,7 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Pa
     rclpy.shutdown()
 
 
+@pytest.mark.slow
 def test_recording_has_every_topic_with_the_live_types(recording) -> None:
     path, live, _, _ = recording
     channels = {topic: kind for topic, (kind, _) in recorded_channels(path).items()}
@@ -173,6 +174,7 @@ def test_recording_has_every_topic_with_the_live_types(recording) -> None:
     assert "/camera_2/depth/image_raw" in image_stamps
 
 
+@pytest.mark.slow
 def test_every_message_decodes_from_its_recorded_schema(recording) -> None:
     path, _, _, _ = recording
     seen = {}
@@ -184,6 +186,7 @@ def test_every_message_decodes_from_its_recorded_schema(recording) -> None:
     assert image.encoding == "32FC1" and len(image.data) == image.height * image.step
 
 
+@pytest.mark.slow
 def test_replay_publishes_the_recorded_messages(recording) -> None:
     path, _, probe, _ = recording
     recorded = {
@@ -202,15 +205,17 @@ def test_replay_publishes_the_recorded_messages(recording) -> None:
     assert [m.data for m in listener.received["/latched"]] == ["published once"]
 
 
+@pytest.mark.slow
 def test_a_recorder_stopped_by_sigint_leaves_a_readable_file(recording) -> None:
     _, _, _, interrupted = recording
     topics = {m.topic for m in recorded_messages(interrupted)}  # reads every chunk
     assert {"/joint_states", "/camera_2/color/image_raw"} <= topics
 
 
+@pytest.mark.slow
 def test_replay_refuses_what_is_not_a_recording(tmp_path: Path) -> None:
     bogus = tmp_path / "not.mcap"
     bogus.write_text("hello")
     with installed_node("dombot_bringup", "replay", str(bogus)) as replay:
-        assert replay.wait(timeout=60) == 2
+        assert replay.wait(timeout=120) == 2
         assert "cannot read" in replay.stdout.read()
