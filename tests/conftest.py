@@ -6,9 +6,9 @@ so parallel workers, concurrent sessions and a developer's running nodes never s
 other's topics.
 
 With pytest-xdist (on by default, see pyproject.toml) a module's tests run on one worker,
-so a module-scoped fixture (a node process, a planner) is set up once; a module marked
-``spread`` lets its independent tests run on several workers. Slow tests are handed out
-first, so the longest ones do not start last.
+so a module-scoped fixture (a node process, a planner) is set up once; the modules in
+``SPREAD`` let their independent tests run on several workers. Modules with slow tests are
+handed out first, so the longest ones do not start last.
 """
 
 from __future__ import annotations
@@ -25,6 +25,13 @@ import pytest
 # 10-99 come last: benchmarks/bench_fuzz.py takes 10 + pid % 90 without a lock.
 DOMAINS = (*range(1, 10), 100, 101, *range(215, 233), *range(10, 100))
 _held: list[int] = []  # open lock files: each domain is held until the process ends
+# Modules whose tests share no costly fixture and take long each: their tests may run on
+# different workers (any other module's tests run on one, its module fixtures set up once).
+SPREAD = {
+    "tests/bringup/test_arm_job.py",  # three end-to-end runs
+    "tests/description/test_console.py",  # each test starts and interrupts a process
+    "tests/foundation/test_parameter_files.py",  # each test starts a node
+}
 
 
 def _hold_a_free_domain() -> int:
@@ -57,11 +64,21 @@ def pytest_configure(config: pytest.Config) -> None:
         os.environ["ROS_DOMAIN_ID"] = str(_hold_a_free_domain())
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """--dist loadscope, with a module's tests on one worker unless it is in SPREAD."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ModuleScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module = nodeid.split("::", 1)[0]
+            return nodeid if module in SPREAD else module
+
+    return ModuleScheduling(config, log)
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    for item in items:
-        if not item.get_closest_marker("xdist_group") and not item.get_closest_marker("spread"):
-            item.add_marker(pytest.mark.xdist_group(item.path.stem))  # one worker per module
     if "PYTEST_XDIST_WORKER" in os.environ:  # the controller hands out in this order
         slow_modules = {item.path for item in items if item.get_closest_marker("slow")}
         items.sort(key=lambda item: item.path not in slow_modules)  # stable: modules stay whole

@@ -21,8 +21,6 @@ from dombot_bringup.process_group import ProcessGroup
 from dombot_bringup.recording import header_stamp, recorded_channels, recorded_messages
 from support.planning_clock import UNHURRIED
 
-pytestmark = pytest.mark.spread  # the end-to-end runs share nothing
-
 BRINGUP = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
 LINE = [
     "--layout",

@@ -14,8 +14,6 @@ from ament_index_python.packages import get_package_prefix
 
 from dombot_description.console import INTERRUPTED
 
-pytestmark = pytest.mark.spread  # each test starts and interrupts its own process
-
 SLOW_MODULE = """
 import sys, time
 print("importing", flush=True)
