@@ -1,15 +1,84 @@
 """Test-session settings shared by every package's tests.
 
-Each pytest session gets its own ROS domain and keeps DDS discovery on the
-loopback interface, so concurrent sessions (or a developer's running nodes) never
-see each other's topics.
+Every pytest process that runs tests (the session, or each pytest-xdist worker) holds a
+ROS domain of its own while it lives and keeps DDS discovery on the loopback interface,
+so parallel workers, concurrent sessions and a developer's running nodes never see each
+other's topics.
+
+With pytest-xdist (``-n 3 --dist loadscope``, opt-in: README) a module's tests run on one worker,
+so a module-scoped fixture (a node process, a planner) is set up once; the modules in
+``SPREAD`` let their independent tests run on several workers. Modules with slow tests are
+handed out first, so the longest ones do not start last.
 """
 
 from __future__ import annotations
 
+import fcntl
 import os
+import tempfile
+from pathlib import Path
 
-os.environ.setdefault("ROS_DOMAIN_ID", str(10 + os.getpid() % 90))
+import pytest
+
+# Domain ids whose Fast DDS ports are valid and outside Linux's ephemeral port range
+# (ROS 2 docs, "The ROS_DOMAIN_ID"); 0, the default, is left to a developer's own nodes.
+# 10-99 come last: benchmarks/bench_fuzz.py takes 10 + pid % 90 without a lock.
+DOMAINS = (*range(1, 10), 100, 101, *range(215, 233), *range(10, 100))
+_held: list[int] = []  # open lock files: each domain is held until the process ends
+# Modules whose tests share no costly fixture and take long each: their tests may run on
+# different workers (any other module's tests run on one, its module fixtures set up once).
+SPREAD = {
+    "tests/bringup/test_arm_job.py",  # three end-to-end runs
+    "tests/description/test_console.py",  # each test starts and interrupts a process
+    "tests/foundation/test_parameter_files.py",  # each test starts a node
+}
+
+
+def _hold_a_free_domain() -> int:
+    """A domain that no other test process on this machine holds, locked for the life of
+    this process (the kernel drops the lock however the process ends)."""
+    for domain in DOMAINS:
+        path = Path(tempfile.gettempdir()) / f"dombot-test-ros-domain-{domain}.lock"
+        try:
+            handle = os.open(path, os.O_CREAT | os.O_RDWR, 0o666)
+        except OSError:
+            continue  # another user's lock file
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(handle)
+            continue
+        _held.append(handle)
+        return domain
+    raise RuntimeError(f"all {len(DOMAINS)} ROS domains are held by other test processes")
+
+
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # The xdist controller runs no tests and needs no domain; its workers each take one.
+    if "PYTEST_XDIST_WORKER" in os.environ or getattr(config.option, "dist", "no") == "no":
+        os.environ["ROS_DOMAIN_ID"] = str(_hold_a_free_domain())
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """--dist loadscope, with a module's tests on one worker unless it is in SPREAD."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ModuleScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module = nodeid.split("::", 1)[0]
+            return nodeid if module in SPREAD else module
+
+    return ModuleScheduling(config, log)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    if "PYTEST_XDIST_WORKER" in os.environ:  # the controller hands out in this order
+        slow_modules = {item.path for item in items if item.get_closest_marker("slow")}
+        items.sort(key=lambda item: item.path not in slow_modules)  # stable: modules stay whole

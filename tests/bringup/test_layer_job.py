@@ -6,16 +6,18 @@ import json
 import subprocess
 from pathlib import Path
 
+import pytest
 from ament_index_python.packages import get_package_prefix
 
 
-def bringup(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
+def bringup(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
     executable = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
     return subprocess.run(
         [str(executable), "--job", "layer", *args], capture_output=True, text=True, timeout=timeout
     )
 
 
+@pytest.mark.slow
 def test_vehicle_lays_an_arc_on_the_requested_radius(tmp_path: Path) -> None:
     result = bringup("--out", str(tmp_path), "--speed", "0.4")
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
@@ -28,6 +30,7 @@ def test_vehicle_lays_an_arc_on_the_requested_radius(tmp_path: Path) -> None:
     assert "[layer_node]" in result.stdout and "[vehicle_sim_node]" in result.stdout
 
 
+@pytest.mark.slow
 def test_an_arc_tighter_than_the_vehicle_can_lay_is_refused_clearly(tmp_path: Path) -> None:
     result = bringup("--out", str(tmp_path), "--radius", "0.02", "--sweep", "90")
     assert result.returncode == 1

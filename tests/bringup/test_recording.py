@@ -154,8 +154,8 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Pa
             assert spin_until(probe, lambda: len(images) >= 4, 120), "camera_2 stopped"
             for process in (recorder, stopped):
                 process.send_signal(signal.SIGINT)
-            assert recorder.wait(timeout=60) == 0, recorder.stdout.read()
-            assert stopped.wait(timeout=60) == 0, stopped.stdout.read()
+            assert recorder.wait(timeout=120) == 0, recorder.stdout.read()
+            assert stopped.wait(timeout=120) == 0, stopped.stdout.read()
         live = {
             topic: types[0]
             for topic, types in probe.get_topic_names_and_types()
@@ -168,6 +168,7 @@ def recording(tmp_path_factory) -> Iterator[tuple[Path, dict[str, str], Node, Pa
     rclpy.shutdown()
 
 
+@pytest.mark.slow
 def test_recording_has_every_topic_with_the_live_types(recording) -> None:
     path, live, _, _ = recording
     channels = {topic: kind for topic, (kind, _) in recorded_channels(path).items()}
@@ -187,6 +188,7 @@ def test_recording_has_every_topic_with_the_live_types(recording) -> None:
     assert "/camera_2/depth/image_raw" in image_stamps
 
 
+@pytest.mark.slow
 def test_every_message_decodes_from_its_recorded_schema(recording) -> None:
     path, _, _, _ = recording
     seen = {}
@@ -198,6 +200,7 @@ def test_every_message_decodes_from_its_recorded_schema(recording) -> None:
     assert image.encoding == "32FC1" and len(image.data) == image.height * image.step
 
 
+@pytest.mark.slow
 def test_replay_publishes_the_recorded_messages(recording) -> None:
     path, _, probe, _ = recording
     recorded = {
@@ -216,12 +219,14 @@ def test_replay_publishes_the_recorded_messages(recording) -> None:
     assert [m.data for m in listener.received["/latched"]] == ["published once"]
 
 
+@pytest.mark.slow
 def test_a_recorder_stopped_by_sigint_leaves_a_readable_file(recording) -> None:
     _, _, _, interrupted = recording
     topics = {m.topic for m in recorded_messages(interrupted)}  # reads every chunk
     assert {"/joint_states", "/camera_2/color/image_raw"} <= topics
 
 
+@pytest.mark.slow
 def test_a_recorder_with_a_duration_stops_by_itself(tmp_path: Path) -> None:
     path = tmp_path / "short.mcap"
     with installed_node(
@@ -231,9 +236,10 @@ def test_a_recorder_with_a_duration_stops_by_itself(tmp_path: Path) -> None:
     assert isinstance(recorded_channels(path), dict)  # a complete, readable file
 
 
+@pytest.mark.slow
 def test_replay_refuses_what_is_not_a_recording(tmp_path: Path) -> None:
     bogus = tmp_path / "not.mcap"
     bogus.write_text("hello")
     with installed_node("dombot_bringup", "replay", str(bogus), output=PIPE) as replay:
-        assert replay.wait(timeout=60) == 2
+        assert replay.wait(timeout=120) == 2
         assert "cannot read" in replay.stdout.read()

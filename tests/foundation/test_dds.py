@@ -10,6 +10,8 @@ from dombot_msgs.msg import DominoDetectionArray
 from dombot_msgs.srv import ResetSim
 from support.ros_processes import call_service, python_process, spin_until
 
+pytestmark = pytest.mark.slow  # node processes over DDS
+
 TALKER = """
 import rclpy
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray

@@ -14,6 +14,8 @@ from rclpy.parameter import parameter_value_to_python
 
 from support.ros_processes import call_service, installed_node, spin_until
 
+pytestmark = pytest.mark.slow  # starts every node
+
 NODES = [
     ("dombot_sim", "sim_node"),
     ("dombot_perception", "perception_node"),

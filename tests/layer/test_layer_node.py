@@ -21,6 +21,8 @@ from dombot_layer.paths import rig_length
 from dombot_msgs.msg import WheelVelocities
 from support.ros_processes import installed_node, spin_until
 
+pytestmark = pytest.mark.slow  # a layer_node process
+
 KINEMATICS = LayerKinematics(VehicleGeometry())
 
 

@@ -18,6 +18,7 @@ from support.perception_scenes import PILE_CENTRE, flat
 from support.ros_processes import call_service, installed_node, spin_until
 
 TRUTH = flat(*PILE_CENTRE, yaw=-0.3)
+pytestmark = pytest.mark.slow  # a perception_node process
 
 RIG = np.eye(4)  # the cameras' mount in world, as a calibration would publish it
 RIG[:3, 3] = [0.5, -0.5, 0.4]

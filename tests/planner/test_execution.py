@@ -20,6 +20,8 @@ import pytest
 
 from support.planning_clock import UNHURRIED
 
+pytestmark = pytest.mark.slow  # plans and simulates a pick and a place
+
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 

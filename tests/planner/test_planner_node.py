@@ -24,6 +24,8 @@ from dombot_planner.errors import ErrorCode
 from support.planning_clock import UNHURRIED
 from support.ros_processes import installed_node, spin_until
 
+pytestmark = pytest.mark.slow  # a planner_node process
+
 SCENARIO = load_scenario()
 
 
@@ -76,7 +78,7 @@ class Client:
         service = self.strike if isinstance(request, PlanStrike.Request) else self.plan
         return service.call_async(request)
 
-    def call(self, request, timeout: float = 60.0):
+    def call(self, request, timeout: float = 300.0):
         future = self.call_async(request)
         assert spin_until(self.node, future.done, timeout=timeout), "no answer"
         return future.result()
@@ -89,7 +91,7 @@ def client():
     with installed_node("dombot_planner", "planner_node", "--ros-args", "-p", budget) as process:
         client = Client()
         for service in (client.plan, client.strike):
-            assert spin_until(client.node, service.service_is_ready, timeout=60), process.poll()
+            assert spin_until(client.node, service.service_is_ready, timeout=180), process.poll()
         yield client
         client.node.destroy_node()
         assert process.poll() is None, "planner_node died during the tests"
@@ -287,7 +289,7 @@ def test_empty_start_state_uses_joint_states(client: Client) -> None:
         answer = client.call(empty)
         return answer.error_code != PlanPlace.Response.NO_START_STATE
 
-    assert spin_until(client.node, received, timeout=30)
+    assert spin_until(client.node, received, timeout=120)
     response = client.call(empty)
     assert response.success, response.message
     start = response.segments[1].trajectory.points[0].positions
@@ -303,7 +305,7 @@ def test_bad_requests_are_answered_while_others_are_planned(client: Client) -> N
     slow = [client.call_async(unreachable) for _ in range(2)]
     bad = client.call_async(plan_request(time_budget=-1.0))
     bad_strike = client.call_async(strike_request(push_speed=-1.0))
-    assert spin_until(client.node, lambda: bad.done() and bad_strike.done(), timeout=60)
+    assert spin_until(client.node, lambda: bad.done() and bad_strike.done(), timeout=300)
     assert bad.result().error_code == PlanPlace.Response.INVALID_REQUEST
     assert bad_strike.result().error_code == PlanStrike.Response.INVALID_REQUEST
     assert not all(s.done() for s in slow), "the bad requests waited for the planner"
@@ -314,11 +316,11 @@ def test_bad_requests_are_answered_while_others_are_planned(client: Client) -> N
 
 def test_wrong_parameter_value_is_refused(client: Client) -> None:
     service = client.node.create_client(SetParameters, "/planner_node/set_parameters")
-    assert spin_until(client.node, service.service_is_ready, timeout=30)
+    assert spin_until(client.node, service.service_is_ready, timeout=120)
     value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-1.0)
     request = SetParameters.Request(parameters=[Parameter(name="acceleration_limit", value=value)])
     future = service.call_async(request)
-    assert spin_until(client.node, future.done, timeout=30)
+    assert spin_until(client.node, future.done, timeout=120)
     result = future.result().results[0]
     assert not result.successful and "acceleration_limit" in result.reason
     assert client.call(plan_request()).success  # still serving with the old settings

@@ -22,6 +22,8 @@ from support.fuzz import (
     service_endpoints,
 )
 
+pytestmark = pytest.mark.slow  # every node, fuzzed over DDS
+
 REPLY_TIMEOUT = 300.0  # s: a hang, not a slow machine (a search ends long before its budget)
 BATCHES = {  # derandomized: the same batches every run
     "/plan_place": 6,

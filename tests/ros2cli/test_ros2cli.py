@@ -89,7 +89,7 @@ Pose pose
 
 
 def ros2(
-    *args: str, env: dict[str, str] | None = None, timeout: float = 60
+    *args: str, env: dict[str, str] | None = None, timeout: float = 120
 ) -> subprocess.CompletedProcess[str]:
     assert ROS2 is not None, "ros2 is not on PATH; source .dombot/activate.bash"
     return subprocess.run(
@@ -185,6 +185,7 @@ def test_unknown_interface_is_a_clean_error() -> None:
     assert_clean_failure(ros2("interface", "show", "garbage"), "not an interface name")
 
 
+@pytest.mark.slow
 def test_topic_list_info_and_echo_against_a_publisher_process() -> None:
     with python_process(TALKER):
         echo = ros2("topic", "echo", "/cli/chatter", "--once")
@@ -198,6 +199,7 @@ def test_topic_list_info_and_echo_against_a_publisher_process() -> None:
     assert "/cli_talker" in nodes
 
 
+@pytest.mark.slow
 def test_topic_pub_reaches_a_subscriber_process() -> None:
     listener = """
     import rclpy
@@ -222,10 +224,11 @@ def test_topic_pub_reaches_a_subscriber_process() -> None:
             "std_msgs/msg/Float64",
             "{data: 2.5}",
         )
-        output, _ = process.communicate(timeout=30)
+        output, _ = process.communicate(timeout=120)
     assert "got 2.5" in output
 
 
+@pytest.mark.slow
 def test_service_call_crosses_processes() -> None:
     with python_process(SETBOOL_SERVER):
         result = ros2("service", "call", "/cli/switch", "std_srvs/srv/SetBool", "{data: true}")
@@ -264,11 +267,13 @@ def layer_node() -> Iterator[None]:
         assert process.wait(timeout=10) is not None
 
 
+@pytest.mark.slow
 def test_ros2_run_starts_an_installed_node_that_joins_the_graph(layer_node) -> None:
     info = ros2("node", "info", "/layer_node").stdout
     assert "    /layer/target_radius: std_msgs/msg/Float64" in info.split("Publishers:")[0]
 
 
+@pytest.mark.slow
 def test_every_service_list_sees_the_whole_graph(layer_node) -> None:
     """Each call discovers anew: it waits until it sees a node and nothing changes, so
     consecutive calls agree (without it they printed 0, 7, 0, 0, 7, 7 lines)."""
@@ -279,6 +284,7 @@ def test_every_service_list_sees_the_whole_graph(layer_node) -> None:
     assert listings[0] == listings[1] == listings[2]
 
 
+@pytest.mark.slow
 def test_param_list_get_and_set_on_a_running_node(layer_node) -> None:
     listing = ros2("param", "list", "/layer_node").stdout.splitlines()
     assert "  command_rate" in listing and "  geometry.wheel_radius" in listing
@@ -293,6 +299,7 @@ def test_param_list_get_and_set_on_a_running_node(layer_node) -> None:
     assert "/layer_node:" in everyone and "  command_rate" in everyone
 
 
+@pytest.mark.slow
 def test_param_errors_are_clean(layer_node) -> None:
     refused = ros2("param", "set", "/layer_node", "forward_speed", "-1.0")
     assert_clean_failure(
@@ -311,6 +318,7 @@ def test_a_call_with_no_server_says_so_after_its_timeout() -> None:
     assert_clean_failure(goal, "no server for action '/cli/nobody' appeared within 2 s")
 
 
+@pytest.mark.slow
 def test_action_list_and_send_goal_with_feedback() -> None:
     with python_process(ACTION_SERVER):
         listing = ros2_until("/cli/grip", "action", "list", "-t")

@@ -27,6 +27,8 @@ from dombot_sim.sleeping import SleepSettings
 from dombot_sim.wave_model import Row, wave
 from dombot_sim.world import CellWorld, WorldConfig
 
+pytestmark = pytest.mark.slow  # seconds to minutes of Drake physics per test
+
 CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * (
     0.5 * np.asarray(DOMINO_SIZE)
 )

@@ -25,6 +25,8 @@ from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import ResetSim
 from support.ros_processes import installed_node, spin_until
 
+pytestmark = pytest.mark.slow  # a sim_node process
+
 SCENARIO = load_scenario()
 ARM = list(SCENARIO.arm_joints)
 FINGERS = ["wsg_left_finger_joint", "wsg_right_finger_joint"]
@@ -52,7 +54,7 @@ class Probe:
         self.gripper = ActionClient(self.node, GripperCommand, GRIPPER_ACTION)
         self.reset = self.node.create_client(ResetSim, "/sim/reset")
 
-    def fresh(self, topic: str, timeout: float = 30.0):
+    def fresh(self, topic: str, timeout: float = 120.0):
         self.latest.pop(topic, None)
         assert spin_until(self.node, lambda: topic in self.latest, timeout), f"nothing on {topic}"
         return self.latest[topic]
@@ -66,24 +68,24 @@ class Probe:
 
     def send(self, client: ActionClient, goal, feedback=None):
         """The accepted goal's handle."""
-        assert client.wait_for_server(timeout_sec=30)
+        assert client.wait_for_server(timeout_sec=120)
         sent = client.send_goal_async(goal, feedback_callback=feedback)
-        assert spin_until(self.node, sent.done, 10)
+        assert spin_until(self.node, sent.done, 120)
         handle = sent.result()
         assert handle.accepted
         return handle
 
-    def outcome(self, handle, timeout: float = 60.0):
+    def outcome(self, handle, timeout: float = 300.0):
         """(status, result) of an accepted goal."""
         result = handle.get_result_async()
         assert spin_until(self.node, result.done, timeout)
         return result.result().status, result.result().result
 
-    def run_action(self, client: ActionClient, goal, timeout: float = 60.0):
+    def run_action(self, client: ActionClient, goal, timeout: float = 300.0):
         return self.outcome(self.send(client, goal), timeout)[1]
 
     def call_reset(self, count: int, seed: int) -> ResetSim.Response:
-        assert self.reset.wait_for_service(timeout_sec=30)
+        assert self.reset.wait_for_service(timeout_sec=120)
         future = self.reset.call_async(ResetSim.Request(domino_count=count, seed=seed))
         assert spin_until(self.node, future.done, 120)
         return future.result()
@@ -105,7 +107,7 @@ def probe():
     ]
     with installed_node("dombot_sim", "sim_node", *arguments) as process:
         probe = Probe()
-        assert spin_until(probe.node, lambda: "/joint_states" in probe.latest, 90), process.poll()
+        assert spin_until(probe.node, lambda: "/joint_states" in probe.latest, 300), process.poll()
         yield probe
         probe.node.destroy_node()
         assert process.poll() is None, "sim_node died during the tests"
@@ -294,12 +296,12 @@ def test_reset_pours_the_pile_the_seed_asks_for(probe: Probe) -> None:
 
 def test_bad_parameters_are_refused_with_a_reason_and_good_ones_taken(probe: Probe) -> None:
     client = probe.node.create_client(SetParameters, "/sim_node/set_parameters")
-    assert client.wait_for_service(timeout_sec=30)
+    assert client.wait_for_service(timeout_sec=120)
 
     def set_log_moved(value: float):
         parameter = Parameter("log_moved_mm", Parameter.Type.DOUBLE, value).to_parameter_msg()
         future = client.call_async(SetParameters.Request(parameters=[parameter]))
-        assert spin_until(probe.node, future.done, 10)
+        assert spin_until(probe.node, future.done, 120)
         return future.result().results[0]
 
     for bad in (-1.0, float("nan"), float("inf")):

@@ -25,6 +25,8 @@ from dombot_msgs.msg import DominoStateArray
 from support.camera_messages import transform_matrix
 from support.ros_processes import installed_node, spin_until
 
+pytestmark = pytest.mark.slow  # a sim_node process
+
 SCENARIO = load_scenario()
 DOMINOES = 3
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
