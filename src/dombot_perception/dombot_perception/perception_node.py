@@ -38,6 +38,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
 
 from dombot_description import tilt_from_vertical
+from dombot_description.allocator import tune_allocator
 from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_description.pose_messages import pose_matrix, pose_message
 from dombot_description.scenario import ScenarioError, load_scenario
@@ -621,6 +622,7 @@ def _vector(values: np.ndarray) -> Vector3:
 
 
 def main(args: list[str] | None = None) -> None:
+    tune_allocator()
     rclpy.init(args=args)
     try:
         node = PerceptionNode()
