@@ -46,6 +46,7 @@ from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from dombot_description.allocator import release_memory, tune_allocator
 from dombot_description.node_shutdown import stop_quietly_on_shutdown
 from dombot_description.pose_messages import pose_message, seconds_of, time_message
 from dombot_description.robot_description import robot_urdf
@@ -511,8 +512,6 @@ class SimNode(Node):
         goal = goal_handle.request
         points = goal.trajectory.points
         with self._lock:
-            self._generation += 1
-            generation = self._generation
             try:
                 _check_no_multi_dof(goal.multi_dof_trajectory.joint_names)
                 spline = build_trajectory(
@@ -524,11 +523,18 @@ class SimNode(Node):
                     else None,
                     self.world.joint_state().position[:7],
                     self.world.arm_limits(),
+                    unused={
+                        "accelerations": [p.accelerations for p in points],
+                        "effort": [p.effort for p in points],
+                    },
                 )
-            except TrajectoryError as error:
+            except TrajectoryError as error:  # the running goal, if any, goes on
                 self.get_logger().error(f"{TRAJECTORY_ACTION} rejected: {error}")
                 goal_handle.abort()
+                release_memory()  # a refused goal may have been 100,000 points
                 return FollowJointTrajectory.Result(error_code=error.code, error_string=str(error))
+            self._generation += 1  # preempts the running goal
+            generation = self._generation
             end = self.world.follow_trajectory(spline)
         names = list(self.world.arm_joint_names)
         path_tolerance = tolerances(goal.path_tolerance, names, default=-1.0)
@@ -762,6 +768,7 @@ def spin_forever(executor: MultiThreadedExecutor, node: Node) -> None:
 
 
 def main(args: list[str] | None = None) -> int:
+    tune_allocator()
     rclpy.init(args=args)
     try:
         node = SimNode()
