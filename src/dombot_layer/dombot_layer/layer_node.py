@@ -45,6 +45,9 @@ from dombot_msgs.msg import WheelVelocities
 GEOMETRY_PREFIX = "geometry."
 # largest accepted value of each setting: 1000 Hz (faster floods the topics), 10 m/s, 1 m
 MAX_SETTING = {"command_rate": 1000.0, "forward_speed": 10.0, "deposit_spacing": 1.0}
+# Hz: slower is no stream, and a rate of 1e-63 made a timer period beyond int64 ns that
+# killed the node (a TypeError in the parameter callback)
+MIN_SETTING = {"command_rate": 0.01}
 
 
 class LayerNode(Node):
@@ -113,15 +116,15 @@ class LayerNode(Node):
         try:
             geometry = self._geometry_from(candidate)
             for name in ("forward_speed", "deposit_spacing", "command_rate"):
-                value = candidate[name]
+                value, low, high = candidate[name], MIN_SETTING.get(name), MAX_SETTING[name]
                 if (
                     isinstance(value, bool)
                     or not isinstance(value, int | float)
-                    or not (math.isfinite(value) and 0 < value <= MAX_SETTING[name])
+                    or not (math.isfinite(value) and 0 < value <= high)
+                    or (low is not None and value < low)
                 ):
-                    raise ValueError(
-                        f"{name} must be a number in (0, {MAX_SETTING[name]}], got {value!r}"
-                    )
+                    bounds = f"[{low}, {high}]" if low is not None else f"(0, {high}]"
+                    raise ValueError(f"{name} must be a number in {bounds}, got {value!r}")
         except ValueError as error:
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
