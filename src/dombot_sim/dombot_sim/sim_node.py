@@ -536,6 +536,8 @@ class SimNode(Node):
             except TrajectoryError as error:  # the running goal, if any, goes on
                 self.get_logger().error(f"{TRAJECTORY_ACTION} rejected: {error}")
                 goal_handle.abort()
+                # the handle keeps the request RESULT_TIMEOUT: drop what may be 100,000 points
+                goal.trajectory.points, goal.trajectory.joint_names = [], []
                 return FollowJointTrajectory.Result(error_code=error.code, error_string=str(error))
             self._generation += 1  # preempts the running goal
             generation = self._generation
