@@ -1,10 +1,12 @@
-"""Fuzz every service and layer_node's inputs over real DDS for a long run.
+"""Fuzz every service, the arm and gripper actions and layer_node's inputs over real DDS.
 
 Starts planner_node, sim_node, perception_node and layer_node (tests/support/fuzz.py),
 sends at least ``--requests`` hostile requests per endpoint in batches of up to 10 at
-once (hypothesis, ``--seed``), a valid request after every batch, and prints one JSON object:
-requests, outcome histogram, worst reply latency per endpoint, wrong outcomes, hangs,
-crashes, and each node's RSS after warm-up and at the end. Progress on stderr.
+once (hypothesis, ``--seed``), a valid request after every batch, and prints one JSON
+object: requests, outcome histogram, worst batch latency per endpoint, wrong outcomes,
+hangs, crashes, each node's RSS after warm-up and at the end, and per endpoint the
+serving node's RSS growth from its first WARM_UP_REQUESTS requests to its last (caches
+and allocator arenas fill first). Progress on stderr.
 
     python benchmarks/bench_fuzz.py --requests 1000
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
@@ -30,15 +33,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from support.fuzz import (
     Harness,
+    action_endpoints,
     fuzz,
     fuzzed_nodes,
     layer_endpoints,
     layer_parameter_cases,
     path_cases,
     radius_cases,
+    rss_mb,
     service_endpoints,
 )
 
+WARM_UP_REQUESTS = 100  # RSS growth is measured from here (caches fill, arenas grow)
 LAYER_CASES = {
     "/layer/target_radius": radius_cases,
     "/layer/path": path_cases,
@@ -50,6 +56,24 @@ def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
+def node_rss(harness: Harness, node: str) -> float:
+    process = harness.processes[node]
+    return round(rss_mb(process.pid), 1) if process.poll() is None else float("nan")
+
+
+def endpoint_growth(
+    harness: Harness, node: str, start: int, name: str, settled: tuple[int, float] | None
+) -> dict:
+    """The serving node's RSS after the endpoint's first WARM_UP_REQUESTS requests and
+    after its last, and the growth between them."""
+    growth = {"node": node, "requests": harness.report.requests[name] - start}
+    growth["rss_mb_end"] = node_rss(harness, node)
+    if settled is not None:
+        growth["warm_up_requests"], growth["rss_mb_after_warm_up"] = settled
+        growth["growth"] = round(growth["rss_mb_end"] / settled[1] - 1, 4)
+    return growth
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--requests", type=int, default=1000, help="hostile requests per endpoint")
@@ -58,43 +82,58 @@ def main() -> None:
     parser.add_argument(
         "--logs", type=Path, default=Path(tempfile.gettempdir()) / "dombot_fuzz", help="node logs"
     )
-    parser.add_argument("--only", nargs="*", help="endpoint names (default: all)")
+    parser.add_argument(
+        "--only", nargs="*", help="endpoint names (default: all); only their nodes are started"
+    )
     parser.add_argument(
         "--fewest-at-once", type=int, default=1, help="smallest batch (largest: 10)"
+    )
+    parser.add_argument(
+        "--max-seconds", type=float, default=math.inf, help="start no batch after this"
     )
     args = parser.parse_args()
     rclpy.init()
     began = time.monotonic()
     args.logs.mkdir(parents=True, exist_ok=True)
-    with fuzzed_nodes(args.logs) as processes:
-        node = Node("fuzz_bench")
-        endpoints = service_endpoints(node)
-        endpoints |= {e.name: (e, LAYER_CASES[e.name]) for e in layer_endpoints(node)}
+    node = Node("fuzz_bench")
+    endpoints = service_endpoints(node) | action_endpoints(node)
+    endpoints |= {e.name: (e, LAYER_CASES[e.name]) for e in layer_endpoints(node)}
+    chosen = args.only or list(endpoints)
+    with fuzzed_nodes(args.logs, {endpoints[name][0].node for name in chosen}) as processes:
         harness = Harness(processes, args.timeout)
-        chosen = args.only or list(endpoints)
         for name in chosen:  # warm-up: every node has served once (plants built, caches)
             harness.warm_up(endpoints[name][0])
         harness.rss("after_warm_up")
+        growth = {}
         for name in chosen:
             endpoint, cases = endpoints[name]
             log(f"{name}: {args.requests} requests ...")
-            target = harness.report.requests[name] + args.requests
-            while harness.report.requests[name] < target:
+            start = harness.report.requests[name]
+            settled = None  # (requests, RSS) once WARM_UP_REQUESTS have been served
+            while harness.report.requests[name] < start + args.requests:
+                if time.monotonic() - began > args.max_seconds:
+                    log(f"{name}: stopped after --max-seconds")
+                    break
                 fuzz(
                     harness,
                     endpoint,
                     cases(),
-                    batches=20,
+                    batches=5,
                     random_seed=args.seed,
                     fewest_at_once=args.fewest_at_once,
                 )
                 args.seed += 1
+                served = harness.report.requests[name] - start
+                if settled is None and served >= WARM_UP_REQUESTS:
+                    settled = (served, node_rss(harness, endpoint.node))
+            growth[name] = endpoint_growth(harness, endpoint.node, start, name, settled)
             log(f"{name}: done after {time.monotonic() - began:.0f} s")
         harness.rss("end")
-        node.destroy_node()
+    node.destroy_node()
     rclpy.shutdown()
     result = harness.report.as_json()
     result["seconds"] = round(time.monotonic() - began, 1)
+    result["rss_growth"] = growth
     for rss in result["rss_mb"].values():
         if "after_warm_up" in rss and "end" in rss:
             rss["growth"] = round(rss["end"] / rss["after_warm_up"] - 1, 4)

@@ -141,6 +141,12 @@ def test_invalid_parameter_update_is_rejected_and_keeps_the_old_value(probe: Pro
     assert get_parameter(probe, "geometry.d_tw") == VehicleGeometry().d_tw
     result = set_parameter(probe, "forward_speed", 0.0)
     assert not result.results[0].successful
+    result = set_parameter(probe, "command_rate", 1e-63)  # a timer period beyond int64 ns
+    assert not result.results[0].successful
+    assert "command_rate must be a number in [0.01, 1000.0]" in result.results[0].reason
+    assert probe.send_radius(0.5, lambda s: s.deposit_radius == 0.5).status == (
+        WheelVelocities.STATUS_OK
+    )
 
 
 def test_valid_parameter_update_changes_the_commands(probe: Probe) -> None:

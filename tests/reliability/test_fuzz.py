@@ -1,9 +1,9 @@
 """A short fuzz run over real DDS (tests/support/fuzz.py; the long one is
-benchmarks/bench_fuzz.py): every service and layer_node's inputs get batches of up to 10
-hostile requests at once. Verdicts are on outcomes only: each reply carries the error
-code (or success flag) that is right for what was broken and a message, no node dies,
-nothing goes unanswered within a generous timeout, a valid request is served after every
-batch."""
+benchmarks/bench_fuzz.py): every service, the arm and gripper actions and layer_node's
+inputs get batches of up to 10 hostile requests at once. Verdicts are on outcomes only:
+each reply carries the error code (or success flag) that is right for what was broken and
+a message, no node dies, nothing goes unanswered within a generous timeout, a valid
+request is served after every batch."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from rclpy.node import Node
 
 from support.fuzz import (
     Harness,
+    action_endpoints,
     fuzz,
     fuzzed_nodes,
     layer_endpoints,
@@ -31,6 +32,8 @@ BATCHES = {  # derandomized: the same batches every run
     "/perception/detect": 2,
     "/perception/check_placement": 3,
     "/sim/reset": 2,
+    "/arm_controller/follow_joint_trajectory": 4,
+    "/gripper_controller/gripper_cmd": 2,
     "/layer/target_radius": 3,
     "/layer/path": 3,
     "/layer_node/set_parameters": 3,
@@ -47,7 +50,7 @@ def session(tmp_path_factory):
     rclpy.init()
     with fuzzed_nodes(tmp_path_factory.mktemp("fuzz_logs")) as processes:
         node = Node("fuzz_probe")
-        endpoints = service_endpoints(node)
+        endpoints = service_endpoints(node) | action_endpoints(node)
         endpoints |= {e.name: (e, LAYER_CASES[e.name]) for e in layer_endpoints(node)}
         yield Harness(processes, REPLY_TIMEOUT), endpoints
         node.destroy_node()

@@ -203,6 +203,7 @@ def test_a_trajectory_moves_the_arm_to_its_goal_with_feedback(probe: Probe) -> N
         (ARM, [(0.05, [1.0, 0.35, 0.0, -1.75, 0.0, 1.05, 0.0])], -1, "over its limit"),
         (ARM, [(1.0, [float("nan")] * 7)], -1, "finite"),
         (ARM, [], -1, "no points"),
+        (ARM, [(0.5 + 0.01 * i, [0.0] * 7) for i in range(10_001)], -1, "at most 10000"),
     ],
     ids=[
         "unknown-joint",
@@ -213,6 +214,7 @@ def test_a_trajectory_moves_the_arm_to_its_goal_with_feedback(probe: Probe) -> N
         "too-fast",
         "nan",
         "empty",
+        "too-many-points",
     ],
 )
 def test_bad_trajectories_are_refused_with_a_code_and_a_reason(
@@ -258,6 +260,26 @@ def test_a_newer_goal_preempts_the_running_one(probe: Probe) -> None:
     status, result = probe.outcome(second)
     assert status == GoalStatus.STATUS_SUCCEEDED, result.error_string
     assert probe.arm_position() == pytest.approx(start, abs=0.01)
+
+
+def test_a_refused_goal_leaves_the_running_one_going(probe: Probe) -> None:
+    start = probe.arm_position()
+    feedback: list[FollowJointTrajectory.Feedback] = []
+    running = probe.send(
+        probe.trajectory, trajectory_goal(ARM, [(600.0, start + 0.3)]), feedback=feedback.append
+    )
+    assert spin_until(probe.node, lambda: bool(feedback), 30), "the first goal never ran"
+    goal = trajectory_goal(ARM, [(1.0, start)])
+    goal.trajectory.points[0].effort = [-1.0, -2.0]  # one per joint or none
+    status, result = probe.outcome(probe.send(probe.trajectory, goal))
+    assert status == GoalStatus.STATUS_ABORTED
+    assert result.error_code == FollowJointTrajectory.Result.INVALID_GOAL
+    assert "effort must be empty or 7 finite numbers" in result.error_string
+    feedback.clear()
+    assert spin_until(probe.node, lambda: len(feedback) >= 3, 30), "the running goal stopped"
+    back = probe.send(probe.trajectory, trajectory_goal(ARM, [(1.0, start)]))
+    assert "preempted by a newer goal" in probe.outcome(running)[1].error_string
+    assert probe.outcome(back)[0] == GoalStatus.STATUS_SUCCEEDED
 
 
 def test_the_gripper_reaches_the_commanded_opening(probe: Probe) -> None:

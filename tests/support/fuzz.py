@@ -9,32 +9,38 @@ wrong outcomes, crashes, hangs, RSS per node) and checks that a valid request is
 after each batch. The strategies (hypothesis) start from a valid request and break one
 thing at a time, so the right outcome is known; ``random_*`` ones break everything.
 
-An action endpoint is ``Endpoint(name, node, send=<goal batch sender>, outcome=...)`` with
-a sender built like ``service_sender`` on ``rclpy.action.ActionClient``.
+An action's reply is a ``GoalReply`` (the goal's final status and result, or REJECTED),
+sent by ``action_sender``.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from subprocess import Popen
 
 import numpy as np
-from builtin_interfaces.msg import Time
+from action_msgs.msg import GoalStatus
+from builtin_interfaces.msg import Duration, Time
+from control_msgs.action import FollowJointTrajectory, GripperCommand
+from control_msgs.msg import GripperCommand as GripperTarget
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
 from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
 from nav_msgs.msg import Path as PathMessage
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from rclpy.action import ActionClient
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_description.grasp import flat_pose, upright_pose
 from dombot_description.scenario import load_scenario
@@ -48,6 +54,7 @@ SCENARIO = load_scenario()
 NON_FINITE = (math.nan, math.inf, -math.inf)
 HUGE = (1e12, 1e300, -1e300)
 INVALID = frozenset({"INVALID_REQUEST"})
+VALID_BUDGET = 30.0  # s for the valid plan after each batch: a loaded machine is no failure
 
 # ------------------------------------------------------------------ cases and endpoints
 
@@ -109,6 +116,43 @@ def service_sender(node: Node, service_type, name: str) -> Callable:
 
     return send
 
+
+@dataclass(frozen=True)
+class GoalReply:
+    """How an action goal ended: its GoalStatus and result (None when rejected)."""
+
+    status: int
+    result: object | None
+
+
+def action_sender(node: Node, action_type, name: str) -> Callable:
+    """Sends goals at once; each reply a GoalReply once the goal has ended."""
+    client = ActionClient(node, action_type, name)
+
+    def send(goals: list, timeout: float, alive: Callable[[], bool]) -> list:
+        assert spin_until(node, client.server_is_ready, timeout=60), f"{name} not available"
+        sent = [client.send_goal_async(goal) for goal in goals]
+        results: list = [None] * len(goals)
+
+        def ended() -> bool:
+            for i, future in enumerate(sent):
+                if results[i] is None and future.done():
+                    handle = future.result()
+                    results[i] = handle.get_result_async() if handle.accepted else REJECTED
+            return all(r is REJECTED or (r is not None and r.done()) for r in results)
+
+        spin_until(node, lambda: ended() or not alive(), timeout)
+        return [
+            r
+            if r is REJECTED
+            else (GoalReply(r.result().status, r.result().result) if r and r.done() else None)
+            for r in results
+        ]
+
+    return send
+
+
+REJECTED = GoalReply(GoalStatus.STATUS_UNKNOWN, None)  # the goal response said no
 
 # ------------------------------------------------------------------ the harness
 
@@ -547,6 +591,218 @@ def reset_cases() -> st.SearchStrategy[Case]:
     )
 
 
+# ------------------------------------------------------------------ arm and gripper actions
+
+TRAJECTORY_CODES = {
+    value: name
+    for name, value in vars(FollowJointTrajectory.Result).items()
+    if name.isupper() and isinstance(value, int)
+}
+INVALID_GOAL = frozenset({"INVALID_GOAL"})
+INVALID_JOINTS = frozenset({"INVALID_JOINTS"})
+
+
+def duration(seconds: float) -> Duration:
+    whole = math.floor(seconds)
+    return Duration(sec=int(whole), nanosec=int((seconds - whole) * 1e9))
+
+
+def trajectory_goal(
+    names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]], **fields
+) -> FollowJointTrajectory.Goal:
+    """A goal through ``points`` (time from start [s], positions); ``fields``: per-point
+    lists set on every point (velocities, accelerations, effort)."""
+    trajectory = JointTrajectory(joint_names=list(names))
+    for seconds, positions in points:
+        point = JointTrajectoryPoint(positions=list(positions), time_from_start=duration(seconds))
+        for name, values in fields.items():
+            setattr(point, name, list(values))
+        trajectory.points.append(point)
+    return FollowJointTrajectory.Goal(trajectory=trajectory)
+
+
+def valid_trajectory() -> FollowJointTrajectory.Goal:
+    """Home in 0.5 s: served from wherever the arm is after the fuzzed goals (none moves it)."""
+    return trajectory_goal(ARM, [(0.5, HOME)])
+
+
+def trajectory_outcome(reply: GoalReply) -> str:
+    if reply.result is None:
+        return "REJECTED"
+    return TRAJECTORY_CODES.get(reply.result.error_code, str(reply.result.error_code))
+
+
+def trajectory_problem(reply: GoalReply) -> str | None:
+    """Aborted goals carry a code (or were preempted), succeeded ones SUCCESSFUL, all a text."""
+    if reply.result is None:
+        return None
+    code, text = reply.result.error_code, reply.result.error_string
+    if not text:
+        return "empty error_string"
+    succeeded = reply.status == GoalStatus.STATUS_SUCCEEDED
+    if succeeded != (code == 0) and not (code == 0 and "preempted" in text):
+        return f"status {reply.status} with error_code {code}"
+    return None
+
+
+def trajectory_cases() -> st.SearchStrategy[Case]:
+    """Goals with one thing broken: the code is known for each; none moves the arm."""
+    names = st.sampled_from(["", "elbow", "iiwa_joint_8", "wsg_left_finger_joint", "ä" * 300])
+
+    def renamed(args: tuple[int, str]) -> Case:
+        i, name = args
+        wrong = [*ARM[:i], name, *ARM[i + 1 :]]
+        return Case(trajectory_goal(wrong, [(1.0, HOME)]), "wrong joint name", INVALID_JOINTS)
+
+    def twice(i: int) -> Case:
+        goal = trajectory_goal([*ARM, ARM[i]], [(1.0, [*HOME, HOME[i]])])
+        return Case(goal, "duplicate joint name", INVALID_JOINTS)
+
+    def missing(n: int) -> Case:
+        return Case(trajectory_goal(ARM[:n], [(1.0, HOME[:n])]), "missing joints", INVALID_JOINTS)
+
+    def wrong_length(n: int) -> Case:
+        return Case(trajectory_goal(ARM, [(1.0, HOME[:1] * n)]), f"{n} positions", INVALID_GOAL)
+
+    def beyond(args: tuple[int, float]) -> Case:
+        i, value = args
+        position = list(HOME)
+        position[i] = value
+        return Case(trajectory_goal(ARM, [(1.0, position)]), "position beyond limits", INVALID_GOAL)
+
+    def fast(args: tuple[int, float]) -> Case:
+        i, value = args
+        velocity = [0.0] * 7
+        velocity[i] = value
+        goal = trajectory_goal(ARM, [(1.0, HOME)], velocities=velocity)
+        return Case(goal, "velocity beyond limits or not finite", INVALID_GOAL)
+
+    def jump(i: int) -> Case:  # a 1 rad step in 10 ms: the interpolated speed is far over
+        position = list(HOME)
+        position[i] += 1.0 if position[i] < 0 else -1.0
+        return Case(
+            trajectory_goal(ARM, [(0.01, position)]), "too fast between points", INVALID_GOAL
+        )
+
+    def times(seconds: list[float]) -> Case:
+        goal = trajectory_goal(ARM, [(t, HOME) for t in seconds])
+        return Case(goal, "times not increasing", INVALID_GOAL)
+
+    def ignored(args: tuple[str, list[float]]) -> Case:
+        field_name, values = args
+        goal = trajectory_goal(ARM, [(1.0, HOME)], **{field_name: values})
+        return Case(goal, f"bad {field_name}", INVALID_GOAL)
+
+    def huge(n: int) -> Case:
+        goal = trajectory_goal(ARM, [(0.5 + 0.01 * i, HOME) for i in range(n)])
+        return Case(goal, f"{n} points", INVALID_GOAL)
+
+    far_start = [h + (0.5 if h < 0 else -0.5) for h in HOME]
+    empty = Case(
+        trajectory_goal([], []), "empty goal", frozenset({"INVALID_JOINTS", "INVALID_GOAL"})
+    )
+    multi_dof = trajectory_goal(ARM, [(1.0, HOME)])
+    multi_dof.multi_dof_trajectory.joint_names = ["base"]
+    return st.one_of(
+        st.tuples(st.integers(0, 6), names).map(renamed),
+        st.integers(0, 6).map(twice),
+        st.integers(0, 6).map(missing),
+        st.sampled_from([0, 1, 6, 8, 100_000]).map(wrong_length),
+        st.tuples(st.integers(0, 6), st.sampled_from([3.2, -3.2, 10.0, 1e300, *NON_FINITE])).map(
+            beyond
+        ),
+        st.tuples(st.integers(0, 6), st.sampled_from([20.0, -50.0, 1e300, *NON_FINITE])).map(fast),
+        st.integers(0, 6).map(jump),
+        st.one_of(
+            st.lists(st.sampled_from([0.0, 0.5, 1.0]), min_size=2, max_size=5).filter(
+                lambda t: any(b <= a for a, b in itertools.pairwise(t))
+            ),
+            st.just([-1.0, 1.0]),
+        ).map(times),
+        st.tuples(
+            st.sampled_from(["accelerations", "effort"]),
+            st.one_of(
+                st.lists(st.floats(-100, -1), min_size=1, max_size=6),  # negative and short
+                st.lists(st.sampled_from([*NON_FINITE, 1.0]), min_size=7, max_size=7).filter(
+                    lambda v: not all(map(math.isfinite, v))
+                ),
+            ),
+        ).map(ignored),
+        st.sampled_from([10_001, 100_000]).map(huge),
+        st.just(
+            Case(trajectory_goal(ARM, [(0.0, far_start)]), "t = 0 far from here", INVALID_GOAL)
+        ),
+        st.just(Case(trajectory_goal(ARM, []), "no points", INVALID_GOAL)),
+        st.just(empty),
+        st.just(Case(multi_dof, "multi_dof_trajectory", INVALID_JOINTS)),
+    )
+
+
+def gripper_goal(position: float, max_effort: float = 0.0) -> GripperCommand.Goal:
+    return GripperCommand.Goal(command=GripperTarget(position=position, max_effort=max_effort))
+
+
+def gripper_outcome(reply: GoalReply) -> str:
+    names = {v: k for k, v in vars(GoalStatus).items() if k.startswith("STATUS_")}
+    return "REJECTED" if reply.result is None else names[reply.status].removeprefix("STATUS_")
+
+
+def gripper_problem(reply: GoalReply) -> str | None:
+    """GripperCommand's result has no text (the reason is in the node's log): an aborted
+    goal must not claim it reached the opening."""
+    if reply.result is not None and reply.status == GoalStatus.STATUS_ABORTED:
+        return "aborted but reached_goal" if reply.result.reached_goal else None
+    return None
+
+
+def gripper_cases() -> st.SearchStrategy[Case]:
+    """Openings outside the 0–0.11 m stroke or not finite, efforts negative or not finite."""
+    aborted = frozenset({"ABORTED"})
+    return st.one_of(
+        st.one_of(
+            st.sampled_from([*NON_FINITE, *HUGE, -1e-9, 0.111]), st.floats(-1e300, -1e-6)
+        ).map(lambda p: Case(gripper_goal(p), "opening outside the stroke", aborted)),
+        st.one_of(st.sampled_from([*NON_FINITE, -1e300]), st.floats(-1e300, -1e-6)).map(
+            lambda e: Case(gripper_goal(0.05, e), "bad max_effort", aborted)
+        ),
+        st.sampled_from([1e6, 1e300]).map(
+            lambda e: Case(
+                gripper_goal(0.05, e), "huge max_effort (capped)", frozenset({"SUCCEEDED"})
+            )
+        ),
+    )
+
+
+def action_endpoints(node: Node) -> dict[str, tuple[Endpoint, Callable[[], st.SearchStrategy]]]:
+    """sim_node's arm and gripper actions with their case strategies."""
+    return {
+        "/arm_controller/follow_joint_trajectory": (
+            Endpoint(
+                "/arm_controller/follow_joint_trajectory",
+                "sim_node",
+                action_sender(
+                    node, FollowJointTrajectory, "/arm_controller/follow_joint_trajectory"
+                ),
+                trajectory_outcome,
+                Case(valid_trajectory(), "valid", frozenset({"SUCCESSFUL"})),
+                trajectory_problem,
+            ),
+            trajectory_cases,
+        ),
+        "/gripper_controller/gripper_cmd": (
+            Endpoint(
+                "/gripper_controller/gripper_cmd",
+                "sim_node",
+                action_sender(node, GripperCommand, "/gripper_controller/gripper_cmd"),
+                gripper_outcome,
+                Case(gripper_goal(0.05), "valid", frozenset({"SUCCEEDED"})),
+                gripper_problem,
+            ),
+            gripper_cases,
+        ),
+    }
+
+
 # ------------------------------------------------------------------ layer_node
 
 
@@ -726,7 +982,11 @@ def service_endpoints(node: Node) -> dict[str, tuple[Endpoint, Callable[[], st.S
                 "planner_node",
                 service_sender(node, PlanPlace, "/plan_place"),
                 planner_outcome,
-                Case(valid_place(), "valid", frozenset({"SUCCESS"})),
+                Case(
+                    changed(valid_place(), time_budget=VALID_BUDGET),
+                    "valid",
+                    frozenset({"SUCCESS"}),
+                ),
                 planner_problem,
             ),
             lambda: st.one_of(place_cases(), random_place()),
@@ -737,7 +997,11 @@ def service_endpoints(node: Node) -> dict[str, tuple[Endpoint, Callable[[], st.S
                 "planner_node",
                 service_sender(node, PlanStrike, "/plan_strike"),
                 planner_outcome,
-                Case(valid_strike(), "valid", frozenset({"SUCCESS"})),
+                Case(
+                    changed(valid_strike(), time_budget=VALID_BUDGET),
+                    "valid",
+                    frozenset({"SUCCESS"}),
+                ),
                 planner_problem,
             ),
             strike_cases,
@@ -781,20 +1045,29 @@ def service_endpoints(node: Node) -> dict[str, tuple[Endpoint, Callable[[], st.S
 SIM_ARGUMENTS = ("domino_count:=3", "camera_rate:=2.0", "ground_truth_rate:=1.0")
 
 
+FUZZED_NODES = {
+    "planner_node": ("dombot_planner", ()),
+    "sim_node": ("dombot_sim", SIM_ARGUMENTS),
+    "perception_node": ("dombot_perception", ("use_sim_time:=true",)),
+    "layer_node": ("dombot_layer", ()),
+}
+NEEDS = {"perception_node": {"sim_node"}}  # its images and clock
+
+
 @contextmanager
-def fuzzed_nodes(logs: Path) -> Iterator[dict[str, Popen]]:
-    """planner_node, sim_node (3 dominoes), perception_node (sim time) and layer_node,
-    each its own process, logging to ``logs``/NAME.log (a fuzzed node logs every refusal:
-    a pipe nobody reads would fill up and block it)."""
-    nodes = {
-        "planner_node": ("dombot_planner", ()),
-        "sim_node": ("dombot_sim", SIM_ARGUMENTS),
-        "perception_node": ("dombot_perception", ("use_sim_time:=true",)),
-        "layer_node": ("dombot_layer", ()),
-    }
+def fuzzed_nodes(
+    logs: Path, serving: Collection[str] = tuple(FUZZED_NODES)
+) -> Iterator[dict[str, Popen]]:
+    """The ``serving`` nodes and those they need: planner_node, sim_node (3 dominoes),
+    perception_node (sim time), layer_node, each its own process, logging to
+    ``logs``/NAME.log (a fuzzed node logs every refusal: a pipe nobody reads would fill up
+    and block it)."""
+    wanted = set(serving).union(*(NEEDS.get(name, set()) for name in serving))
     with ExitStack() as stack:
         processes = {}
-        for name, (package, parameters) in nodes.items():
+        for name, (package, parameters) in FUZZED_NODES.items():
+            if name not in wanted:
+                continue
             arguments = ["--ros-args", *(a for p in parameters for a in ("-p", p))]
             log = stack.enter_context((logs / f"{name}.log").open("w"))
             processes[name] = stack.enter_context(

@@ -46,11 +46,14 @@ from dombot_msgs.msg import WheelVelocities
 GEOMETRY_PREFIX = "geometry."
 # largest accepted value of each setting: 1000 Hz (faster floods the topics), 10 m/s, 1 m
 MAX_SETTING = {"command_rate": 1000.0, "forward_speed": 10.0, "deposit_spacing": 1.0}
+# Hz: slower is no stream, and a rate of 1e-63 made a timer period beyond int64 ns that
+# killed the node (a TypeError in the parameter callback)
+MIN_SETTING = {"command_rate": 0.01}
 
 
 @dataclass(frozen=True)
 class Driving:
-    """How the vehicle is driven; each a number in (0, MAX_SETTING]."""
+    """How the vehicle is driven; each a number in (0, MAX_SETTING], at least MIN_SETTING."""
 
     forward_speed: float = described(0.1, "front-axle midpoint speed [m/s]")
     deposit_spacing: float = described(0.03, "domino spacing on paths [m]")
@@ -58,13 +61,15 @@ class Driving:
 
     def __post_init__(self) -> None:
         for name, most in MAX_SETTING.items():
-            value = getattr(self, name)
+            value, least = getattr(self, name), MIN_SETTING.get(name)
             if (
                 isinstance(value, bool)
                 or not isinstance(value, int | float)
                 or not (math.isfinite(value) and 0 < value <= most)
+                or (least is not None and value < least)
             ):
-                raise ValueError(f"{name} must be a number in (0, {most}], got {value!r}")
+                bounds = f"[{least}, {most}]" if least is not None else f"(0, {most}]"
+                raise ValueError(f"{name} must be a number in {bounds}, got {value!r}")
 
 
 class LayerNode(Node):

@@ -47,6 +47,7 @@ from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
 from dombot_adapters.parameters import DataclassParameters, described
 from dombot_adapters.pose_messages import pose_matrix, pose_message
 from dombot_description import tilt_from_vertical
+from dombot_description.allocator import tune_allocator
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
@@ -706,6 +707,7 @@ def _vector(values: np.ndarray) -> Vector3:
 
 
 def main(args: list[str] | None = None) -> None:
+    tune_allocator()
     rclpy.init(args=args)
     try:
         node = PerceptionNode()

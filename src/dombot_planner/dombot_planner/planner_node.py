@@ -14,7 +14,6 @@ arriving while MAX_WAITING others wait (the executor keeps threads free for bad 
 
 from __future__ import annotations
 
-import ctypes
 import dataclasses
 import threading
 import time
@@ -34,6 +33,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
 from dombot_adapters.parameters import DataclassParameters
 from dombot_adapters.pose_messages import duration_message, pose_message
+from dombot_description.allocator import release_memory, tune_allocator
 from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
 from dombot_msgs.srv import PlanPlace, PlanStrike
@@ -41,16 +41,19 @@ from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN, Plan
 from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
 from dombot_planner.request import (
+    MAX_PILE_DOMINOES,
+    MAX_PILE_POINTS,
+    MAX_STANDING,
     PickPlaceRequest,
     StrikeRequest,
     arm_positions,
+    check_sizes,
     finger_opening,
     pose_from,
 )
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.strike import StrikePlan, StrikePlanner
 
-LIBC = ctypes.CDLL("libc.so.6")
 MAX_WAITING = 8  # requests that may wait for the planner at once (docs/PLANNER.md)
 # executor threads: the waiting requests, the one being planned, /joint_states and one
 # more, so a bad request never waits for a thread
@@ -81,13 +84,6 @@ def sweep_of(message: Vector3) -> np.ndarray | None:
 
 def poses_of(poses: list[Pose], field: str) -> tuple:
     return tuple(pose_of(p, f"{field}[{i}]") for i, p in enumerate(poses))
-
-
-def release_memory() -> None:
-    """Hand freed heap back to the system. A request's scenes (Drake contexts with its
-    dominoes registered) are freed after the reply, but glibc kept the pages: RSS grew by
-    ~25 MB per 400-domino request (~470 MB per 2,000) until the next malloc_trim."""
-    LIBC.malloc_trim(0)
 
 
 class PlannerNode(Node):
@@ -249,6 +245,11 @@ class PlannerNode(Node):
         )
 
     def _place_request(self, request: PlanPlace.Request) -> PickPlaceRequest:
+        check_sizes(  # before converting thousands of poses
+            standing_dominoes=(len(request.standing_dominoes), MAX_STANDING),
+            pile_dominoes=(len(request.pile_dominoes), MAX_PILE_DOMINOES),
+            pile_points=(len(request.pile_points), MAX_PILE_POINTS),
+        )
         return PickPlaceRequest(
             domino_pose=pose_of(request.domino_pose, "domino_pose"),
             place_pose=pose_of(request.place_pose, "place_pose"),
@@ -266,6 +267,7 @@ class PlannerNode(Node):
         )
 
     def _strike_request(self, request: PlanStrike.Request) -> StrikeRequest:
+        check_sizes(standing_dominoes=(len(request.standing_dominoes), MAX_STANDING))
         state = self._start_state(request.start_state)
         return StrikeRequest(
             domino_pose=pose_of(request.domino_pose, "domino_pose"),
@@ -317,6 +319,7 @@ class PlannerNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
+    tune_allocator()
     rclpy.init(args=args)
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
     try:

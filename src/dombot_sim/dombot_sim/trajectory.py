@@ -4,8 +4,10 @@ The rules are those of ros2_control's joint_trajectory_controller and
 control_msgs/FollowJointTrajectory, so a client written for a real arm works here:
 
 * joint names must be the arm's joints, each once, in any order (INVALID_JOINTS);
-* times strictly increase; every value is finite; positions stay within the joint
-  limits and velocities within the velocity limits (INVALID_GOAL);
+* at most MAX_POINTS points; times strictly increase; every value is finite; positions
+  stay within the joint limits and velocities within the velocity limits; accelerations
+  and efforts, if given, have one value per joint (they are not used: the arm is
+  position-controlled) (INVALID_GOAL);
 * a first point later than t = 0 is reached from the current position; a first point at
   t = 0 must be the current position (within ``start_tolerance``);
 * with velocities the spline is cubic Hermite through positions and velocities;
@@ -15,8 +17,9 @@ control_msgs/FollowJointTrajectory, so a client written for a real arm works her
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
@@ -29,6 +32,7 @@ POINT_SPEED_MARGIN = 1e-3  # relative: a time-optimal plan's points sit on the l
 # (a time-optimal trajectory rides the limit); like a robot driver, allow a little.
 INTERPOLATION_SPEED_MARGIN = 0.05
 SPEED_SAMPLES_PER_SEGMENT = 20
+MAX_POINTS = 10_000  # 100 s at the planner's 0.01 s sample period; more is a mistake
 
 
 class TrajectoryError(ValueError):
@@ -55,15 +59,30 @@ def build_trajectory(
     current: np.ndarray,
     limits: JointLimits,
     start_tolerance: float = 0.05,
+    unused: Mapping[str, Sequence[Sequence[float]]] = MappingProxyType({}),
 ) -> PiecewisePolynomial:
-    """The spline (rows in ``limits.names`` order, time from 0) or a TrajectoryError."""
+    """The spline (rows in ``limits.names`` order, time from 0) or a TrajectoryError.
+
+    ``unused``: per-point fields only checked (name → rows, e.g. accelerations, effort):
+    each row empty or one finite value per joint, as joint_trajectory_controller wants.
+    """
     order = _joint_order(joint_names, limits.names)
+    if len(times) > MAX_POINTS:
+        raise TrajectoryError(
+            INVALID_GOAL, f"{len(times)} points; at most {MAX_POINTS} are followed"
+        )
     times = np.asarray(times, dtype=float)
     q = _matrix(positions, len(times), len(order), "positions")[:, order]
     v = None
     if velocities is not None:
         v = _matrix(velocities, len(times), len(order), "velocities")[:, order]
     _check_values(times, q, v, limits)
+    for what, rows in unused.items():
+        for i, row in enumerate(rows):
+            if len(row) and (len(row) != len(order) or not np.all(np.isfinite(row))):
+                raise TrajectoryError(
+                    INVALID_GOAL, f"point {i}: {what} must be empty or {len(order)} finite numbers"
+                )
     if times[0] > 0.0:
         times = np.concatenate([[0.0], times])
         q = np.vstack([current, q])
@@ -141,7 +160,7 @@ def _check_spline_speed(
     samples = np.concatenate(
         [np.linspace(a, b, SPEED_SAMPLES_PER_SEGMENT) for a, b in itertools.pairwise(times)]
     )
-    speed = np.abs(np.column_stack([spline.EvalDerivative(t, 1) for t in samples]).T)
+    speed = np.abs(spline.MakeDerivative(1).vector_values(samples).T)
     _check_speeds(speed, limits, "interpolated velocity, sample", INTERPOLATION_SPEED_MARGIN)
 
 
