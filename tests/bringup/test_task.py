@@ -214,7 +214,7 @@ def test_two_slots_nothing_plans_for_do_not_put_each_other_off_for_ever() -> Non
 
 
 def test_a_slot_and_a_gap_nothing_plans_for_let_a_later_gap_have_its_turn() -> None:
-    """S-curve seed 3 (f457642): the 9th and the 10th (a gap) were put off, each put back
+    """An S-curve run: the 9th and the 10th (a gap) were put off, each put back
     just behind the other and before the 15th (a gap still to build), and took turns for
     ever (151 deferrals): a slot put off goes behind one that was not."""
     turns, report = turns_with_slots_put_off(job(count=7, section=2), {1, 2})
@@ -359,7 +359,7 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
 
 
 def test_the_pile_is_ignored_only_when_putting_the_slot_off_cannot_help() -> None:
-    """Ignoring its pile's detected dominoes, 6 of 12 picks failed (f611c37): their cores
+    """Ignoring its pile's detected dominoes, 6 of 12 picks failed: their cores
     are tried first. After a refusal about the slot (its place), other slots may go
     first; refusals about the dominoes would recur at every slot."""
     no_grasp = ErrorCode.GRASP_UNREACHABLE
@@ -627,7 +627,7 @@ def test_a_domino_found_off_in_the_hand_above_its_slot_is_carried_again_from_the
 
 
 def test_a_fallen_run_domino_carried_again_is_no_obstacle_where_it_lay() -> None:
-    """S-curve seed 5 of ec6d172: the fallen 2nd, picked up and read 6° off in the hand,
+    """An S-curve run: the fallen 2nd, picked up and read 6° off in the hand,
     was to be corrected, but its own pose where it had lain "overlapped" its slot: every
     correction was refused, and the build stopped there. Other fallen ones still count."""
     cell = hand_cell(STANDING, 0.003, math.radians(6.0))
@@ -645,7 +645,7 @@ def test_a_fallen_run_domino_carried_again_is_no_obstacle_where_it_lay() -> None
 def test_a_hold_that_can_neither_stand_nor_be_carried_again_goes_back_to_the_pile(
     tilt: float, put_back: bool
 ) -> None:
-    """S-curve seed 3 (f457642's validation): a hold read 12.3° off at a safety gap, and
+    """An S-curve run: a hold read 12.3° off at a safety gap, and
     the planner found no place reachable with it; placed as held it fell and took four
     standing neighbours with it. Now it is carried back along "transfer" to above where
     it was picked, let go there, and the arm goes back along "transfer" (out of the
@@ -766,7 +766,7 @@ def crowded(jammed: bool = False) -> ScriptedCell:
 
 
 def test_a_crowded_pile_is_pushed_apart_before_it_is_ignored() -> None:
-    """Ignoring their pile, 4 of 6 picks of crowded dominoes closed on nothing (7500eb1):
+    """Ignoring their pile, 4 of 6 picks of crowded dominoes closed on nothing:
     one of the roomiest is pushed out of the row instead, and the pile looked at again."""
     cell = crowded()
     run_job = job(cell)
@@ -785,7 +785,7 @@ def test_a_crowded_pile_is_pushed_apart_before_it_is_ignored() -> None:
 
 
 def test_a_jammed_pile_is_stirred_through_its_neighbours_before_it_is_ignored() -> None:
-    """S-curve seeds 1 and 3 of 4b0c505: late in the build the pile's last dominoes lay
+    """Two S-curve runs: late in the build the pile's last dominoes lay
     jammed, no push kept clear of the neighbours, and 6 of 7 picks ignoring the pile
     failed. A domino is pushed through its neighbours instead (they move along), and the
     pile looked at again: no attempt is spent."""
@@ -887,7 +887,7 @@ def test_a_recorded_pick_holds_what_it_was_planned_from_and_the_truth(tmp_path: 
 def test_the_placement_check_asks_for_frames_taken_once_the_placement_settled() -> None:
     """On a loaded CPU the images arrive after the joint states: a frame from before a
     placement had perception call the domino standing there MISSING, and the next carry
-    swept through it (S-curve seed 1 of e81930d's benchmark: the whole run fell)."""
+    swept through it (an S-curve benchmark run: the whole run fell)."""
     cell = ScriptedCell(sim_time=7.0)
     run_job = job(cell)
     check(run_job, 0)
@@ -933,7 +933,7 @@ def test_the_simulated_time_of_a_slot_is_told_by_activity_over_its_turns() -> No
 
 def test_a_look_that_found_no_frames_is_asked_again_a_camera_period_on() -> None:
     """Asked again at once, a run's first looks after the reset found no frames for four
-    attempts and it stopped (S-curve seed 1 of 4ee4e82)."""
+    attempts and it stopped (an S-curve run)."""
     cell = ScriptedCell(sim_time=7.0, pile=[flat(0.55)], looks_without_frames=2)
     run_job = job(cell)
     period = 1.0 / run_job.settings.camera_rate

@@ -65,8 +65,7 @@ def attempt(
 
     A pile domino the planner turns in place first (no grasp reached it as it lay) is
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
-    picked blind where the plan expected it to settle, 3 of 7 such picks missed
-    (f611c37 and the first runs of 7500eb1).
+    picked blind where the plan expected it to settle, 3 of 7 such picks missed.
     """
     found = candidates(job, failed)
     settings = job.settings

@@ -183,10 +183,10 @@ def place_request(job: Job, index: int, candidate: Candidate, pile: str) -> Plac
         grasp=candidate.grasp,
         pile=tuple(candidate.neighbours) if with_pile else (),
         # unlike the pile's boxes, kept in the last resort too: it missed 8 of 11
-        # (58ee708), and a domino never detected is nothing the pads may push
+        # picks, and a domino never detected is nothing the pads may push
         pile_points=pile_points(job, candidate, pile),
         # with the cores, only the gripper body and arm keep clear of the boxes: in 2 of
-        # 3 such picks that missed (4e6913a), the body was 6-9 mm inside one
+        # 3 such picks that missed, the body was 6-9 mm inside one
         pads_into_pile=pile == PILE_CORES,
         time_budget=job.settings.plan_budget,
     )

@@ -138,8 +138,8 @@ def in_hand(job: Job, hold: Hold) -> InHand:
         PlaceRequest(
             domino=measured,
             place=job.releases[hold.index],
-            # a fallen run domino being carried is no obstacle where it lay (S-curve seed 5
-            # of ec6d172: its own pose "overlapped" its slot, every correction was
+            # a fallen run domino being carried is no obstacle where it lay (an S-curve
+            # run: its own pose "overlapped" its slot, every correction was
             # refused, and the build stopped at that slot)
             standing=(
                 *job.state.standing.values(),

@@ -22,7 +22,7 @@ class ArmJobSettings:
     # the roomiest with their pile's cores (the pads may reach into a neighbour's box but
     # not its core; the gripper body keeps clear of the box), then ignoring the pile
     # (unless the slot can be put off instead).
-    # Ignoring it, 6 of 12 picks failed (f611c37); replayed, each of the 6 had the pads'
+    # Ignoring it, 6 of 12 picks failed; replayed, each of the 6 had the pads'
     # path 3.3-7.7 mm deep in a detected neighbour, the 6 that held at most 2.9 mm.
     max_candidates: int = 16
     last_resort_candidates: int = 3
@@ -73,22 +73,22 @@ class ArmJobSettings:
     in_hand_tolerance: float = 0.002  # m
     in_hand_tilt_tolerance: float = math.radians(1.5)
     # However far it turned: placed as held, a domino leaning more than ~9° (its thickness
-    # over its height) cannot stand. The two holds read 12.1° and 12.2° off in the
-    # benchmark of 4e6913a were placed as held (the bound was 12°) and fell, one at a
+    # over its height) cannot stand. The two holds read 12.1° and 12.2° off in a
+    # benchmark were placed as held (the bound was 12°) and fell, one at a
     # safety gap taking four standing neighbours with it; a correction from above the slot
-    # placed one read 10.8° off 0.8 mm from its target (7500eb1).
+    # placed one read 10.8° off 0.8 mm from its target.
     # A foot read farther off than this is taken as a misreading: pinched at its top and
     # turned 12°, the foot moves ~7 mm (35 mm of lever), plus what the hold slides
     # (≤ 5.4 mm read in the benchmarks). One read 13.1 mm off at 1.5°
     # in a stale frame (now refused: not_before), whose hold the simulator had shifting
-    # 1.1 mm / 1.2°, was "corrected" 12.9 mm off; at 6 mm (e81930d) a real 6.2 mm / 3.9°
+    # 1.1 mm / 1.2°, was "corrected" 12.9 mm off; at 6 mm a real 6.2 mm / 3.9°
     # shift was refused and the domino stood 7.1 mm off.
     in_hand_max_off: float = 0.012  # m
     # A hold leaning more than this whose correction the planner refused is not placed
-    # (it would fall, at a safety gap onto standing neighbours: S-curve seed 3 of f457642's
-    # validation, 12.3°) but carried back over the pile and dropped there: the ~8.9° at
+    # (it would fall, at a safety gap onto standing neighbours: an S-curve run,
+    # 12.3°) but carried back over the pile and dropped there: the ~8.9° at
     # which a domino's weight leaves its foot (thickness over height). Not less: carried
-    # back, a loose hold read 8.3° slipped out over the run and felled four (ec6d172).
+    # back, a loose hold read 8.3° slipped out over the run and felled four.
     put_back_lean: float = math.atan2(DOMINO_SIZE[2], DOMINO_SIZE[0])
     grasp_width_tolerance: float = 0.003  # m: fingers stopped this close to the domino width
     # ... but not this much inside it: a flat hold stops 0.2-0.8 mm inside (the pads' give
