@@ -286,8 +286,9 @@ def test_every_service_list_sees_the_whole_graph(layer_node) -> None:
 
 @pytest.mark.slow
 def test_param_list_get_and_set_on_a_running_node(layer_node) -> None:
-    listing = ros2("param", "list", "/layer_node").stdout.splitlines()
-    assert "  command_rate" in listing and "  geometry.wheel_radius" in listing
+    result = ros2("param", "list", "/layer_node")
+    listing = result.stdout.splitlines()
+    assert "  command_rate" in listing and "  geometry.wheel_radius" in listing, result.stderr
     assert ros2("param", "get", "/layer_node", "command_rate").stdout == "Double value is: 20.0\n"
     assert ros2("param", "set", "/layer_node", "command_rate", "10.0").stdout == (
         "Set parameter successful\n"
@@ -328,7 +329,9 @@ def test_action_list_and_send_goal_with_feedback() -> None:
     lines = result.stdout.splitlines()
     assert lines[:2] == ["Waiting for an action server to become available...", "Sending goal:"]
     assert "Goal accepted with ID: " in result.stdout
-    assert result.stdout.count("Feedback:\n    position: 0.02") == 2
+    # Two are sent once the client's feedback reader is in the graph; the first may still
+    # go before DDS matched the reader (action feedback is volatile, as with ros2cli).
+    assert result.stdout.count("Feedback:\n    position: 0.02") >= 1
     assert "Result:\n    position: 0.05\n" in result.stdout
     assert lines[-1] == "Goal finished with status: SUCCEEDED"
 

@@ -259,14 +259,22 @@ def node_list(node: Node, include_hidden: bool) -> list[str]:
     return sorted(name for name in names if _visible(name, include_hidden))
 
 
+def await_node(node: Node, full_name: str, timeout: float) -> bool:
+    """Whether ``full_name`` joins the graph within ``timeout``: on a loaded machine a named
+    node may be discovered after the graph first looked settled."""
+    deadline = time.monotonic() + timeout
+    while full_name not in node_list(node, include_hidden=True):
+        if time.monotonic() > deadline:
+            return False
+        spin_for(node, 0.1)
+    return True
+
+
 def node_info(node: Node, full_name: str) -> list[str]:
     namespace, _, name = full_name.rpartition("/")
     namespace = namespace or "/"
-    deadline = time.monotonic() + 5.0
-    while full_name not in node_list(node, include_hidden=True):
-        if time.monotonic() > deadline:
-            raise CommandError(f"Unable to find node '{full_name}'")
-        spin_for(node, 0.1)
+    if not await_node(node, full_name, 5.0):
+        raise CommandError(f"Unable to find node '{full_name}'")
     spin_for(node, 0.5)  # its endpoints are announced just after the node itself
     sections = [
         ("Subscribers", node.get_subscriber_names_and_types_by_node(name, namespace)),

@@ -9,7 +9,7 @@ from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter_client import AsyncParameterClient
 
-from dombot_ros2.graph import node_list
+from dombot_ros2.graph import await_node, node_list
 from dombot_ros2.packages import CommandError
 
 # ParameterType → (ros2param's label, the ParameterValue field holding the value)
@@ -31,7 +31,7 @@ def absolute(node_name: str) -> str:
 
 
 def _client(node: Node, node_name: str, timeout: float) -> AsyncParameterClient:
-    if absolute(node_name) not in node_list(node, include_hidden=True):
+    if not await_node(node, absolute(node_name), timeout):
         raise CommandError("Node not found")
     client = AsyncParameterClient(node, absolute(node_name))
     if not client.wait_for_services(timeout_sec=timeout):
