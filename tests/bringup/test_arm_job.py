@@ -14,14 +14,14 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
-from ament_index_python.packages import get_package_prefix
 
 from dombot_bringup.bringup import main as bringup_main
 from dombot_bringup.process_group import ProcessGroup
 from dombot_bringup.recording import header_stamp, recorded_channels, recorded_messages
 from support.planning_clock import UNHURRIED
+from support.ros_processes import executable_path
 
-BRINGUP = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
+BRINGUP = executable_path("dombot_bringup", "bringup")
 LINE = [
     "--layout",
     "line",
@@ -200,7 +200,7 @@ def test_a_dead_simulator_stops_the_job_with_a_report(tmp_path: Path) -> None:
 
 def _child_process(parent: int, package: str, executable: str) -> int | None:
     """PID of the bring-up's child running this installed executable."""
-    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    path = executable_path(package, executable)
     listing = subprocess.run(
         ["pgrep", "-P", str(parent), "-f", str(path)], capture_output=True, text=True
     )

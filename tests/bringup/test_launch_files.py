@@ -8,8 +8,10 @@ import ast
 from pathlib import Path
 
 import pytest
-from ament_index_python.packages import get_package_prefix, get_package_share_directory
+from ament_index_python.packages import get_package_share_directory
 from rclpy.parameter import parameter_dict_from_yaml_file
+
+from support.ros_processes import executable_path
 
 LAUNCH_DIR = Path(get_package_share_directory("dombot_bringup")) / "launch"
 LAUNCH_FILES = sorted(LAUNCH_DIR.glob("*.launch.py"))
@@ -40,7 +42,7 @@ def test_a_launch_file_names_nodes_config_files_and_parameters_that_exist(path: 
     nodes = constant(tree, "NODES")
     assert nodes, "no NODES table"
     for package, executable, overrides in nodes:
-        assert (Path(get_package_prefix(package)) / "lib" / package / executable).is_file()
+        assert executable_path(package, executable).is_file()
         config = Path(get_package_share_directory(package)) / "config" / f"{executable}.yaml"
         declared = set(parameter_dict_from_yaml_file(str(config))) | {"use_sim_time"}
         assert set(overrides) <= declared, f"{executable}: unknown {set(overrides) - declared}"

@@ -7,11 +7,12 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from ament_index_python.packages import get_package_prefix
+
+from support.ros_processes import executable_path
 
 
 def bringup(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
-    executable = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
+    executable = executable_path("dombot_bringup", "bringup")
     return subprocess.run(
         [str(executable), "--job", "layer", *args], capture_output=True, text=True, timeout=timeout
     )

@@ -9,11 +9,11 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from ament_index_python.packages import get_package_prefix
 
 from support.planning_clock import UNHURRIED
+from support.ros_processes import executable_path
 
-BRINGUP = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
+BRINGUP = executable_path("dombot_bringup", "bringup")
 # The spiral's first four, a safety gap at the 3rd (--section 2): filled last, between the
 # standing 2nd and 4th, where the spiral turns 20° a domino; there every place pose has the
 # pads in a standing neighbour (the planner proves it: PLACE_UNREACHABLE), while the 1st,

@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 import pytest
-from ament_index_python.packages import get_package_prefix
 
 from dombot_description.console import INTERRUPTED
+from support.ros_processes import executable_path
 
 SLOW_MODULE = """
 import sys, time
@@ -61,7 +61,7 @@ def test_ctrl_c_during_start_up_leaves_no_traceback(
 ) -> None:
     """SIGINT once rclpy's library is loaded: the executable is importing the rest of its
     modules or already starting; either way it ends without a traceback."""
-    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    path = executable_path(package, executable)
     arguments = ["--out", str(tmp_path)] if executable == "bringup" else []
     child = subprocess.Popen(
         [str(path), *arguments], stdout=subprocess.PIPE, stderr=subprocess.STDOUT
@@ -92,7 +92,7 @@ def test_ctrl_c_while_a_node_spins_leaves_no_traceback(
 ) -> None:
     """SIGINT shuts rclpy's context down under the spinning executor, whose next wait then
     fails ('the given context is not valid'): that is a normal stop too."""
-    path = Path(get_package_prefix(package)) / "lib" / package / executable
+    path = executable_path(package, executable)
     child = subprocess.Popen(
         [str(path)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )

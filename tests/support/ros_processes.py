@@ -47,13 +47,17 @@ def python_process(source: str, output: IO | int | None = None) -> Iterator[subp
         yield child
 
 
+def executable_path(package: str, executable: str) -> Path:
+    """An installed executable's path, found through the ament index as ros2 run does."""
+    return Path(get_package_prefix(package)) / "lib" / package / executable
+
+
 @contextmanager
 def installed_node(
     package: str, executable: str, *args: str, output: IO | int | None = None
 ) -> Iterator[subprocess.Popen[str]]:
     """Run an installed node executable, found through the ament index as ros2 run does."""
-    path = Path(get_package_prefix(package)) / "lib" / package / executable
-    with _supervised([str(path), *args], output) as child:
+    with _supervised([str(executable_path(package, executable)), *args], output) as child:
         yield child
 
 
