@@ -119,7 +119,7 @@ def initial_pose(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) 
 
 def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre, unit long-side direction and (long, short) sides of the smallest rectangle."""
-    planar = _hull_candidates(planar)
+    planar = hull_candidates(planar)
     try:
         hull = planar[ConvexHull(planar).vertices]
     except (QhullError, ValueError) as error:
@@ -143,7 +143,7 @@ def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     return center, axis_y, np.array([height[best], width[best]])
 
 
-def _hull_candidates(planar: np.ndarray) -> np.ndarray:
+def hull_candidates(planar: np.ndarray) -> np.ndarray:
     """The points not strictly inside the polygon of the extreme points along
     ``HULL_DIRECTIONS``: the same convex hull, and Qhull's time grows with its input
     (500 points: four times the time of the ~40 left)."""
