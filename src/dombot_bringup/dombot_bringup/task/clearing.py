@@ -55,7 +55,7 @@ def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:
     jammed), asking the planner at most spread_plans times for each; True once the arm
     moved."""
     settings, asked = job.settings, [0, 0]
-    pile = roomiest_first([c for c in candidates if c.run_index is None])
+    pile = roomiest_first([c for c in candidates if c.from_pile])
     for jammed in (False, True):
         for candidate in pile:
             if asked[jammed] == settings.spread_plans:
@@ -84,7 +84,7 @@ def pushes(
     settings, state = job.settings, job.state
     seen = [*candidate.neighbours, *state.standing.values()]
     centre = np.asarray(settings.pile_center)
-    fallen = list(state.fallen.values())
+    fallen = state.lying()
     if jammed:  # the neighbours are pushed along: only the run is an obstacle
         found = stir_pushes(candidate.pose, seen, candidate.points, centre, settings.spread_radius)
         return found, fallen, "through its neighbours"
