@@ -18,7 +18,10 @@ from dombot_bringup.process_group import resident_mb
 from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, EXIT_SUCCESS, worst_status
 from dombot_bringup.task.cell import PlacementCheck, Pose, Seen
 from dombot_bringup.task.cycles import cycle_line, run_cycles
+from dombot_bringup.task.geometry import spot_of
+from dombot_bringup.task.loop import Turn, place_slot
 from dombot_bringup.task.settings import ArmJobSettings
+from dombot_bringup.task.state import Job
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode
 from support.scripted_cell import ScriptedCell, flat, lying, planned, refused
@@ -102,6 +105,25 @@ def test_a_toppled_domino_no_grasp_reaches_stays_an_obstacle_and_the_pile_fills_
     lying_y = sorted(round(p[1, 3], 4) for p in second[0].standing)
     assert lying_y == FALLEN_Y  # the toppled dominoes kept clear of
     assert jobs[-1].report.cycles[1].toppled_picked == 0
+
+
+def test_a_toppled_domino_no_grasp_reaches_over_a_slot_is_swept_aside_and_kept_in_mind() -> None:
+    """Its pick refused, it would block the slot for good: pushed across the run (no slot
+    of this layout to check it by), it is taken to lie where the push left it."""
+    cell = ScriptedCell(pile=[flat(0.55)], strike=lambda request: planned())
+    from_pile = lambda request: request.domino[1, 3] < PILE_Y + 0.1  # noqa: E731
+    cell.place = lambda r: planned("place") if cell.strike_requests and from_pile(r) else refused()
+    layout = layouts.line((0.45, 0.0), math.pi / 2, 3)
+    job = Job.new(cell, layout, "line", ArmJobSettings())
+    over_slot = lying(0.463, 0.0)  # 13 mm beside slot 1's centre, across the run
+    job.state.toppled = [over_slot]
+    job.state.unpickable.append(spot_of(over_slot))
+    assert place_slot(job, 0, may_defer=True) is Turn.PLACED
+    (sweep,) = cell.strike_requests
+    assert sweep.domino is over_slot and sweep.sweep.tolist() == pytest.approx([1.0, 0.0])
+    (moved,) = job.state.toppled
+    assert moved[0, 3] == pytest.approx(0.463 + sweep.push_distance)
+    assert len(job.report.dominoes[0].sweeps) == 1
 
 
 def test_a_failed_cycle_ends_the_cycles_and_the_exit_status_is_the_worst() -> None:
