@@ -87,6 +87,25 @@ def test_the_next_cycle_builds_from_the_toppled_dominoes_nearest_each_slot_first
     assert line.startswith("cycle 2/2 'line': SUCCESS, 3/3 placed") and "sim 512" in line
 
 
+def test_the_next_layout_is_built_in_the_second_cycle_from_the_first_ones_toppled() -> None:
+    cell = toppling_cell()
+    beside = layouts.line((0.50, 0.0), math.pi / 2, 2)  # two, 5 cm further out
+    jobs = run_cycles(cell, [("line", LINE), ("line of two", beside)], ArmJobSettings(pile=8))
+    second = cell.place_requests[3:]
+    assert [round(r.place[0, 3], 4) for r in second] == [0.5, 0.5]  # the new slots
+    assert [(round(r.domino[0, 3], 4), round(r.domino[1, 3], 4)) for r in second] == [
+        (0.45, 0.02),  # nearest the first new slot
+        (0.45, 0.0488),
+    ]
+    report = jobs[-1].report
+    assert report.layout == "line of two" and len(report.dominoes) == 2
+    assert [(c.layout, c.dominoes, c.placed) for c in report.cycles] == [
+        ("line", 3, 3),
+        ("line of two", 2, 2),
+    ]
+    assert (report.cycles[1].toppled_found, report.cycles[1].toppled_picked) == (3, 2)
+
+
 def test_a_toppled_domino_no_grasp_reaches_stays_an_obstacle_and_the_pile_fills_in() -> None:
     cell = toppling_cell()
     built = 0
