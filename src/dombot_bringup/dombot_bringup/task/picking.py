@@ -51,6 +51,7 @@ class Candidate:
     grasp: Pose | None = None
     # seen points near it on no detected domino: the planner keeps the pads' path clear
     points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    toppled: bool = False  # one an earlier cycle knocked down (``BuildState.toppled``)
 
     def spot(self) -> np.ndarray:
         return spot_of(self.pose)
@@ -64,7 +65,13 @@ class Candidate:
         return "fallen" if self.posture is None else POSTURE_NAMES[self.posture]
 
     @property
+    def from_pile(self) -> bool:
+        return self.run_index is None and not self.toppled
+
+    @property
     def source(self) -> str:
+        if self.toppled:
+            return "toppled domino"
         return "pile" if self.run_index is None else f"run domino {self.run_index + 1}"
 
 
@@ -77,22 +84,34 @@ class Offer:
     plan: Plan
 
 
-def candidates(job: Job, failed: list[np.ndarray]) -> list[Candidate]:
-    """Fallen run dominoes first (they block the run), then the pile's detections in
-    perception's order (best grasp first); none where an attempt failed or no grasp
-    reaches."""
+def candidates(job: Job, failed: list[np.ndarray], index: int) -> list[Candidate]:
+    """Fallen run dominoes first (they block the run), then those an earlier cycle toppled
+    (``toppled_candidates``), then the pile's detections in perception's order (best grasp
+    first); none where an attempt failed or no grasp reaches."""
     avoid = failed + job.state.unpickable
-    fallen = job.state.fallen
+    fallen, lying = job.state.fallen, job.state.lying()
     run = [
-        Candidate(pose, index, neighbours_of(pose, fallen.values()))
-        for index, pose in sorted(fallen.items())
+        Candidate(pose, k, neighbours_of(pose, lying))
+        for k, pose in sorted(fallen.items())
         if not near_any(spot_of(pose), avoid)
     ]
+    run += toppled_candidates(job, index, avoid)
     detections, unexplained = look_at_pile(job)
     return run + [
         pile_candidate(d, detections, unexplained)
         for d in detections
         if d.posture in PICKABLE_POSTURES and not near_any(spot_of(d.pose), avoid)
+    ]
+
+
+def toppled_candidates(job: Job, index: int, avoid: list[np.ndarray]) -> list[Candidate]:
+    """The dominoes an earlier cycle toppled, nearest slot ``index`` first: one lying over
+    the slot is cleared by becoming its domino, and the rest of a fallen row lies ahead."""
+    lying, place = job.state.lying(), spot_of(job.targets[index])
+    toppled = [pose for pose in job.state.toppled if not near_any(spot_of(pose), avoid)]
+    toppled.sort(key=lambda pose: float(np.linalg.norm(spot_of(pose) - place)))
+    return [
+        Candidate(pose, neighbours=neighbours_of(pose, lying), toppled=True) for pose in toppled
     ]
 
 
@@ -204,9 +223,9 @@ def pile_points(job: Job, candidate: Candidate, pile: str) -> np.ndarray:
 def debris(
     job: Job, candidate: Candidate, with_pile: bool = True, place: np.ndarray | None = None
 ) -> list[Pose]:
-    """Fallen run dominoes lying in the build area (not the one to pick): the carry and
-    the placement must keep clear of them as of the standing ones (a placement that met
-    one fell). Its pile neighbours go to the planner as its pile instead; ignoring its
+    """Fallen and toppled dominoes lying in the build area (not the one to pick): the
+    carry and the placement must keep clear of them as of the standing ones (a placement
+    that met one fell). Its pile neighbours go to the planner as its pile instead; ignoring its
     pile, those within a domino length of the ``place`` stay obstacles: a run domino
     picked so was placed onto the fallen ones beside it, and fell (S-curve seed 2)."""
     pile = [
@@ -216,6 +235,6 @@ def debris(
     ]
     return [
         pose
-        for pose in job.state.fallen.values()
+        for pose in job.state.lying()
         if pose is not candidate.pose and not any(pose is p for p in pile)
     ]
