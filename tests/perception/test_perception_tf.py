@@ -120,3 +120,25 @@ def test_a_moved_rig_moves_the_detection_with_it(camera: Camera) -> None:
     assert spin_until(camera.node, shifted, 120)
     position, message = camera.detected_position()
     assert np.linalg.norm(position - (TRUTH[:3, 3] + shift)) < 0.003, message
+
+
+def test_a_reliable_reader_of_a_best_effort_camera_is_told_so(camera: Camera) -> None:
+    """Left at its default (reliable), perception gets nothing from a best-effort camera;
+    the answer says so and what to set, instead of only "nothing received"."""
+    arguments = [
+        "--ros-args",
+        *("-r", "__node:=perception_reliable"),
+        *("-r", "perception/detect:=reliable/detect"),
+        *("-r", "perception/check_placement:=reliable/check_placement"),
+        *("-p", "cameras:=[camera_0, camera_1]"),
+        *("-p", "continuous:=false"),
+    ]
+    with installed_node("dombot_perception", "perception_node", *arguments) as process:
+        detect = camera.node.create_client(DetectDominoes, "/reliable/detect")
+        assert spin_until(camera.node, detect.service_is_ready, 120), process.poll()
+        response = call_service(camera.node, detect, DetectDominoes.Request(), timeout=60)
+        camera.node.destroy_client(detect)
+        assert response is not None and not response.success
+        assert "best effort" in response.message, response.message
+        assert "image_reliability" in response.message, response.message
+        assert process.poll() is None

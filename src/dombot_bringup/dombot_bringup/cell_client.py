@@ -21,6 +21,7 @@ from control_msgs.msg import JointTolerance
 from geometry_msgs.msg import Point, Vector3
 from geometry_msgs.msg import Pose as PoseMessage
 from rclpy.action import ActionClient
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -199,7 +200,13 @@ class CellClient:
         with self._lock:
             self._images[topic] = None
         subscription = self.node.create_subscription(
-            Image, topic, lambda m: self._on_image(topic, m), matching_qos(publishers, 2)
+            Image,
+            topic,
+            lambda m: self._on_image(topic, m),
+            matching_qos(publishers, 2),
+            # no QoS event handler: destroyed below while the executor may be building
+            # its wait set, which rclpy does not guard for event handlers (InvalidHandle)
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
         )
 
         def fresh() -> Image | None:

@@ -34,11 +34,12 @@ import rclpy
 from geometry_msgs.msg import Point, PoseArray, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
@@ -340,8 +341,15 @@ class PerceptionNode(Node):
         def on_info(message: CameraInfo) -> None:
             camera.info = message
 
+        # No QoS event handlers: rclpy's executor does not guard an event handler destroyed
+        # (by _release, on a service thread) while it builds its wait set, and the node died
+        # of InvalidHandle (rclpy issues 1206, 1284). A QoS mismatch is said instead where
+        # no frames came (``_nothing_received``).
+        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
         return [
-            self.create_subscription(kind, topic, callback, qos, callback_group=self._inputs_group)
+            self.create_subscription(
+                kind, topic, callback, qos, callback_group=self._inputs_group, event_callbacks=quiet
+            )
             for topic, kind, callback in (
                 (f"{name}/color/image_raw", Image, on_color),
                 (f"{name}/depth/image_raw", Image, on_depth),
@@ -405,7 +413,7 @@ class PerceptionNode(Node):
         for name in names:
             camera = self.inputs[name]
             if not camera.colors or not camera.depths or camera.info is None:
-                warnings.append(f"{name}: no colour, depth and camera_info received yet")
+                warnings.append(f"{name}: {self._nothing_received(name)}")
                 continue
             age = self._seconds_now() - camera.received
             if age > max_age:
@@ -418,6 +426,24 @@ class PerceptionNode(Node):
             except ValueError as error:
                 warnings.append(f"{name}: {error}")
         return views, warnings
+
+    def _nothing_received(self, name: str) -> str:
+        """Why a camera sent nothing, as far as the graph tells: no publisher, or only
+        best-effort ones that a reliable subscription gets nothing from."""
+        topic = self.resolve_topic_name(f"{name}/color/image_raw")
+        publishers = self.get_publishers_info_by_topic(topic)
+        if not publishers:
+            return f"no colour, depth and camera_info received yet: nothing publishes {topic}"
+        reliable = self.settings.image_reliability == "reliable"
+        if reliable and all(
+            p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in publishers
+        ):
+            return (
+                f"no colour, depth and camera_info received: {topic} is published best effort, "
+                "which a reliable subscription gets nothing from (set image_reliability "
+                "best_effort)"
+            )
+        return "no colour, depth and camera_info received yet"
 
     def _view(self, name: str, camera: CameraInput, not_before: float) -> CameraView:
         ahead = not_before - _seconds(camera.colors[-1].header.stamp)
