@@ -126,6 +126,10 @@ class ScriptedCell:
             return Detections(False, "no colour received yet")
         return Detections(True, "", tuple(self.pile), self.unexplained)
 
+    def detect_later(self, not_before: float) -> Callable[[], Detections]:
+        answer = self.detect(not_before)
+        return lambda: answer
+
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
     ) -> PlacementCheck:
