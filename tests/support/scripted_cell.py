@@ -116,6 +116,7 @@ class ScriptedCell:
     checks: list[tuple[list[Pose], bool, float]] = field(default_factory=list)
     executed: list[Trajectory] = field(default_factory=list)
     openings: list[float] = field(default_factory=list)  # every gripper command's opening
+    truths_asked: list[float] = field(default_factory=list)  # each truth's newer_than
 
     def reset(self, pile: int, seed: int) -> str:
         return f"poured {pile} (seed {seed})"
@@ -159,6 +160,7 @@ class ScriptedCell:
         return self.joint_positions
 
     def truth(self, newer_than: float) -> list[tuple[str, Pose]]:
+        self.truths_asked.append(newer_than)
         return self.dominoes
 
     def picture(self, camera: str, not_before: float) -> np.ndarray:

@@ -143,6 +143,7 @@ def look_at_pile(job: Job) -> tuple[list[Detection], np.ndarray]:
         else:
             not_before = settle(job) if job.still_since is None else job.still_since
         answer = job.cell.detect(not_before)
+        job.pile_seen_at = not_before
         if answer.success and answer.dominoes:
             return list(answer.dominoes), answer.unexplained
         log(f"perception: {answer.message}; asking again")

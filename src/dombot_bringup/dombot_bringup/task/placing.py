@@ -82,7 +82,8 @@ def execute(
     for segment in segments:
         approach = is_approach(segment)
         if hold is not None and segment.label == PLACE_SEGMENT and pile_in_view(job, hold.index):
-            job.pile_look = cell.detect_later(cell.sim_time)
+            job.pile_seen_at = cell.sim_time
+            job.pile_look = cell.detect_later(job.pile_seen_at)
         if len(segment.trajectory.times):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             motion = cell.execute(segment.trajectory, tolerance)

@@ -57,6 +57,7 @@ class Job:
     # A look at the pile asked for while the arm placed (its answer when called), for the
     # next pick: nothing touches the pile between (any other motion drops it).
     pile_look: Callable[[], Detections] | None = None
+    pile_seen_at: float = 0.0  # simulated time of the last look's frames (not_before)
     pictures: dict[str, np.ndarray] = field(default_factory=dict)  # for the report
     picks_recorded: int = 0  # files in settings.record_picks
 
