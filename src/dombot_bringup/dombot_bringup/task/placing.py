@@ -11,7 +11,15 @@ from enum import Enum
 
 import numpy as np
 
-from dombot_bringup.task.cell import GripperEvent, PlaceRequest, Pose, Seen, Segment, Trajectory
+from dombot_bringup.task.cell import (
+    CellError,
+    GripperEvent,
+    PlaceRequest,
+    Pose,
+    Seen,
+    Segment,
+    Trajectory,
+)
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.geometry import foot_distance
 from dombot_bringup.task.state import Job, log
@@ -82,8 +90,7 @@ def execute(
     for segment in segments:
         approach = is_approach(segment)
         if hold is not None and segment.label == PLACE_SEGMENT and pile_in_view(job, hold.index):
-            job.pile_seen_at = cell.sim_time
-            job.pile_look = cell.detect_later(job.pile_seen_at)
+            look_while_placing(job)
         if len(segment.trajectory.times):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             motion = cell.execute(segment.trajectory, tolerance)
@@ -175,6 +182,16 @@ def pile_in_view(job: Job, index: int) -> bool:
     since the lift, so a look from then on serves the next pick."""
     slot = job.releases[index][:2, 3]
     return bool(np.hypot(*(slot - job.settings.pile_center)) >= job.settings.look_while_placing)
+
+
+def look_while_placing(job: Job) -> None:
+    """Ask for the next pick's look at the pile now (``job.pile_look``); perception not
+    answering the request leaves it to the next look, it does not fail the placement."""
+    job.pile_seen_at = job.cell.sim_time
+    try:
+        job.pile_look = job.cell.detect_later(job.pile_seen_at)
+    except CellError as error:
+        log(f"perception while placing: {error}")
 
 
 def put_back(job: Job, transfer: Segment) -> None:
