@@ -896,6 +896,69 @@ def test_the_placement_check_asks_for_frames_taken_once_the_placement_settled() 
     ]
 
 
+def test_the_placement_settles_from_when_the_fingers_let_go_not_from_the_retreat_end() -> None:
+    """The domino settles while the arm retreats: the check waits only what is left of
+    settle_after_place since the release, and nothing once the retreat took longer."""
+    settle = ArmJobSettings().settle_after_place
+    for retreat, waited in ((0.2 * settle, 0.8 * settle), (2.0 * settle, 0.0)):
+        cell = ScriptedCell(sim_time=7.0)
+        run_job = job(cell)
+        release = Segment("place", path("place"), GripperEvent.OPEN, 0.034, 0.0)
+        execute(run_job, [release, Segment("retreat", path("retreat"))])
+        cell.sim_time += retreat  # the scripted cell's motions take no time
+        check(run_job, 0)
+        assert cell.sim_time == pytest.approx(7.0 + retreat + waited)
+        assert cell.checks[0][2] == pytest.approx(cell.sim_time)
+    failed_pick = ScriptedCell(sim_time=7.0, grip=0.0)  # fingers closed on nothing
+    run_job = job(failed_pick)
+    execute(run_job, [closing()])
+    check(run_job, 0)  # no domino let go on its slot: the whole settle
+    assert failed_pick.checks[0][2] == pytest.approx(7.0 + settle)
+
+
+def test_the_next_look_at_the_pile_is_made_while_the_arm_places_clear_of_the_pile() -> None:
+    """Placing at a slot the pile cameras see past, perception looks at the still pile as
+    the descent starts, and the next pick takes that answer instead of a look of its own;
+    at a slot near the pile, after any other motion, or when that look found nothing, the
+    pile is looked at afresh."""
+    cell = ScriptedCell(sim_time=7.0, pile=[flat(0.55)])
+    run_job = job(cell)
+    far, near_pile = 3, 0  # slot 1 lies 0.316 m from the pile's centre
+    place = [Segment("place", path("place"), GripperEvent.OPEN, 0.034, 0.0), "retreat"]
+    held = np.eye(4)
+    execute(run_job, planned(*place).segments, Hold(far, held, held))
+    assert cell.looks == [7.0]  # as the descent started
+    cell.sim_time = 9.0
+    detections, _ = look_at_pile(run_job)
+    assert cell.looks == [7.0] and len(detections) == 1  # its answer served
+    look_at_pile(run_job)
+    assert cell.looks == [7.0, 9.0]  # once only
+    execute(run_job, planned(*place).segments, Hold(near_pile, held, held))
+    assert cell.looks == [7.0, 9.0]
+    execute(run_job, planned(*place).segments, Hold(far, held, held))
+    execute(run_job, planned("approach", "push").segments, holds_domino=False)  # a strike
+    look_at_pile(run_job)
+    assert cell.looks == [7.0, 9.0, 9.0, 9.0]  # the look while placing was dropped
+    empty = ScriptedCell(sim_time=7.0)
+    run_job = job(empty)
+    execute(run_job, planned(*place).segments, Hold(far, held, held))
+    empty.sim_time = 9.0
+    empty.pile = [flat(0.55)]
+    assert len(look_at_pile(run_job)[0]) == 1 and empty.looks == [7.0, 9.0]
+
+
+def test_the_pick_records_the_truth_as_the_pile_lay_when_looked_at_without_waiting() -> None:
+    """The report's truth at a pick is any ground truth since the look (nothing moved
+    the pile since): waiting for a message newer than the pick cost ~0.25 s a domino."""
+    cell = ScriptedCell(sim_time=7.0, pile=[flat(0.55)])
+    run_job = job(cell)
+    look_at_pile(run_job)
+    cell.sim_time = 8.5  # planned meanwhile
+    truth(run_job, since=run_job.pile_seen_at)
+    truth(run_job)
+    assert cell.truths_asked == [pytest.approx(7.0 - 0.01), pytest.approx(8.5 - 0.01)]
+
+
 def test_the_look_at_the_pile_after_a_placement_check_takes_its_frames_until_the_arm_moves():
     """Nothing moved since the check's frames: the pile cameras' are as fresh (no frame
     to wait for). Once the arm moved, perception is asked for frames from then on, and

@@ -117,6 +117,7 @@ class ScriptedCell:
     checks: list[tuple[list[Pose], bool, float]] = field(default_factory=list)
     executed: list[Trajectory] = field(default_factory=list)
     openings: list[float] = field(default_factory=list)  # every gripper command's opening
+    truths_asked: list[float] = field(default_factory=list)  # each truth's newer_than
 
     def reset(self, pile: int, seed: int) -> str:
         self.resets.append((pile, seed))
@@ -127,6 +128,10 @@ class ScriptedCell:
         if len(self.looks) <= self.looks_without_frames:
             return Detections(False, "no colour received yet")
         return Detections(True, "", tuple(self.pile), self.unexplained)
+
+    def detect_later(self, not_before: float) -> Callable[[], Detections]:
+        answer = self.detect(not_before)
+        return lambda: answer
 
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
@@ -157,6 +162,7 @@ class ScriptedCell:
         return self.joint_positions
 
     def truth(self, newer_than: float) -> list[tuple[str, Pose]]:
+        self.truths_asked.append(newer_than)
         return self.dominoes
 
     def picture(self, camera: str, not_before: float) -> np.ndarray:

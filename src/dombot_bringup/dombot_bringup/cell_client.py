@@ -75,6 +75,8 @@ SERVERS = {
     "/plan_place": "planner_node",
     "/plan_strike": "planner_node",
 }
+DETECT_SERVICE = "/perception/detect"
+DETECT_TIMEOUT = 30.0  # s of wall time for perception's answer
 RESTART_TIMEOUT = 600.0  # s for a restarted server to come back (the planner builds plants)
 
 
@@ -331,13 +333,28 @@ class CellClient:
     def detect(self, not_before: float = 0.0) -> Detections:
         """Perception's detections in frames stamped at or after ``not_before`` [s]."""
         request = DetectDominoes.Request(not_before=time_message(not_before))
-        answer = self.call("/perception/detect", request, 30.0)
-        return Detections(
-            answer.success,
-            answer.message,
-            tuple(detection_of(d) for d in answer.detections.detections),
-            np.array([(p.x, p.y, p.z) for p in answer.unexplained_points]).reshape(-1, 3),
-        )
+        return detections_of(self.call(DETECT_SERVICE, request, DETECT_TIMEOUT))
+
+    def detect_later(self, not_before: float) -> Callable[[], Detections]:
+        """``detect(not_before)`` sent now; the returned function waits for its answer
+        (only that wait counts as perception's time), or asks again when perception was
+        restarted meanwhile."""
+        self._await_server(DETECT_SERVICE, DETECT_TIMEOUT)
+        started = self._server_restarts(DETECT_SERVICE)
+        request = DetectDominoes.Request(not_before=time_message(not_before))
+        future = self._clients[DETECT_SERVICE].call_async(request)
+
+        def answer_or_restart():
+            if future.done():
+                return future.result()
+            return _RESTARTED if self._server_restarts(DETECT_SERVICE) != started else None
+
+        def answer() -> Detections:
+            with self._spending(DETECT_SERVICE):
+                response = self._wait(answer_or_restart, DETECT_TIMEOUT, DETECT_SERVICE)
+            return self.detect(not_before) if response is _RESTARTED else detections_of(response)
+
+        return answer
 
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
@@ -451,6 +468,15 @@ def pose_or_none(message: PoseMessage) -> Pose | None:
     base: unset, as planner_node reads a grasp_pose)."""
     p = message.position
     return pose_matrix(message) if any((p.x, p.y, p.z)) else None
+
+
+def detections_of(answer: DetectDominoes.Response) -> Detections:
+    return Detections(
+        answer.success,
+        answer.message,
+        tuple(detection_of(d) for d in answer.detections.detections),
+        np.array([(p.x, p.y, p.z) for p in answer.unexplained_points]).reshape(-1, 3),
+    )
 
 
 def detection_of(message: DominoDetection) -> Detection:

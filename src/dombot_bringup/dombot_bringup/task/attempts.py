@@ -101,7 +101,8 @@ def pick(
         f"{spot.round(3).tolist()}, {plan.message}{PILE_WORDS[offer.pile]}"
     )
     state.forget_refusals_near(spot)  # the pick disturbs its neighbours
-    dominoes = truth(job)
+    # the pile as it lay when looked at: a report-only wait would cost the robot time
+    dominoes = truth(job, since=job.pile_seen_at)
     truth_name, seen_off = nearest_truth(dominoes, candidate.pose)
     job.report.dominoes[index].pick_seen_off_mm.append(seen_off)
     record = pick_record(job, index, candidate, offer.pile, plan, dominoes)

@@ -9,7 +9,7 @@ script) runs the same task core.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Protocol
@@ -187,6 +187,12 @@ class Cell(Protocol):
 
     def detect(self, not_before: float) -> Detections:
         """Perception's look at the pile in frames stamped at or after ``not_before``."""
+        ...
+
+    def detect_later(self, not_before: float) -> Callable[[], Detections]:
+        """Ask for ``detect(not_before)`` now and take the answer later (calling the
+        returned function, which raises ``CellError`` when none comes): perception looks
+        while the arm goes on."""
         ...
 
     def check_placement(

@@ -22,6 +22,15 @@ def settle(job: Job, seconds: float = 0.0) -> float:
     return fresh
 
 
+def settle_left(job: Job) -> float:
+    """Simulated seconds still to wait before a placement is looked at: settle_after_place
+    from when the fingers let go (the retreat takes its share), else from now."""
+    settle = job.settings.settle_after_place
+    if job.let_go_at is None:
+        return settle
+    return max(0.0, settle - (job.cell.sim_time - job.let_go_at))
+
+
 def check(job: Job, index: int, just_placed: bool = True) -> bool:
     """Perception looks at every domino placed so far and at slot ``index``; fallen ones
     are queued again. True: slot ``index`` stands.
@@ -35,7 +44,7 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
     keep_when_stuck. A hidden ``index`` not ``just_placed`` (e.g. the slot a fallen
     domino was swept out of) is not taken as standing."""
     settings, state = job.settings, job.state
-    fresh = settle(job, settings.settle_after_place)
+    fresh = settle(job, settle_left(job))
     job.still_since = fresh
     indices = sorted(set(state.standing) | {index})
     answer = job.cell.check_placement([job.targets[i] for i in indices], not_before=fresh)

@@ -12,7 +12,15 @@ import numpy as np
 from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED, pile_cores
 from dombot_bringup.sections import count_refusal
-from dombot_bringup.task.cell import CellError, Detection, PlaceRequest, Plan, Pose, Posture
+from dombot_bringup.task.cell import (
+    CellError,
+    Detection,
+    Detections,
+    PlaceRequest,
+    Plan,
+    Pose,
+    Posture,
+)
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.geometry import near, near_any, neighbours_of, points_near, spot_of
 from dombot_bringup.task.state import Job, log
@@ -136,7 +144,17 @@ def look_at_pile(job: Job) -> tuple[list[Detection], np.ndarray]:
     through) is asked again a camera period on (a run whose first looks came at once
     after the reset found no frames for four attempts); an empty answer after that is
     taken as the pile's end. Nothing moved since the last placement check: its frames
-    serve (no frame to wait for)."""
+    serve (no frame to wait for); a look asked for while the arm placed
+    (``job.pile_look``) serves when it found dominoes."""
+    early, job.pile_look = job.pile_look, None
+    if early is not None:
+        try:
+            answer = early()
+        except CellError as error:
+            answer = Detections(False, str(error))
+        if answer.success and answer.dominoes:
+            return list(answer.dominoes), answer.unexplained
+        log(f"perception while placing: {answer.message}; looking again")
     period = 1.0 / job.settings.camera_rate
     for attempt in range(DETECT_TRIES):
         if attempt:  # a camera period on: frames asked for at once may not be out yet
@@ -144,6 +162,7 @@ def look_at_pile(job: Job) -> tuple[list[Detection], np.ndarray]:
         else:
             not_before = settle(job) if job.still_since is None else job.still_since
         answer = job.cell.detect(not_before)
+        job.pile_seen_at = not_before
         if answer.success and answer.dominoes:
             return list(answer.dominoes), answer.unexplained
         log(f"perception: {answer.message}; asking again")

@@ -9,7 +9,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
 
-from dombot_bringup.task.cell import GripperEvent, PlaceRequest, Pose, Seen, Segment, Trajectory
+import numpy as np
+
+from dombot_bringup.task.cell import (
+    CellError,
+    GripperEvent,
+    PlaceRequest,
+    Pose,
+    Seen,
+    Segment,
+    Trajectory,
+)
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.geometry import foot_distance
 from dombot_bringup.task.state import Job, log
@@ -19,6 +29,7 @@ BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto i
 LET_GO_OPENING = 0.04  # m the fingers open to, around a 24 mm domino, to let go of it
 # ends straight above the slot, where the hold is looked at (a regrasp's own is prefixed)
 HOLD_CHECK_SEGMENT = "transfer"
+PLACE_SEGMENT = "place"  # the fingers let go of the domino on its slot once it ends
 REGRASP_PREFIX = "regrasp_"  # the planner's turn in place before the pick proper
 # What the in-hand check says when it cannot measure the held domino.
 IN_HAND_WORDS = {
@@ -74,10 +85,12 @@ def execute(
     anything else is tried. With a ``hold``, the domino is looked at in the hand where
     "transfer" ends above its slot (``in_hand``).
     """
-    job.still_since = None
+    job.still_since = job.let_go_at = job.pile_look = None
     cell = job.cell
     for segment in segments:
         approach = is_approach(segment)
+        if hold is not None and segment.label == PLACE_SEGMENT and pile_in_view(job, hold.index):
+            look_while_placing(job)
         if len(segment.trajectory.times):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             motion = cell.execute(segment.trajectory, tolerance)
@@ -97,6 +110,8 @@ def execute(
                 )
         elif segment.gripper_after == GripperEvent.OPEN:
             cell.gripper(segment.gripper_position, 0.0)
+            if segment.label == PLACE_SEGMENT:
+                job.let_go_at = cell.sim_time
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
             verdict = in_hand(job, hold)
             if verdict.put_back:
@@ -159,6 +174,24 @@ def in_hand(job: Job, hold: Hold) -> InHand:
         return InHand(put_back=f"put back on the pile: held {seen}, {refused}")
     log(f"{name} in the hand: {seen}; {refused}; placing it as it is")
     return InHand()
+
+
+def pile_in_view(job: Job, index: int) -> bool:
+    """Whether the pile cameras see the pile past the arm placing at slot ``index``: the
+    slot at least look_while_placing from the pile's centre. The pile has been still
+    since the lift, so a look from then on serves the next pick."""
+    slot = job.releases[index][:2, 3]
+    return bool(np.hypot(*(slot - job.settings.pile_center)) >= job.settings.look_while_placing)
+
+
+def look_while_placing(job: Job) -> None:
+    """Ask for the next pick's look at the pile now (``job.pile_look``); perception not
+    answering the request leaves it to the next look, it does not fail the placement."""
+    job.pile_seen_at = job.cell.sim_time
+    try:
+        job.pile_look = job.cell.detect_later(job.pile_seen_at)
+    except CellError as error:
+        log(f"perception while placing: {error}")
 
 
 def put_back(job: Job, transfer: Segment) -> None:

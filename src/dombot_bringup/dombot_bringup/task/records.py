@@ -21,9 +21,11 @@ REPORT_CAMERA = "camera_2"  # its frames of the run before and after the strike 
 Truth = list[tuple[str, Pose]]  # the simulator's dominoes: names and poses
 
 
-def truth(job: Job) -> Truth:
-    """The simulator's dominoes now, for the report only."""
-    return job.cell.truth(newer_than=job.cell.sim_time - 0.01)
+def truth(job: Job, since: float | None = None) -> Truth:
+    """The simulator's dominoes now, or as they lay at any time from ``since`` on (nothing
+    moved them since: no wait for the next ground-truth message), for the report only."""
+    newer_than = job.cell.sim_time if since is None else min(since, job.cell.sim_time)
+    return job.cell.truth(newer_than=newer_than - 0.01)
 
 
 def nearest_truth(dominoes: Truth, pose: Pose) -> tuple[str, float | None]:

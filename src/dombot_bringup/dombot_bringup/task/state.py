@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -10,7 +10,7 @@ import numpy as np
 from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import say
 from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
-from dombot_bringup.task.cell import Cell, Pose
+from dombot_bringup.task.cell import Cell, Detections, Pose
 from dombot_bringup.task.geometry import near, placement_pose
 from dombot_bringup.task.settings import ArmJobSettings
 
@@ -58,6 +58,13 @@ class Job:
     # Simulated time since which nothing has moved (the arm at rest after a placement
     # check): the pile cameras' frames from then on are fresh for the next look too.
     still_since: float | None = None
+    # Simulated time the fingers let go of the domino just placed (None: not since the
+    # arm last started moving): its settling runs on while the arm retreats.
+    let_go_at: float | None = None
+    # A look at the pile asked for while the arm placed (its answer when called), for the
+    # next pick: nothing touches the pile between (any other motion drops it).
+    pile_look: Callable[[], Detections] | None = None
+    pile_seen_at: float = 0.0  # simulated time of the last look's frames (not_before)
     pictures: dict[str, np.ndarray] = field(default_factory=dict)  # for the report
     picks_recorded: int = 0  # files in settings.record_picks
 
