@@ -21,7 +21,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dombot_perception.backprojection import OrganisedCloud
-from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_boxes
 from dombot_perception.domino_model import (
     DOMINO_SIZE,
     box_signed_distance,
@@ -222,14 +222,15 @@ def _assign_to_boxes(
     """
     stride = max(1, points.shape[0] // SPLIT_FIT_POINTS)  # fit on a subset, assign all
     for _ in range(SPLIT_ROUNDS):
-        distances = np.full((count, points.shape[0]), np.inf)
-        for k in range(count):
-            part = np.flatnonzero(assignment == k)[::stride]
-            if part.size >= 10:
-                key = part.tobytes()
-                if key not in fitted:
-                    fitted[key] = _box_distances(points, normals, part)
-                distances[k] = fitted[key]
+        parts = [np.flatnonzero(assignment == k)[::stride] for k in range(count)]
+        keys = [part.tobytes() if part.size >= 10 else None for part in parts]
+        new = {
+            key: part
+            for key, part in zip(keys, parts, strict=True)
+            if key is not None and key not in fitted
+        }
+        fitted.update(zip(new, _box_distances(points, normals, list(new.values())), strict=True))
+        distances = np.array([fitted[key] if key else _no_box(points) for key in keys])
         nearest = distances.min(axis=0)
         if not np.all(np.isfinite(nearest)):
             return assignment, 0.0
@@ -241,14 +242,22 @@ def _assign_to_boxes(
     return assignment, on_box
 
 
-def _box_distances(points: np.ndarray, normals: np.ndarray, part: np.ndarray) -> np.ndarray:
-    """Distance of every point to the surface of the box fitted to the ``part`` (indices);
-    inf when no box fits."""
-    try:
-        pose = fit_domino_box(points[part], normals[part], SPLIT_FIT).X_WD
-    except BoxFitError:
-        return np.full(points.shape[0], np.inf)
-    return np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
+def _box_distances(
+    points: np.ndarray, normals: np.ndarray, parts: list[np.ndarray]
+) -> list[np.ndarray]:
+    """Distance of every point to the surface of the box fitted to each of the ``parts``
+    (indices; their boxes fitted in one batch); inf when no box fits."""
+    fits = fit_domino_boxes([(points[part], normals[part]) for part in parts], SPLIT_FIT)
+    return [
+        _no_box(points)
+        if isinstance(fit, BoxFitError)
+        else np.abs(box_signed_distance((points - fit.X_WD[:3, 3]) @ fit.X_WD[:3, :3]))
+        for fit in fits
+    ]
+
+
+def _no_box(points: np.ndarray) -> np.ndarray:
+    return np.full(points.shape[0], np.inf)
 
 
 def _too_big(points: np.ndarray, margin: float) -> bool:
