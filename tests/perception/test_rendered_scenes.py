@@ -105,10 +105,10 @@ def test_after_a_pick_unchanged_regions_keep_their_parts_unsplit(
     for view in render_scene({0: first, 1: second, 2: picked}):
         assert len(masks(remembering, view)) == 3  # the pair was split
     splits = []
-    split = geometric_segmentation.split_oversized
+    split = geometric_segmentation.split_steps
     monkeypatch.setattr(
         geometric_segmentation,
-        "split_oversized",
+        "split_steps",
         lambda *args: splits.append(args[0].size) or split(*args),
     )
     for view in render_scene({0: first, 1: second}):
