@@ -10,7 +10,13 @@ from dombot_description.scenario import load_scenario
 from dombot_perception import geometric_segmentation
 from dombot_perception import pipeline as pipeline_module
 from dombot_perception.backprojection import backproject, organised_cloud
-from dombot_perception.box_fit import BoxFitConfig, fit_statistics
+from dombot_perception.box_fit import (
+    BoxFitConfig,
+    BoxFitError,
+    fit_domino_box,
+    fit_domino_boxes,
+    fit_statistics,
+)
 from dombot_perception.depth_check import (
     DepthCheckConfig,
     correct_box,
@@ -99,10 +105,10 @@ def test_after_a_pick_unchanged_regions_keep_their_parts_unsplit(
     for view in render_scene({0: first, 1: second, 2: picked}):
         assert len(masks(remembering, view)) == 3  # the pair was split
     splits = []
-    split = geometric_segmentation.split_oversized
+    split = geometric_segmentation.split_steps
     monkeypatch.setattr(
         geometric_segmentation,
-        "split_oversized",
+        "split_steps",
         lambda *args: splits.append(args[0].size) or split(*args),
     )
     for view in render_scene({0: first, 1: second}):
@@ -129,9 +135,9 @@ def test_after_a_pick_unchanged_clouds_keep_their_boxes(render_scene, monkeypatc
     remembering = build_pipeline(load_scenario())
     assert len(remembering.run(render_scene({0: lone, 1: other, 2: picked})).detections) == 3
     fits = []
-    fit = pipeline_module.fit_domino_box
+    fit = pipeline_module.fit_domino_boxes
     monkeypatch.setattr(
-        pipeline_module, "fit_domino_box", lambda *args: fits.append(args[0]) or fit(*args)
+        pipeline_module, "fit_domino_boxes", lambda *args: fits.extend(args[0]) or fit(*args)
     )
     views = render_scene({0: lone, 1: other})
     remembered = remembering.run(views)
@@ -148,6 +154,40 @@ def test_after_a_pick_unchanged_clouds_keep_their_boxes(render_scene, monkeypatc
     again = remembering.run(changed)
     assert len(fits) == 1, "only the domino whose depth window changed is fitted again"
     assert _detected(again) == _detected(fresh)
+
+
+def test_boxes_fitted_in_one_batch_are_the_boxes_fitted_one_by_one(render_scene, monkeypatch):
+    """The clouds a pipeline fits (the parts its segmenter tries while splitting touching
+    dominoes, and the fused clouds) get the same boxes, or the same error, in one batch as
+    one at a time: the batch pads the clouds but computes each box on its own points."""
+    yaw = 0.3
+    first = flat(X0, Y0, yaw)
+    second = first.copy()
+    second[:3, 3] += Rotation.from_euler("z", yaw).as_matrix() @ np.array([0.012, 0.024, 0.0])
+    tilted = domino_pose(
+        (X0 - 0.05, Y0 + 0.05, 0.012), Rotation.from_euler("xz", [0.35, 1.0]).as_matrix()
+    )
+    batches = []
+    for module in (geometric_segmentation, pipeline_module):
+        fit = module.fit_domino_boxes
+        monkeypatch.setattr(
+            module, "fit_domino_boxes", lambda *args, fit=fit: batches.append(args) or fit(*args)
+        )
+    scene = {0: first, 1: second, 2: tilted, 3: flat(X0 + 0.05, Y0 - 0.04, 2.0)}
+    build_pipeline(load_scenario()).run(render_scene(scene))
+    clouds = [(cloud, config) for batch, config in batches for cloud in batch]
+    assert len(clouds) > 10 and max(len(batch) for batch, _ in batches) >= 3
+    for batch, config in batches:
+        for (points, normals), batched in zip(batch, fit_domino_boxes(batch, config), strict=True):
+            try:
+                alone = fit_domino_box(points, normals, config)
+            except BoxFitError as error:
+                assert isinstance(batched, BoxFitError) and str(batched) == str(error)
+                continue
+            assert np.allclose(batched.X_WD, alone.X_WD, rtol=0.0, atol=1e-9)
+            assert np.allclose(batched.extents, alone.extents, rtol=0.0, atol=1e-9)
+            assert abs(batched.fit_error - alone.fit_error) < 1e-12
+            assert batched.inlier_fraction == alone.inlier_fraction
 
 
 def test_upright_domino_is_classified_upright(pipeline, render_scene):

@@ -12,11 +12,9 @@ degrees of freedom. The box always lies behind the visible surface, seen from th
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack
 from scipy.spatial import ConvexHull, QhullError
 
 from dombot_perception.domino_model import (
@@ -25,6 +23,7 @@ from dombot_perception.domino_model import (
     argmax3,
     box_signed_distance,
     dominant_face,
+    norm3,
 )
 
 RECTANGLE_POINTS = 500  # points whose hull gives the initial in-plane axes
@@ -62,23 +61,58 @@ class BoxFitError(ValueError):
 
 def fit_domino_box(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) -> BoxFit:
     """Pose of the domino whose visible surface is ``points`` (normals face the camera)."""
-    if points.shape[0] < 10:
-        raise BoxFitError(f"{points.shape[0]} points are too few for a box fit")
-    rng = None  # made when first needed: most clouds need no subsampling
-    inliers = np.ones(points.shape[0], dtype=bool)
+    fit = fit_domino_boxes([(points, normals)], config)[0]
+    if isinstance(fit, BoxFitError):
+        raise fit
+    return fit
+
+
+def fit_domino_boxes(
+    clouds: list[tuple[np.ndarray, np.ndarray]], config: BoxFitConfig
+) -> list[BoxFit | BoxFitError]:
+    """``fit_domino_box`` of each (points, normals) cloud, or the error that it raises.
+
+    The refinements of all clouds run as one batch (``refine_poses``): a cold detect fits
+    a few hundred boxes, and one at a time most of their cost is numpy's per-call overhead.
+    """
+    fits: list[BoxFit | BoxFitError | None] = [None] * len(clouds)
+    inliers = [np.ones(points.shape[0], dtype=bool) for points, _ in clouds]
+    rngs: list[np.random.Generator | None] = [None] * len(clouds)  # most clouds need none
+    poses: list[np.ndarray | None] = [None] * len(clouds)
+    todo = []
+    for index, (points, _) in enumerate(clouds):
+        if points.shape[0] < 10:
+            fits[index] = BoxFitError(f"{points.shape[0]} points are too few for a box fit")
+        else:
+            todo.append(index)
     for _ in range(config.passes):  # fit, drop points off the box (a neighbour's), refit
-        pose = initial_pose(points[inliers], normals[inliers], config)
-        fitted = points[inliers]
-        if fitted.shape[0] > config.max_fit_points:
-            rng = rng or np.random.default_rng(config.seed)
-            fitted = fitted[rng.choice(fitted.shape[0], config.max_fit_points, replace=False)]
-        pose = refine_pose(pose, fitted, config)
-        residuals = box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3])
-        trimmed = np.abs(residuals) < config.inlier_distance
-        if trimmed.sum() < 10 or np.array_equal(trimmed, inliers):
-            break
-        inliers = trimmed
-    return fit_statistics(pose, points, inliers)
+        started, starts, fitted = [], [], []
+        for index in todo:
+            points, normals = clouds[index]
+            try:
+                starts.append(initial_pose(points[inliers[index]], normals[inliers[index]], config))
+            except BoxFitError as error:
+                fits[index] = error
+                continue
+            subset = points[inliers[index]]
+            if subset.shape[0] > config.max_fit_points:
+                rngs[index] = rngs[index] or np.random.default_rng(config.seed)
+                chosen = rngs[index].choice(subset.shape[0], config.max_fit_points, replace=False)
+                subset = subset[chosen]
+            started.append(index)
+            fitted.append(subset)
+        todo = []
+        for index, pose in zip(started, refine_poses(starts, fitted, config), strict=True):
+            poses[index] = pose
+            residuals = box_signed_distance((clouds[index][0] - pose[:3, 3]) @ pose[:3, :3])
+            trimmed = np.abs(residuals) < config.inlier_distance
+            if trimmed.sum() >= 10 and not np.array_equal(trimmed, inliers[index]):
+                inliers[index] = trimmed
+                todo.append(index)
+    for index, (points, _) in enumerate(clouds):
+        if fits[index] is None:
+            fits[index] = fit_statistics(poses[index], points, inliers[index])
+    return fits
 
 
 def fit_statistics(pose: np.ndarray, points: np.ndarray, inliers: np.ndarray) -> BoxFit:
@@ -185,52 +219,104 @@ def refine_pose(
 ) -> np.ndarray:
     """Point-to-plane ICP against the box model, 6 DoF, started at ``initial``.
 
-    Each point is paired with the box face it is closest to; one damped, Huber-weighted
-    Gauss-Newton step on the point-to-face distances updates the pose. Written out
-    (a few lines of numpy) because a general solver costs tens of milliseconds per box.
-
     ``outside`` are points the box must not contain (where a camera saw past it,
     ``depth_check.DepthEvidence.outside``): while one is inside, the nearest face other
     than the one its ray entered through (``outside_axis``) is pulled onto it, which
     moves the box off the ray without lifting the face the camera saw.
     """
-    rotation, centre = initial[:3, :3].copy(), initial[:3, 3].copy()
+    if outside is None or outside_axis is None:
+        return refine_poses([initial], [points], config)[0]
+    return refine_poses([initial], [points], config, [outside], [outside_axis])[0]
+
+
+def refine_poses(
+    initials: list[np.ndarray],
+    points: list[np.ndarray],
+    config: BoxFitConfig,
+    outside: list[np.ndarray] | None = None,
+    outside_axis: list[np.ndarray] | None = None,
+) -> list[np.ndarray]:
+    """``refine_pose`` of each box, all boxes' ICP steps at once (clouds padded to one size).
+
+    Each point is paired with the box face it is closest to; one damped, Huber-weighted
+    Gauss-Newton step on the point-to-face distances updates each pose, until its step is
+    small. Written out because a general solver costs tens of milliseconds per box.
+    """
+    count = len(initials)
+    if count == 0:
+        return []
+    outside = outside or [np.zeros((0, 3))] * count
+    outside_axis = outside_axis or [np.zeros(0, dtype=np.intp)] * count
+    size = max(p.shape[0] + o.shape[0] for p, o in zip(points, outside, strict=True))
+    padded = np.zeros((count, size, 3))
+    surface = np.zeros((count, size), dtype=bool)  # a visible point (else padding or outside)
+    beyond = np.zeros((count, size), dtype=bool)  # a point the box must not contain
+    entry = np.zeros((count, size), dtype=np.intp)  # the face an outside point's ray entered
+    for box, (cloud, seen, axes) in enumerate(zip(points, outside, outside_axis, strict=True)):
+        end = cloud.shape[0] + seen.shape[0]
+        padded[box, : cloud.shape[0]] = cloud
+        padded[box, cloud.shape[0] : end] = seen
+        surface[box, : cloud.shape[0]] = True
+        beyond[box, cloud.shape[0] : end] = True
+        entry[box, cloud.shape[0] : end] = axes
+    any_beyond = bool(beyond.any())
+    rotation = np.array([pose[:3, :3] for pose in initials])
+    centre = np.array([pose[:3, 3] for pose in initials])
+    active = np.arange(count)
     for _ in range(config.iterations):
-        body = (points - centre) @ rotation
-        axis = argmax3(np.abs(body) - HALF_SIZE)
-        if outside is not None and outside_axis is not None and outside.shape[0]:
-            body, axis = _with_outside(body, axis, (outside - centre) @ rotation, outside_axis)
-        signed = body[np.arange(body.shape[0]), axis]
-        residual = np.abs(signed) - HALF_SIZE[axis]
-        # the face normal is sign * e_axis: the Jacobian row (e_axis x body, -e_axis) times
-        # the sign, which squares to 1 in the Hessian and goes into the gradient
-        face = IDENTITY_3[axis]
-        jacobian = np.empty((body.shape[0], 6))
-        _cross_into(face, body, jacobian)
-        np.negative(face, out=jacobian[:, 3:])
-        weight = np.minimum(1.0, config.loss_scale / np.maximum(np.abs(residual), 1e-12))
-        hessian = jacobian.T @ (weight[:, None] * jacobian)
-        hessian += config.damping * hessian.trace() / 6.0 * IDENTITY_6
-        step = _solve(hessian, -jacobian.T @ (weight * np.sign(signed) * residual))
-        centre = centre + rotation @ step[3:]
-        rotation = rotation @ _rodrigues(step[:3])
-        if _norm(step[3:]) < 1e-5 and _norm(step[:3]) < 1e-4:
+        step = _icp_step(
+            padded[active] - centre[active, None, :],
+            rotation[active],
+            surface[active],
+            (beyond[active], entry[active]) if any_beyond else None,
+            config,
+        )
+        centre[active] += np.einsum("kij,kj->ki", rotation[active], step[:, 3:])
+        rotation[active] = rotation[active] @ _rodrigues(step[:, :3])
+        moving = (norm3(step[:, 3:]) >= 1e-5) | (norm3(step[:, :3]) >= 1e-4)
+        active = active[moving]
+        if active.size == 0:
             break
-    pose = np.eye(4)
-    pose[:3, :3] = rotation
-    pose[:3, 3] = centre
-    return pose
+    poses = np.tile(np.eye(4), (count, 1, 1))
+    poses[:, :3, :3] = rotation
+    poses[:, :3, 3] = centre
+    return list(poses)
 
 
-def _with_outside(
-    body: np.ndarray, axis: np.ndarray, outside_body: np.ndarray, entry_axis: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The surface points and their faces, plus each outside point that is inside the box
-    paired with its nearest face other than the one its ray entered through."""
-    inside = np.all(np.abs(outside_body) < HALF_SIZE, axis=1)
-    depth = HALF_SIZE - np.abs(outside_body[inside])
-    depth[np.arange(depth.shape[0]), entry_axis[inside]] = np.inf
-    return np.vstack([body, outside_body[inside]]), np.concatenate([axis, depth.argmin(axis=1)])
+def _icp_step(
+    offsets: np.ndarray,
+    rotation: np.ndarray,
+    surface: np.ndarray,
+    beyond: tuple[np.ndarray, np.ndarray] | None,
+    config: BoxFitConfig,
+) -> np.ndarray:
+    """One Gauss-Newton step (rotation vector, translation in the body frame) per box;
+    ``offsets`` are the points minus the box centre (boxes x points x 3, padded)."""
+    body = offsets @ rotation
+    axis = argmax3(np.abs(body) - HALF_SIZE)
+    used = surface
+    if beyond is not None:  # outside points inside the box, paired with their nearest face
+        outside, entry = beyond
+        depth = HALF_SIZE - np.abs(body)
+        inside = outside & np.all(depth > 0.0, axis=-1)
+        np.put_along_axis(depth, entry[..., None], np.inf, axis=-1)
+        axis = np.where(outside, depth.argmin(axis=-1), axis)
+        used = surface | inside
+    signed = np.take_along_axis(body, axis[..., None], axis=-1)[..., 0]
+    residual = np.abs(signed) - HALF_SIZE[axis]
+    # the face normal is sign * e_axis: the Jacobian row (e_axis x body, -e_axis) times
+    # the sign, which squares to 1 in the Hessian and goes into the gradient
+    face = IDENTITY_3[axis]
+    jacobian = np.empty((*body.shape[:2], 6))
+    _cross_into(face, body, jacobian)
+    np.negative(face, out=jacobian[..., 3:])
+    weight = np.minimum(1.0, config.loss_scale / np.maximum(np.abs(residual), 1e-12)) * used
+    transposed = jacobian.transpose(0, 2, 1)
+    hessian = transposed @ (weight[..., None] * jacobian)
+    trace = np.trace(hessian, axis1=1, axis2=2)
+    hessian += config.damping * trace[:, None, None] / 6.0 * IDENTITY_6
+    gradient = transposed @ (weight * np.sign(signed) * residual)[..., None]
+    return np.linalg.solve(hessian, -gradient)[..., 0]
 
 
 def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -243,39 +329,28 @@ def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _cross_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """Row-wise a x b into the first three columns of ``out``, column by column (np.cross,
     or fancy-indexed columns, cost more than the rest of an ICP step here)."""
-    a0, a1, a2, b0, b1, b2 = a[:, 0], a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2]
-    np.subtract(a1 * b2, a2 * b1, out=out[:, 0])
-    np.subtract(a2 * b0, a0 * b2, out=out[:, 1])
-    np.subtract(a0 * b1, a1 * b0, out=out[:, 2])
+    a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
 
 
-def _rodrigues(rotation_vector: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues' formula, written out: numpy's calls
-    on a 3-vector cost more than the arithmetic)."""
-    x, y, z = rotation_vector.tolist()
-    angle = math.sqrt(x * x + y * y + z * z)
-    if angle < 1e-12:
-        return IDENTITY_3
-    x, y, z = x / angle, y / angle, z / angle
-    s, c = math.sin(angle), 1.0 - math.cos(angle)
-    return np.array(
-        [
-            [1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
-            [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
-            [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)],
-        ]
-    )
-
-
-def _solve(matrix: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """``np.linalg.solve`` for one small system: LAPACK's gesv, as numpy calls it, without
-    numpy's per-call checks (a third of an ICP step)."""
-    _, _, solution, info = lapack.dgesv(matrix, vector)
-    if info != 0:
-        raise np.linalg.LinAlgError("singular matrix")
-    return solution
-
-
-def _norm(vector: np.ndarray) -> float:
-    """Length of one short vector (what np.linalg.norm computes, without its checks)."""
-    return math.sqrt(float(vector @ vector))
+def _rodrigues(rotation_vectors: np.ndarray) -> np.ndarray:
+    """Rotation matrices of rotation vectors (k x 3), Rodrigues' formula."""
+    angle = norm3(rotation_vectors)
+    still = angle < 1e-12
+    axis = rotation_vectors / np.where(still, 1.0, angle)[:, None]
+    x, y, z = axis[:, 0], axis[:, 1], axis[:, 2]
+    s, c = np.sin(angle), 1.0 - np.cos(angle)
+    matrices = np.empty((angle.size, 3, 3))
+    matrices[:, 0, 0] = 1.0 - c * (y * y + z * z)
+    matrices[:, 0, 1] = c * x * y - s * z
+    matrices[:, 0, 2] = c * x * z + s * y
+    matrices[:, 1, 0] = c * x * y + s * z
+    matrices[:, 1, 1] = 1.0 - c * (x * x + z * z)
+    matrices[:, 1, 2] = c * y * z - s * x
+    matrices[:, 2, 0] = c * x * z - s * y
+    matrices[:, 2, 1] = c * y * z + s * x
+    matrices[:, 2, 2] = 1.0 - c * (x * x + y * y)
+    matrices[still] = IDENTITY_3
+    return matrices

@@ -13,7 +13,9 @@ on their surfaces (see ``split_oversized``).
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Generator
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
@@ -21,7 +23,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dombot_perception.backprojection import OrganisedCloud
-from dombot_perception.box_fit import BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_boxes
 from dombot_perception.domino_model import (
     DOMINO_SIZE,
     box_signed_distance,
@@ -37,6 +39,7 @@ MAX_SPLIT_DEPTH = 3  # a part of a split region may be split again this often
 SPLIT_FIT_POINTS = 600  # points of a region used to fit the boxes that split it
 SPLIT_GOOD_FIT = 0.9  # share of a region's points on their part's box that ends the search
 ON_BOX_DISTANCE = 0.002  # m
+T = TypeVar("T")
 SPLIT_FIT = BoxFitConfig(max_fit_points=120, iterations=8, passes=1)  # quick: only to split
 
 
@@ -73,8 +76,8 @@ class GeometricSegmenter:
         surface_areas = _surface_areas(
             flat_points, flat_normals, cloud.pixel_size.ravel(), view.X_WC[:3, 3]
         )
-        masks: list[np.ndarray] = []
         previous, current = self._previous.get(view.name, {}), {}
+        regions = {}
         for pixels in components:
             if pixels.size < config.min_pixels:
                 continue  # nor could any of its parts be a mask
@@ -84,14 +87,15 @@ class GeometricSegmenter:
                 flat_normals[pixels],
                 surface_areas[pixels],
             )
-            key = _content_key(region)
-            parts = previous.get(key)
-            if parts is None:
-                parts = split_oversized(*region, config.oversize_margin, config.seed)
-            current[key] = parts
-            masks.extend(part for part in parts if part.size >= config.min_pixels)
+            regions[_content_key(region)] = region
+        unsplit = [key for key in regions if key not in previous]
+        splits = [
+            split_steps(*regions[key], config.oversize_margin, config.seed) for key in unsplit
+        ]
+        current = {key: previous[key] for key in regions if key in previous}
+        current.update(zip(unsplit, run_batched(splits), strict=True))
         self._previous[view.name] = current
-        return masks
+        return [part for key in regions for part in current[key] if part.size >= config.min_pixels]
 
 
 def _content_key(arrays: tuple[np.ndarray, ...]) -> bytes:
@@ -150,6 +154,34 @@ def _surface_areas(
         return pixel_size**2 / np.maximum(cosine, 0.2)
 
 
+# a computation that yields the clouds it needs box fits of and is sent the fits back
+FitSteps = Generator[list[tuple[np.ndarray, np.ndarray]], list[BoxFit | BoxFitError], T]
+
+
+def run_batched(tasks: list[FitSteps[T]]) -> list[T]:
+    """Run the ``tasks`` side by side, the box fits all of them ask for at a step fitted in
+    one batch (the fewer, larger batches, the less numpy call overhead per box)."""
+    results: list[T | None] = [None] * len(tasks)
+    waiting: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+
+    def advance(index: int, fits: list[BoxFit | BoxFitError] | None) -> None:
+        try:
+            waiting[index] = tasks[index].send(fits)
+        except StopIteration as done:
+            results[index] = done.value
+
+    for index in range(len(tasks)):
+        advance(index, None)
+    while waiting:
+        asked, waiting = waiting, {}
+        fits = fit_domino_boxes([cloud for clouds in asked.values() for cloud in clouds], SPLIT_FIT)
+        start = 0
+        for index, clouds in asked.items():
+            advance(index, fits[start : start + len(clouds)])
+            start += len(clouds)
+    return results
+
+
 def split_oversized(
     pixels: np.ndarray,
     points: np.ndarray,
@@ -157,22 +189,34 @@ def split_oversized(
     surface_areas: np.ndarray,
     margin: float,
     seed: int,
-    depth: int = 0,
 ) -> list[np.ndarray]:
     """Split a region too big for one domino into k parts, k = its largest face's area
     over a domino's largest face (48 x 24 mm), by seeded k-means on the 3-D points; a
     part still too big (dominoes at different slopes share no dominant face) is split
     again, up to ``MAX_SPLIT_DEPTH`` times."""
+    return run_batched([split_steps(pixels, points, normals, surface_areas, margin, seed)])[0]
+
+
+def split_steps(
+    pixels: np.ndarray,
+    points: np.ndarray,
+    normals: np.ndarray,
+    surface_areas: np.ndarray,
+    margin: float,
+    seed: int,
+    depth: int = 0,
+) -> FitSteps[list[np.ndarray]]:
+    """``split_oversized`` as steps for ``run_batched``."""
     if depth >= MAX_SPLIT_DEPTH or points.shape[0] < 8 or not _too_big(points, margin):
         return [pixels]
     face = dominant_face(normals)
     count = int(np.clip(np.round(surface_areas[face].sum() / face_areas().max()), 2, 6))
-    assignment, count = _best_split(points, normals, count, seed)
+    assignment, count = yield from _best_split(points, normals, count, seed)
     parts = []
     for k in range(count):
         part = assignment == k
         if np.any(part):
-            parts += split_oversized(
+            parts += yield from split_steps(
                 pixels[part],
                 points[part],
                 normals[part],
@@ -186,7 +230,7 @@ def split_oversized(
 
 def _best_split(
     points: np.ndarray, normals: np.ndarray, count: int, seed: int
-) -> tuple[np.ndarray, int]:
+) -> FitSteps[tuple[np.ndarray, int]]:
     """Part labels (and how many parts) that put the most points on their part's box.
 
     The first k-means start usually explains the region; when it leaves more than
@@ -197,7 +241,7 @@ def _best_split(
     distances: dict[bytes, np.ndarray] = {}  # a part found again by another start: same box
     for parts, start in ((count, seed), (count, seed + 1), (count, seed + 2), (count + 1, seed)):
         _, initial = kmeans2(points - points.mean(axis=0), parts, minit="++", seed=start)
-        assignment, on_box = _assign_to_boxes(points, normals, initial, parts, distances)
+        assignment, on_box = yield from _assign_to_boxes(points, normals, initial, parts, distances)
         if best is None or on_box > best[0]:
             best = (on_box, assignment, parts)
         if on_box >= SPLIT_GOOD_FIT:
@@ -211,7 +255,7 @@ def _assign_to_boxes(
     assignment: np.ndarray,
     count: int,
     fitted: dict[bytes, np.ndarray],
-) -> tuple[np.ndarray, float]:
+) -> FitSteps[tuple[np.ndarray, float]]:
     """Refine a k-means split with the domino's shape: fit a box to each part, give each
     point to the box whose surface it lies on, repeat until nothing moves. Also returns
     the share of points within 2 mm of their box.
@@ -222,14 +266,17 @@ def _assign_to_boxes(
     """
     stride = max(1, points.shape[0] // SPLIT_FIT_POINTS)  # fit on a subset, assign all
     for _ in range(SPLIT_ROUNDS):
-        distances = np.full((count, points.shape[0]), np.inf)
-        for k in range(count):
-            part = np.flatnonzero(assignment == k)[::stride]
-            if part.size >= 10:
-                key = part.tobytes()
-                if key not in fitted:
-                    fitted[key] = _box_distances(points, normals, part)
-                distances[k] = fitted[key]
+        parts = [np.flatnonzero(assignment == k)[::stride] for k in range(count)]
+        keys = [part.tobytes() if part.size >= 10 else None for part in parts]
+        new = {
+            key: part
+            for key, part in zip(keys, parts, strict=True)
+            if key is not None and key not in fitted
+        }
+        if new:
+            fits = yield [(points[part], normals[part]) for part in new.values()]
+            fitted.update(zip(new, (_distances(points, fit) for fit in fits), strict=True))
+        distances = np.array([fitted[key] if key else _no_box(points) for key in keys])
         nearest = distances.min(axis=0)
         if not np.all(np.isfinite(nearest)):
             return assignment, 0.0
@@ -241,14 +288,15 @@ def _assign_to_boxes(
     return assignment, on_box
 
 
-def _box_distances(points: np.ndarray, normals: np.ndarray, part: np.ndarray) -> np.ndarray:
-    """Distance of every point to the surface of the box fitted to the ``part`` (indices);
-    inf when no box fits."""
-    try:
-        pose = fit_domino_box(points[part], normals[part], SPLIT_FIT).X_WD
-    except BoxFitError:
-        return np.full(points.shape[0], np.inf)
-    return np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
+def _distances(points: np.ndarray, fit: BoxFit | BoxFitError) -> np.ndarray:
+    """Distance of every point to the surface of the fitted box; inf when no box fits."""
+    if isinstance(fit, BoxFitError):
+        return _no_box(points)
+    return np.abs(box_signed_distance((points - fit.X_WD[:3, 3]) @ fit.X_WD[:3, :3]))
+
+
+def _no_box(points: np.ndarray) -> np.ndarray:
+    return np.full(points.shape[0], np.inf)
 
 
 def _too_big(points: np.ndarray, margin: float) -> bool:

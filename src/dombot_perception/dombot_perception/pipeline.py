@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from dombot_description.scenario import Scenario
 from dombot_perception.backprojection import OrganisedCloud, WorkRegion, organised_cloud
-from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_box
+from dombot_perception.box_fit import BoxFit, BoxFitConfig, BoxFitError, fit_domino_boxes
 from dombot_perception.canonical import canonical_pose, posture
 from dombot_perception.depth_check import DepthCheckConfig, correct_box
 from dombot_perception.domino_model import (
@@ -207,8 +207,9 @@ class PerceptionPipeline:
         """Box-fit each fused cloud, rejoin fragments, merge duplicates, apply the filters."""
         detections, fragments = [], []
         filtering = self.config.filtering
-        for cloud in fused:
-            detection, fit = self._fit_one(cloud, views, rejected)
+        for cloud, (detection, fit) in zip(
+            fused, self._fit_all(fused, views, rejected), strict=True
+        ):
             if detection is not None:
                 detections.append(detection)
             elif (
@@ -235,7 +236,7 @@ class PerceptionPipeline:
             if first in used or second in used:
                 continue
             joined = FusedCloud(fragments[first][0].parts + fragments[second][0].parts)
-            detection, _ = self._fit_one(joined, views, [], self.config.rejoin_filtering)
+            detection, _ = self._fit_all([joined], views, [], self.config.rejoin_filtering)[0]
             if detection is not None:
                 used.update((first, second))
                 found.append(detection)
@@ -243,34 +244,51 @@ class PerceptionPipeline:
                 rejected.append(f"two fragments rejoined into the box at {where}")
         return found
 
-    def _fit_one(
+    def _fit_all(
         self,
-        cloud: FusedCloud,
+        clouds: list[FusedCloud],
         views: list[CameraView],
         rejected: list[str],
         filtering: FilterConfig | None = None,
-    ) -> tuple[Detection | None, BoxFit | None]:
-        """The detection (None when rejected, with the reason in ``rejected``) and the fit;
-        the last frame's when the cloud and the depth pixels its checks read are the same."""
+    ) -> list[tuple[Detection | None, BoxFit | None]]:
+        """Each cloud's detection (None when rejected, with the reason in ``rejected``) and
+        fit; the last frame's when the cloud and the depth pixels its checks read are the
+        same. The new boxes are fitted in one batch."""
         filtering = filtering or self.config.filtering
         config = (self.config.box_fit, self.config.depth_check, filtering)
-        key = _fit_key(cloud, views, config)
-        record = self._previous_fits.get(key)
-        if record is None or not record.still_holds({view.name: view for view in views}):
-            record = self._fit_cloud(cloud, views, filtering)
-        self._fits[key] = record
-        rejected.extend(record.messages)
-        detection = record.detection and dataclasses.replace(record.detection)  # scored later
-        return detection, record.fit
+        by_name = {view.name: view for view in views}
+        keys = [_fit_key(cloud, views, config) for cloud in clouds]
+        records = [self._previous_fits.get(key) for key in keys]
+        stale = [
+            index
+            for index, record in enumerate(records)
+            if record is None or not record.still_holds(by_name)
+        ]
+        fits = fit_domino_boxes(
+            [(clouds[index].points, clouds[index].normals) for index in stale],
+            self.config.box_fit,
+        )
+        for index, fit in zip(stale, fits, strict=True):
+            records[index] = self._check_fit(clouds[index], fit, views, filtering)
+        result = []
+        for key, record in zip(keys, records, strict=True):
+            self._fits[key] = record
+            rejected.extend(record.messages)
+            detection = record.detection and dataclasses.replace(record.detection)  # scored later
+            result.append((detection, record.fit))
+        return result
 
-    def _fit_cloud(
-        self, cloud: FusedCloud, views: list[CameraView], filtering: FilterConfig
+    def _check_fit(
+        self,
+        cloud: FusedCloud,
+        fit: BoxFit | BoxFitError,
+        views: list[CameraView],
+        filtering: FilterConfig,
     ) -> _FitRecord:
-        points, normals = cloud.points, cloud.normals
-        try:
-            fit = fit_domino_box(points, normals, self.config.box_fit)
-        except BoxFitError as error:
-            return _FitRecord(None, None, [str(error)], [])
+        """The cloud's box, corrected by the depth check and filtered."""
+        if isinstance(fit, BoxFitError):
+            return _FitRecord(None, None, [str(fit)], [])
+        points = cloud.points
         reason = rejection_reason(fit, points.shape[0], filtering)
         reads = []
         if reason is None:
