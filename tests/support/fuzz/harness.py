@@ -63,7 +63,7 @@ def service_sender(node: Node, service_type, name: str) -> Callable:
     client = node.create_client(service_type, name)
 
     def send(requests: list, timeout: float, alive: Callable[[], bool]) -> list:
-        assert spin_until(node, client.service_is_ready, timeout=60), f"{name} not available"
+        assert spin_until(node, client.service_is_ready, timeout), f"{name} not available"
         futures = [client.call_async(request) for request in requests]
         spin_until(node, lambda: all(f.done() for f in futures) or not alive(), timeout)
         replies = [f.result() if f.done() else None for f in futures]
@@ -88,7 +88,7 @@ def action_sender(node: Node, action_type, name: str) -> Callable:
     client = ActionClient(node, action_type, name)
 
     def send(goals: list, timeout: float, alive: Callable[[], bool]) -> list:
-        assert spin_until(node, client.server_is_ready, timeout=60), f"{name} not available"
+        assert spin_until(node, client.server_is_ready, timeout), f"{name} not available"
         sent = [client.send_goal_async(goal) for goal in goals]
         results: list = [None] * len(goals)
 
