@@ -1,12 +1,12 @@
 """Fuzz every service, the arm and gripper actions and layer_node's inputs over real DDS.
 
-Starts planner_node, sim_node, perception_node and layer_node (tests/support/fuzz.py),
+Starts planner_node, sim_node, perception_node and layer_node (tests/support/fuzz/),
 sends at least ``--requests`` hostile requests per endpoint in batches of up to 10 at
 once (hypothesis, ``--seed``), a valid request after every batch, and prints one JSON
 object: requests, outcome histogram, worst batch latency per endpoint, wrong outcomes,
 hangs, crashes, each node's RSS after warm-up and at the end, and per endpoint the
 serving node's RSS growth from its first WARM_UP_REQUESTS requests to its last (caches
-and allocator arenas fill first). Progress on stderr.
+and allocator arenas fill first) with its RSS after every 5 batches. Progress on stderr.
 
     python benchmarks/bench_fuzz.py --requests 1000
 """
@@ -62,15 +62,18 @@ def node_rss(harness: Harness, node: str) -> float:
 
 
 def endpoint_growth(
-    harness: Harness, node: str, start: int, name: str, settled: tuple[int, float] | None
+    harness: Harness, node: str, start: int, name: str, trace: list[tuple[int, float]]
 ) -> dict:
     """The serving node's RSS after the endpoint's first WARM_UP_REQUESTS requests and
-    after its last, and the growth between them."""
+    after its last, the growth between them, and the RSS after every round of batches
+    (``trace``: requests served, MB) to tell a plateau from a leak."""
     growth = {"node": node, "requests": harness.report.requests[name] - start}
     growth["rss_mb_end"] = node_rss(harness, node)
+    settled = next(((n, mb) for n, mb in trace if n >= WARM_UP_REQUESTS), None)
     if settled is not None:
         growth["warm_up_requests"], growth["rss_mb_after_warm_up"] = settled
         growth["growth"] = round(growth["rss_mb_end"] / settled[1] - 1, 4)
+    growth["rss_trace"] = trace
     return growth
 
 
@@ -109,7 +112,7 @@ def main() -> None:
             endpoint, cases = endpoints[name]
             log(f"{name}: {args.requests} requests ...")
             start = harness.report.requests[name]
-            settled = None  # (requests, RSS) once WARM_UP_REQUESTS have been served
+            trace = []  # (requests served, RSS) after each round of batches
             while harness.report.requests[name] < start + args.requests:
                 if time.monotonic() - began > args.max_seconds:
                     log(f"{name}: stopped after --max-seconds")
@@ -124,9 +127,8 @@ def main() -> None:
                 )
                 args.seed += 1
                 served = harness.report.requests[name] - start
-                if settled is None and served >= WARM_UP_REQUESTS:
-                    settled = (served, node_rss(harness, endpoint.node))
-            growth[name] = endpoint_growth(harness, endpoint.node, start, name, settled)
+                trace.append((served, node_rss(harness, endpoint.node)))
+            growth[name] = endpoint_growth(harness, endpoint.node, start, name, trace)
             log(f"{name}: done after {time.monotonic() - began:.0f} s")
         harness.rss("end")
     node.destroy_node()

@@ -46,6 +46,34 @@ def test_ctrl_c_while_the_node_module_imports_ends_quietly(tmp_path: Path) -> No
     assert error == b""
 
 
+def test_a_node_run_with_system_malloc_is_the_same_process_with_pythonmalloc_malloc(
+    tmp_path: Path,
+) -> None:
+    (tmp_path / "probe_node.py").write_text(
+        "import os, sys\n"
+        "def main():\n"
+        "    print(os.getpid(), os.environ['PYTHONMALLOC'], sys.argv[1:], flush=True)\n"
+    )
+    code = (
+        "from dombot_description.console import run_with_system_malloc; "
+        "exit(run_with_system_malloc('probe_node'))"
+    )
+    env = dict(os.environ, PYTHONPATH=f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    env.pop("PYTHONMALLOC", None)
+    child = subprocess.Popen(
+        [sys.executable, "-c", code, "--ros-args"],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    output, error = child.communicate(timeout=120)
+    assert child.returncode == 0, error
+    pid, allocator, arguments = output.decode().split(" ", 2)
+    assert int(pid) == child.pid  # run again in place: a supervisor's signals still reach it
+    assert allocator == "malloc"
+    assert arguments.strip() == "['--ros-args']"
+
+
 def _loaded(pid: int, library: str) -> bool:
     try:
         return library in Path(f"/proc/{pid}/maps").read_text()

@@ -17,7 +17,7 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import LayerKinematics, wheel_speed_ratio
-from dombot_layer.paths import rig_length
+from dombot_layer.paths import MAX_PATH_BYTES, MAX_POLYLINE_POINTS, rig_length
 from dombot_msgs.msg import WheelVelocities
 from support.ros_processes import installed_node, spin_until
 
@@ -183,6 +183,31 @@ def test_path_plays_a_schedule_then_stops(probe: Probe) -> None:
         probe.node, lambda: any(s.message == "path finished" for s in probe.status), timeout=15
     )
     assert probe.status[-1].left == 0.0
+
+
+@pytest.mark.parametrize(
+    ("poses", "text"),
+    [
+        (MAX_POLYLINE_POINTS + 1, "at most 10000 points"),  # checked on the points
+        (MAX_PATH_BYTES // 64, "a path message is at most"),  # checked before deserialising
+    ],
+)
+def test_too_large_a_path_stops_the_wheels_with_a_reason(
+    probe: Probe, poses: int, text: str
+) -> None:
+    path = Path()
+    path.header.frame_id = "layer_start"
+    path.poses = [PoseStamped() for _ in range(poses)]
+    for i, pose in enumerate(path.poses):
+        pose.pose.position.x = 0.001 * i
+    probe.status.clear()
+    probe.path_pub.publish(path)
+    assert spin_until(
+        probe.node, lambda: any(text in s.message for s in probe.status), timeout=30
+    ), [s.message for s in probe.status[-3:]]
+    rejected = next(s for s in probe.status if text in s.message)
+    assert rejected.status == WheelVelocities.STATUS_UNREACHABLE
+    assert (rejected.left, rejected.right) == (0.0, 0.0)
 
 
 def test_with_odometry_the_schedule_follows_the_distance_travelled(probe: Probe) -> None:

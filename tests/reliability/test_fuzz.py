@@ -1,4 +1,4 @@
-"""A short fuzz run over real DDS (tests/support/fuzz.py; the long one is
+"""A short fuzz run over real DDS (tests/support/fuzz/; the long one is
 benchmarks/bench_fuzz.py): every service, the arm and gripper actions and layer_node's
 inputs get batches of up to 10 hostile requests at once. Verdicts are on outcomes only:
 each reply carries the error code (or success flag) that is right for what was broken and

@@ -1,17 +1,20 @@
-"""Sleeping must survive FCL's signed-distance failures on nearly touching boxes."""
+"""Sleeping must survive FCL's signed-distance failures on nearly touching boxes, and put
+a domino to rest by how far its points really move."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from pydrake.geometry import Box, ProximityProperties
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
 
 from dombot_description import DOMINO_SIZE
-from dombot_sim.sleeping import SleepManager, SleepSettings
+from dombot_sim.sleeping import SleepManager, SleepSettings, displacement
+from dombot_sim.world import CellWorld, WorldConfig
 
 # Two flat dominoes side by side on the table, logged when FCL threw
 # "validateNearestFeatureOfPolytopeBeingEdge(): The origin is outside of the polytope"
@@ -69,3 +72,45 @@ def test_a_pair_fcl_cannot_measure_counts_as_touching_and_wakes_the_sleeper() ->
 
     assert manager.distance_fallbacks == 1  # the bulk query threw, as logged
     assert not manager.asleep[0]  # the moving neighbour was found pair by pair
+
+
+def test_displacement_is_the_farthest_point_of_the_domino() -> None:
+    rng = np.random.default_rng(3)
+    half = 0.5 * np.asarray(DOMINO_SIZE)
+    inside = rng.uniform(-1.0, 1.0, (2000, 3)) * half
+    for _ in range(20):
+        a, b = (
+            RigidTransform(RollPitchYaw(*rng.uniform(-np.pi, np.pi, 3)), rng.uniform(-0.1, 0.1, 3))
+            for _ in range(2)
+        )
+        moved = np.linalg.norm(
+            (b.GetAsMatrix34()[:, :3] - a.GetAsMatrix34()[:, :3]) @ inside.T
+            + (b.translation() - a.translation())[:, None],
+            axis=0,
+        )
+        assert moved.max() <= displacement(a, b) + 1e-12  # no point moves farther
+
+
+def test_a_domino_rocking_on_its_side_moves_its_corners_by_the_chord() -> None:
+    """A domino on its 7.5 mm face rocking 0.46 deg either way about its long axis
+    (seed 204's limit cycle): its corners move 0.2 mm, within rest_motion, where the
+    bounding radius times the angle said 0.44 mm."""
+    on_side = RollPitchYaw(np.pi / 2, 0.0, 0.0)
+    a, b = (
+        RigidTransform(RotationMatrix(on_side) @ RotationMatrix.MakeXRotation(t), [0, 0, 0.012])
+        for t in (-0.008, 0.008)
+    )
+    assert displacement(a, b) == pytest.approx(0.016 * np.hypot(0.012, 0.00375), rel=1e-3)
+    assert displacement(a, b) < SleepSettings().rest_motion
+
+
+@pytest.mark.slow  # seconds of Drake physics
+def test_one_domino_poured_with_seed_204_comes_to_rest() -> None:
+    """/sim/reset with 1 domino, seed 204 answered STILL MOVING: the domino landed on its
+    side and rocked for ever within half a millimetre, which the old bound called moving."""
+    world = CellWorld(WorldConfig(cameras=False, domino_capacity=1))
+    report = world.reset(domino_count=1, seed=204)
+    [domino] = [d for d in world.domino_truth() if d.in_use]
+    assert report.settled, f"still moving after {report.settle_time:.2f} s simulated"
+    assert domino.asleep
+    assert abs(domino.X_WD[2, 3] - 0.5 * DOMINO_SIZE[1]) < 0.5e-3  # on its side, at rest

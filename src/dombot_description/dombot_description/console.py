@@ -10,6 +10,8 @@ which imports the node module itself. Only the standard library is imported here
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 
 INTERRUPTED = 130  # the shell's status for a process ended by SIGINT
 
@@ -22,3 +24,16 @@ def run_quietly(module: str, function: str = "main") -> int:
     except KeyboardInterrupt:
         return INTERRUPTED
     return status if isinstance(status, int) else 0
+
+
+def run_with_system_malloc(module: str, function: str = "main") -> int:
+    """``run_quietly`` in an interpreter whose objects come from glibc's malloc
+    (``PYTHONMALLOC=malloc``, set before the interpreter starts: this process is run again
+    with it, same pid). For nodes that take huge requests: Python's own allocator keeps a
+    1 MiB arena mapped while any object in it lives, so the hundreds of thousands of
+    objects of one huge request leave arenas pinned by a few survivors; glibc's free pages
+    go back to the system with ``malloc_trim`` (docs/RELIABILITY.md, "Memory")."""
+    if os.environ.get("PYTHONMALLOC") != "malloc":
+        os.environ["PYTHONMALLOC"] = "malloc"
+        os.execv(sys.executable, [sys.executable, *sys.orig_argv[1:]])
+    return run_quietly(module, function)

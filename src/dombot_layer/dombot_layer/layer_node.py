@@ -24,10 +24,12 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64, Float64MultiArray
 
 from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
 from dombot_adapters.parameters import DataclassParameters, described
+from dombot_description.allocator import release_memory, tune_allocator
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.kinematics import (
     LayerKinematics,
@@ -36,6 +38,7 @@ from dombot_layer.kinematics import (
     wheel_speed_ratio,
 )
 from dombot_layer.paths import (
+    MAX_PATH_BYTES,
     PathError,
     WheelSchedule,
     path_segments,
@@ -49,6 +52,7 @@ MAX_SETTING = {"command_rate": 1000.0, "forward_speed": 10.0, "deposit_spacing":
 # Hz: slower is no stream, and a rate of 1e-63 made a timer period beyond int64 ns that
 # killed the node (a TypeError in the parameter callback)
 MIN_SETTING = {"command_rate": 0.01}
+BIG_MESSAGE_BYTES = 1 << 20  # a path this large leaves freed pages worth handing back
 
 
 @dataclass(frozen=True)
@@ -88,7 +92,8 @@ class LayerNode(Node):
         )
         self.status_pub = self.create_publisher(WheelVelocities, "layer/wheel_velocities", 10)
         self.create_subscription(Float64, "layer/target_radius", self._on_target_radius, 10)
-        self.create_subscription(Path, "layer/path", self._on_path, 10)
+        # raw: a path's size is checked before rclpy turns each pose into Python objects
+        self.create_subscription(Path, "layer/path", self._on_path, 10, raw=True)
         self.create_subscription(Odometry, "layer/odom", self._on_odometry, 10)
         self.command = self._stop_command(
             WheelVelocities.STATUS_STOPPED, "waiting for a target radius or path"
@@ -155,26 +160,38 @@ class LayerNode(Node):
             message="laying",
         )
 
-    def _on_path(self, message: Path) -> None:
-        points = np.array(
-            [[p.pose.position.x, p.pose.position.y] for p in message.poses], dtype=float
-        )
+    def _on_path(self, serialized: bytes) -> None:
         try:
-            segments = path_segments(points)
-            self.schedule = schedule_segments(
-                self.kinematics,
-                segments,
-                self.driving.forward_speed,
-                self.driving.deposit_spacing,
-                look_ahead=True,
-            )
+            self._start_path(serialized)
         except PathError as error:
             self.schedule = None
             self.get_logger().error(f"path rejected: {error}; stopping the wheels")
             self.command = self._stop_command(
                 WheelVelocities.STATUS_UNREACHABLE, f"path rejected: {error}"
             )
-            return
+        finally:
+            if len(serialized) > BIG_MESSAGE_BYTES:
+                release_memory()
+
+    def _start_path(self, serialized: bytes) -> None:
+        """Check the path's size, then its points, and play its schedule."""
+        if len(serialized) > MAX_PATH_BYTES:  # 100,000 poses: 7 MB, 1.4 million objects
+            raise PathError(
+                f"a path message is at most {MAX_PATH_BYTES} bytes, got {len(serialized)}"
+            )
+        message = deserialize_message(serialized, Path)
+        points = np.array(
+            [[p.pose.position.x, p.pose.position.y] for p in message.poses], dtype=float
+        ).reshape(-1, 2)
+        del message  # thousands of pose objects: not kept while the schedule is built
+        segments = path_segments(points)
+        self.schedule = schedule_segments(
+            self.kinematics,
+            segments,
+            self.driving.forward_speed,
+            self.driving.deposit_spacing,
+            look_ahead=True,
+        )
         self.schedule_start = self._now()
         self.travelled = 0.0
         self.get_logger().info(
@@ -263,6 +280,7 @@ def spin(node_class: type[Node], args: list[str] | None = None) -> None:
 
 
 def main(args: list[str] | None = None) -> None:
+    tune_allocator()
     spin(LayerNode, args)
 
 

@@ -134,6 +134,9 @@ MAX_POLYLINE_POINTS = 10_000
 MAX_POLYLINE_EXTENT = 100.0  # m, every coordinate
 MAX_POLYLINE_LENGTH = 1000.0  # m along the fitted spline
 MIN_POLYLINE_STEP = 1e-4  # m: a point closer than this to the previous one repeats it
+# bytes of a serialized nav_msgs/Path: MAX_POLYLINE_POINTS poses take 0.7-1 MB (72 bytes a
+# pose, more with a frame id), so any allowed path with frame ids under 300 characters fits
+MAX_PATH_BYTES = 4 << 20
 
 
 def path_segments(points: np.ndarray) -> list[Segment]:

@@ -50,7 +50,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
 from dombot_adapters.parameters import DataclassParameters, described
 from dombot_adapters.pose_messages import pose_message, seconds_of, time_message
-from dombot_description.allocator import tune_allocator
+from dombot_description.allocator import release_memory, tune_allocator
 from dombot_description.robot_description import robot_urdf
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
@@ -81,6 +81,7 @@ FEEDBACK_PERIOD = 0.1  # s wall between action feedback messages
 # s a finished goal (and so its request) is kept for its result: rclpy's default, 900 s,
 # kept every 100,000-point goal of a fuzz run alive, 1.3 GB after 1,000 goals
 RESULT_TIMEOUT = 60.0
+BIG_GOAL_POINTS = 1000  # a refused goal this long leaves freed pages worth handing back
 RESULT_CODES = {
     Outcome.SUCCEEDED: FollowJointTrajectory.Result.SUCCESSFUL,
     Outcome.PATH_TOLERANCE_VIOLATED: FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED,
@@ -518,6 +519,7 @@ class SimNode(Node):
     def _follow_trajectory(self, goal_handle) -> FollowJointTrajectory.Result:
         goal = goal_handle.request
         points = goal.trajectory.points
+        refusal = None
         with self._lock:
             try:
                 _check_no_multi_dof(goal.multi_dof_trajectory.joint_names)
@@ -540,10 +542,18 @@ class SimNode(Node):
                 goal_handle.abort()
                 # the handle keeps the request RESULT_TIMEOUT: drop what may be 100,000 points
                 goal.trajectory.points, goal.trajectory.joint_names = [], []
-                return FollowJointTrajectory.Result(error_code=error.code, error_string=str(error))
-            self._generation += 1  # preempts the running goal
-            generation = self._generation
-            end = self.world.follow_trajectory(spline)
+                refusal = FollowJointTrajectory.Result(
+                    error_code=error.code, error_string=str(error)
+                )
+            else:
+                self._generation += 1  # preempts the running goal
+                generation = self._generation
+                end = self.world.follow_trajectory(spline)
+        if refusal is not None:  # outside the except block: its traceback held the lists
+            if len(points) > BIG_GOAL_POINTS:
+                del points  # the last reference to hundreds of thousands of point objects
+                release_memory()
+            return refusal
         names = list(self.world.arm_joint_names)
         monitor = TrajectoryMonitor(names, end, goal_tolerances(goal, names))
         self.get_logger().info(
