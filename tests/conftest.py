@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import signal
 import tempfile
 from pathlib import Path
 
@@ -56,6 +57,12 @@ def _hold_a_free_domain() -> int:
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 os.environ.setdefault("MPLBACKEND", "Agg")
+# A shell without job control starts a background job (`cmd &` in a script, CI runners,
+# nohup) with SIGINT ignored, and every child inherits that: the node processes the tests
+# stop with SIGINT, as Ctrl-C or the bring-up does, ignored it (test_console's Ctrl-C
+# tests waited out their timeouts). The tests' children start as from a terminal.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_configure(config: pytest.Config) -> None:
