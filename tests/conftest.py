@@ -5,10 +5,11 @@ ROS domain of its own while it lives and keeps DDS discovery on the loopback int
 so parallel workers, concurrent sessions and a developer's running nodes never see each
 other's topics.
 
-With pytest-xdist (``-n 3 --dist loadscope``, opt-in: README) a module's tests run on one worker,
-so a module-scoped fixture (a node process, a planner) is set up once; the modules in
-``SPREAD`` let their independent tests run on several workers. Modules with slow tests are
-handed out first, so the longest ones do not start last.
+With pytest-xdist (``-n 2 --dist loadscope``, opt-in: README) a module's tests run on one
+worker, so a module-scoped fixture (a node process, a planner) is set up once; the modules
+in ``SPREAD`` let their independent tests run on several workers. The longest modules are
+handed out first (``LONGEST``), then the other modules with slow tests, so that no long one
+starts last.
 """
 
 from __future__ import annotations
@@ -33,6 +34,14 @@ SPREAD = {
     "tests/description/test_console.py",  # each test starts and interrupts a process
     "tests/foundation/test_parameter_files.py",  # each test starts a node
 }
+# The modules that take longest, longest first (pytest --durations of whole runs).
+LONGEST = (
+    "tests/bringup/test_arm_job.py",
+    "tests/planner/test_execution.py",
+    "tests/bringup/test_partial_build.py",
+    "tests/reliability/test_fuzz.py",
+    "tests/sim/test_physics.py",
+)
 
 
 def _hold_a_free_domain() -> int:
@@ -72,10 +81,14 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log):
-    """--dist loadscope, with a module's tests on one worker unless it is in SPREAD."""
+    """--dist loadscope, with a module's tests on one worker unless it is in SPREAD, handed
+    out in the order pytest_collection_modifyitems gives (xdist's default, the modules with
+    most tests first, started the one-test end-to-end modules last)."""
     if config.getvalue("dist") != "loadscope":
         return None
     from xdist.scheduler import LoadScopeScheduling
+
+    config.option.loadscopereorder = False
 
     class ModuleScheduling(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
@@ -85,7 +98,18 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
     return ModuleScheduling(config, log)
 
 
+def _module(item: pytest.Item) -> str:
+    return item.nodeid.split("::", 1)[0]
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     if "PYTEST_XDIST_WORKER" in os.environ:  # the controller hands out in this order
-        slow_modules = {item.path for item in items if item.get_closest_marker("slow")}
-        items.sort(key=lambda item: item.path not in slow_modules)  # stable: modules stay whole
+        slow_modules = {_module(item) for item in items if item.get_closest_marker("slow")}
+
+        def rank(item: pytest.Item) -> tuple[int, bool]:
+            module = _module(item)
+            return (LONGEST.index(module) if module in LONGEST else len(LONGEST)), (
+                module not in slow_modules
+            )
+
+        items.sort(key=rank)  # stable: modules stay whole
