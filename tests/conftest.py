@@ -21,6 +21,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+import rclpy
 
 # Domain ids whose Fast DDS ports are valid and outside Linux's ephemeral port range
 # (ROS 2 docs, "The ROS_DOMAIN_ID"); 0, the default, is left to a developer's own nodes.
@@ -96,6 +97,16 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
             return nodeid if module in SPREAD else module
 
     return ModuleScheduling(config, log)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _no_ros_context_left_behind():
+    """A module fixture that fails between its rclpy.init() and rclpy.shutdown() left the
+    default context initialised, and every later module's rclpy.init() in that process
+    failed ('Context.init() must only be called once': 61 errors after one failure)."""
+    yield
+    if rclpy.ok():
+        rclpy.shutdown()
 
 
 def _module(item: pytest.Item) -> str:
