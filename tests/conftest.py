@@ -34,14 +34,18 @@ SPREAD = {
     "tests/bringup/test_arm_job.py",  # three end-to-end runs
     "tests/description/test_console.py",  # each test starts and interrupts a process
     "tests/foundation/test_parameter_files.py",  # each test starts a node
+    "tests/sim/test_physics.py",  # a Drake world of its own per test, a quarter of the suite
 }
-# The modules that take longest, longest first (pytest --durations of whole runs).
+# The modules that take longest, longest first (--durations of a whole run, README).
 LONGEST = (
-    "tests/bringup/test_arm_job.py",
+    "tests/sim/test_physics.py",
     "tests/planner/test_execution.py",
     "tests/bringup/test_partial_build.py",
+    "tests/bringup/test_arm_job.py",
+    "tests/perception/test_perception_node.py",
     "tests/reliability/test_fuzz.py",
-    "tests/sim/test_physics.py",
+    "tests/ros2cli/test_ros2cli.py",
+    "tests/bringup/test_sim_cell.py",
 )
 
 
