@@ -5,20 +5,23 @@ ROS domain of its own while it lives and keeps DDS discovery on the loopback int
 so parallel workers, concurrent sessions and a developer's running nodes never see each
 other's topics.
 
-With pytest-xdist (``-n 3 --dist loadscope``, opt-in: README) a module's tests run on one worker,
-so a module-scoped fixture (a node process, a planner) is set up once; the modules in
-``SPREAD`` let their independent tests run on several workers. Modules with slow tests are
-handed out first, so the longest ones do not start last.
+With pytest-xdist (``-n 2 --dist loadscope``, opt-in: README) a module's tests run on one
+worker, so a module-scoped fixture (a node process, a planner) is set up once; the modules
+in ``SPREAD`` let their independent tests run on several workers. The longest modules are
+handed out first (``LONGEST``), then the other modules with slow tests, so that no long one
+starts last.
 """
 
 from __future__ import annotations
 
 import fcntl
 import os
+import signal
 import tempfile
 from pathlib import Path
 
 import pytest
+import rclpy
 
 # Domain ids whose Fast DDS ports are valid and outside Linux's ephemeral port range
 # (ROS 2 docs, "The ROS_DOMAIN_ID"); 0, the default, is left to a developer's own nodes.
@@ -31,7 +34,19 @@ SPREAD = {
     "tests/bringup/test_arm_job.py",  # three end-to-end runs
     "tests/description/test_console.py",  # each test starts and interrupts a process
     "tests/foundation/test_parameter_files.py",  # each test starts a node
+    "tests/sim/test_physics.py",  # a Drake world of its own per test, a quarter of the suite
 }
+# The modules that take longest, longest first (--durations of a whole run, README).
+LONGEST = (
+    "tests/sim/test_physics.py",
+    "tests/planner/test_execution.py",
+    "tests/bringup/test_partial_build.py",
+    "tests/bringup/test_arm_job.py",
+    "tests/perception/test_perception_node.py",
+    "tests/reliability/test_fuzz.py",
+    "tests/ros2cli/test_ros2cli.py",
+    "tests/bringup/test_sim_cell.py",
+)
 
 
 def _hold_a_free_domain() -> int:
@@ -56,6 +71,12 @@ def _hold_a_free_domain() -> int:
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 os.environ.setdefault("MPLBACKEND", "Agg")
+# A shell without job control starts a background job (`cmd &` in a script, CI runners,
+# nohup) with SIGINT ignored, and every child inherits that: the node processes the tests
+# stop with SIGINT, as Ctrl-C or the bring-up does, ignored it (test_console's Ctrl-C
+# tests waited out their timeouts). The tests' children start as from a terminal.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -65,10 +86,14 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log):
-    """--dist loadscope, with a module's tests on one worker unless it is in SPREAD."""
+    """--dist loadscope, with a module's tests on one worker unless it is in SPREAD, handed
+    out in the order pytest_collection_modifyitems gives (xdist's default, the modules with
+    most tests first, started the one-test end-to-end modules last)."""
     if config.getvalue("dist") != "loadscope":
         return None
     from xdist.scheduler import LoadScopeScheduling
+
+    config.option.loadscopereorder = False
 
     class ModuleScheduling(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
@@ -78,7 +103,28 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
     return ModuleScheduling(config, log)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _no_ros_context_left_behind():
+    """A module fixture that fails between its rclpy.init() and rclpy.shutdown() left the
+    default context initialised, and every later module's rclpy.init() in that process
+    failed ('Context.init() must only be called once': 61 errors after one failure)."""
+    yield
+    if rclpy.ok():
+        rclpy.shutdown()
+
+
+def _module(item: pytest.Item) -> str:
+    return item.nodeid.split("::", 1)[0]
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     if "PYTEST_XDIST_WORKER" in os.environ:  # the controller hands out in this order
-        slow_modules = {item.path for item in items if item.get_closest_marker("slow")}
-        items.sort(key=lambda item: item.path not in slow_modules)  # stable: modules stay whole
+        slow_modules = {_module(item) for item in items if item.get_closest_marker("slow")}
+
+        def rank(item: pytest.Item) -> tuple[int, bool]:
+            module = _module(item)
+            return (LONGEST.index(module) if module in LONGEST else len(LONGEST)), (
+                module not in slow_modules
+            )
+
+        items.sort(key=rank)  # stable: modules stay whole

@@ -281,7 +281,12 @@ def test_every_service_list_sees_the_whole_graph(layer_node) -> None:
     expected = {f"/layer_node/{verb}_parameters" for verb in ("get", "set", "list")}
     for listing in listings:
         assert expected <= set(listing.split()), listing
-    assert listings[0] == listings[1] == listings[2]
+    # layer_node's: a node the previous module destroyed in this process can linger in the
+    # first listing until DDS drops its participant (/fuzz_probe's services were seen)
+    layer_nodes = [
+        [s for s in listing.split() if s.startswith("/layer_node/")] for listing in listings
+    ]
+    assert layer_nodes[0] == layer_nodes[1] == layer_nodes[2]
 
 
 @pytest.mark.slow
