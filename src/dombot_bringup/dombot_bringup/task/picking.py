@@ -77,11 +77,14 @@ class Offer:
     plan: Plan
 
 
-def candidates(job: Job, failed: list[np.ndarray]) -> list[Candidate]:
-    """Fallen run dominoes first (they block the run), then the pile's detections in
-    perception's order (best grasp first); none where an attempt failed or no grasp
-    reaches."""
-    avoid = failed + job.state.unpickable
+def candidates(job: Job, failed: list[np.ndarray]) -> tuple[list[Candidate], list[Candidate]]:
+    """What to offer: fallen run dominoes first (they block the run), then the pile's
+    detections in perception's order (best grasp first); none where an attempt failed or
+    no grasp reaches. And the pile dominoes no grasp takes as they lie, for
+    ``clearing.lay_flat``: on their edge or end first (no grasp of the family holds
+    them), then those refused even ignoring their pile (or whose pick failed)."""
+    unpickable = job.state.unpickable
+    avoid = failed + unpickable
     fallen = job.state.fallen
     run = [
         Candidate(pose, index, neighbours_of(pose, fallen.values()))
@@ -89,11 +92,12 @@ def candidates(job: Job, failed: list[np.ndarray]) -> list[Candidate]:
         if not near_any(spot_of(pose), avoid)
     ]
     detections, unexplained = look_at_pile(job)
-    return run + [
-        pile_candidate(d, detections, unexplained)
-        for d in detections
-        if d.posture in PICKABLE_POSTURES and not near_any(spot_of(d.pose), avoid)
+    pile = [pile_candidate(d, detections, unexplained) for d in detections]
+    offers = [c for c in pile if c.posture in PICKABLE_POSTURES and not near_any(c.spot(), avoid)]
+    stuck = [c for c in pile if c.posture not in PICKABLE_POSTURES] + [
+        c for c in pile if c.posture in PICKABLE_POSTURES and near_any(c.spot(), unpickable)
     ]
+    return run + offers, stuck
 
 
 def pile_candidate(
@@ -163,6 +167,7 @@ def first_plan(
             job.state.crowded.append(spot)
         elif pile == PILE_IGNORED:
             job.state.unpickable.append(spot)
+            job.state.remember_why(spot, f"refused ignoring its pile: {plan.message}")
     return None, refused
 
 
