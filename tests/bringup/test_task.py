@@ -14,6 +14,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
 from dombot_bringup.debris import sweep_pushes
@@ -873,6 +874,29 @@ def test_a_pile_domino_no_grasp_or_push_reaches_is_named_with_why(capsys) -> Non
     out = capsys.readouterr().out
     assert "1 pile dominoes out of reach for now" in out
     assert "flat at [0.450, -0.300] (domino_7): no push lays it flat" in out
+
+
+def test_a_leaning_domino_whose_hold_has_no_place_is_pushed_flat_at_the_next_attempt() -> None:
+    """A hold leaning with the domino may have no place pose (PLACE_UNREACHABLE, about
+    the slot): with nothing else to pick, the leaning domino is pushed along its
+    thickness axis, and picked flat."""
+    leaning = lying(0.55, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
+
+    def push(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.56)]
+        return planned("push")
+
+    cell.strike = push
+    cell.place = lambda request: (
+        planned() if cell.strike_requests else refused(ErrorCode.PLACE_UNREACHABLE)
+    )
+    run_job = job(cell, max_spreads=0)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    (pushed,) = cell.strike_requests
+    assert abs(pushed.sweep[0]) == pytest.approx(1.0)  # along its thickness axis, seen above
+    assert run_job.report.dominoes[0].attempts == 2
 
 
 def test_a_domino_on_its_edge_whose_push_is_refused_is_named_as_never_graspable() -> None:

@@ -82,7 +82,9 @@ def candidates(job: Job, failed: list[np.ndarray]) -> tuple[list[Candidate], lis
     detections in perception's order (best grasp first); none where an attempt failed or
     no grasp reaches. And the pile dominoes no grasp takes as they lie, for
     ``clearing.lay_flat``: on their edge or end first (no grasp of the family holds
-    them), then those refused even ignoring their pile (or whose pick failed)."""
+    them), then those refused even ignoring their pile (or whose pick failed), and
+    leaning ones refused for this slot (a hold leaning with the domino may have no
+    place pose)."""
     unpickable = job.state.unpickable
     avoid = failed + unpickable
     fallen = job.state.fallen
@@ -93,9 +95,12 @@ def candidates(job: Job, failed: list[np.ndarray]) -> tuple[list[Candidate], lis
     ]
     detections, unexplained = look_at_pile(job)
     pile = [pile_candidate(d, detections, unexplained) for d in detections]
-    offers = [c for c in pile if c.posture in PICKABLE_POSTURES and not near_any(c.spot(), avoid)]
+    graspable = [c for c in pile if c.posture in PICKABLE_POSTURES]
+    offers = [c for c in graspable if not near_any(c.spot(), avoid)]
     stuck = [c for c in pile if c.posture not in PICKABLE_POSTURES] + [
-        c for c in pile if c.posture in PICKABLE_POSTURES and near_any(c.spot(), unpickable)
+        c
+        for c in graspable
+        if near_any(c.spot(), unpickable) or (c.leaning and near_any(c.spot(), failed))
     ]
     return run + offers, stuck
 
