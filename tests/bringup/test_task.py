@@ -853,6 +853,18 @@ def test_a_pile_domino_on_its_edge_is_pushed_over_flat_then_picked() -> None:
     assert run_job.report.pile_out_of_reach == []
 
 
+def test_an_upright_pile_domino_is_offered_one_on_its_edge_is_not() -> None:
+    """Upright, the canonical grasp holds a domino as it holds it placed."""
+    standing = lying(0.60, -0.3)
+    standing[:3, :3] = Rotation.from_euler("y", -90.0, degrees=True).as_matrix()
+    standing[2, 3] = DOMINO_SIZE[0] / 2
+    cell = ScriptedCell(pile=[edge(0.50), Detection(standing, Posture.UPRIGHT, 0.5, 0.01)])
+    cell.place = lambda request: planned()
+    assert place_slot(job(cell), 0, may_defer=False) is Turn.PLACED
+    assert [x_of(r.domino) for r in cell.place_requests] == [0.60]
+    assert cell.strike_requests == []
+
+
 def test_a_pile_domino_no_grasp_or_push_reaches_is_named_with_why(capsys) -> None:
     """Refused even ignoring its pile, a flat domino is slid towards the pile's centre at
     the next attempt; refused that too, it is not pushed again where it lies, and the

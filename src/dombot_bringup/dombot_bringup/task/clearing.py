@@ -78,8 +78,8 @@ def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:
 
 
 def lay_flat(job: Job, index: int, stuck: Sequence[Candidate]) -> bool:
-    """Push one of the pile dominoes no grasp takes as they lie (``stuck``: on their edge
-    or end, or refused even ignoring their pile) so that it lies flat within reach
+    """Push one of the pile dominoes no grasp takes as they lie (``stuck``: on their edge,
+    or refused even ignoring their pile) so that it lies flat within reach
     (``spread.lay_flat_pushes``), the planner keeping it clear of its neighbours; True
     once the arm moved. One pushed where it lies already, or whose pushes were all
     refused, is not pushed again until something near it moves (``BuildState.pushed``);

@@ -19,7 +19,10 @@ from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
 
 DETECT_TRIES = 5
-PICKABLE_POSTURES = (Posture.FLAT, Posture.TILTED)  # the planner has the last word
+# The planner has the last word. Upright, the canonical grasp holds a domino as it holds
+# it placed (bench_lay_flat: 3 of 3 lone upright pile dominoes planned); no grasp of the
+# family holds one on its edge (the fingers would close across its vertical width).
+PICKABLE_POSTURES = (Posture.FLAT, Posture.TILTED, Posture.UPRIGHT)
 # Refusals about the domino, not the slot: remembered for the run. A search that used up
 # its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
 GRASP_REFUSALS = (ErrorCode.GRASP_UNREACHABLE, ErrorCode.TIMEOUT)
@@ -81,8 +84,8 @@ def candidates(job: Job, failed: list[np.ndarray]) -> tuple[list[Candidate], lis
     """What to offer: fallen run dominoes first (they block the run), then the pile's
     detections in perception's order (best grasp first); none where an attempt failed or
     no grasp reaches. And the pile dominoes no grasp takes as they lie, for
-    ``clearing.lay_flat``: on their edge or end first (no grasp of the family holds
-    them), then those refused even ignoring their pile (or whose pick failed), and
+    ``clearing.lay_flat``: on their edge first (no grasp of the family holds them),
+    then those refused even ignoring their pile (or whose pick failed), and
     leaning ones refused for this slot (a hold leaning with the domino may have no
     place pose)."""
     unpickable = job.state.unpickable

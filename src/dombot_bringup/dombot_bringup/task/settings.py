@@ -38,8 +38,8 @@ class ArmJobSettings:
     # none of those plans (the pile is jammed), a push through the neighbours
     # (``spread.stir_pushes``), as many times at most.
     max_spreads: int = 2
-    # Before spreading, a pile domino no grasp takes as it lies (on its edge or end: no
-    # grasp of the family holds it; or refused even ignoring its pile) is pushed over, or
+    # Before spreading, a pile domino no grasp takes as it lies (on its edge: no grasp of
+    # the family holds it; or refused even ignoring its pile) is pushed over, or
     # slid towards the pile's centre (``clearing.lay_flat``), at most max_lay_flat times a
     # slot; such pushes cost no attempt. Without them a 45-domino pile ended with every
     # remaining domino refused, and the run 29 of 30.
