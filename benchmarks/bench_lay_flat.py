@@ -1,7 +1,7 @@
 """Lay pile dominoes no grasp takes as they lie flat, in the Drake simulation.
 
-Seeded scenes in the pile area: one domino standing on its long edge, on its end, or
-leaning on a flat one, at a random spot and heading. For each, the planner is asked to
+Seeded scenes in the pile area: one domino standing on its long edge or on its end, at a
+random spot and heading. For each, the planner is asked to
 pick it for the bring-up's first slot (refused or not, as it lies); then the bring-up's
 lay-flat pushes (``dombot_bringup.spread.lay_flat_pushes``, towards the pile's centre
 first) are planned as sweeps and run in ``CellWorld`` until one runs; the domino's
@@ -33,7 +33,7 @@ from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.settings import PlannerSettings
 from dombot_sim.world import CellWorld, WorldConfig
 
-POSTURES = ("on edge", "upright", "leaning")
+POSTURES = ("on edge", "upright")
 FLAT_Z = math.cos(math.radians(15.0))  # thickness axis this close to vertical: flat
 
 
@@ -47,15 +47,13 @@ def posture_of(pose: np.ndarray) -> str:
 
 
 def scene(kind: str, rng: np.random.Generator, centre: np.ndarray) -> dict[int, np.ndarray]:
-    """Domino 0 in posture ``kind`` at a random spot within 6 cm of ``centre`` (and, for
-    a leaning one, domino 1 on its edge across under its raised end)."""
+    """Domino 0 in posture ``kind`` at a random spot within 6 cm of ``centre``."""
     spot = centre + rng.uniform(-0.06, 0.06, 2)
     yaw = rng.uniform(0.0, math.pi)
     rotation = (
         {
             "on edge": RollPitchYaw(math.pi / 2, 0.0, yaw),
             "upright": RollPitchYaw(0.0, -math.pi / 2, yaw),
-            "leaning": RollPitchYaw(0.0, math.radians(-25.0), yaw),
         }[kind]
         .ToRotationMatrix()
         .matrix()
@@ -63,16 +61,7 @@ def scene(kind: str, rng: np.random.Generator, centre: np.ndarray) -> dict[int, 
     pose = np.eye(4)
     pose[:3, :3] = rotation
     pose[:3, 3] = [*spot, np.abs(rotation[2, :]) @ np.asarray(DOMINO_SIZE) / 2 + 0.001]
-    poses = {0: pose}
-    if kind == "leaning":  # its raised (+x) end rests on one standing on its edge
-        support = np.eye(4)
-        along = rotation[:2, 0] / np.linalg.norm(rotation[:2, 0])
-        turn = RollPitchYaw(math.pi / 2, 0.0, yaw + math.pi / 2)
-        support[:3, :3] = turn.ToRotationMatrix().matrix()
-        support[:3, 3] = [*(spot + 0.03 * along), DOMINO_SIZE[1] / 2]
-        pose[2, 3] += 0.02
-        poses[1] = support
-    return poses
+    return {0: pose}
 
 
 def run(cell: SimCell, poses: dict[int, np.ndarray], place: np.ndarray, centre) -> dict:
