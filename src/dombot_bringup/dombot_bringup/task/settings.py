@@ -41,8 +41,9 @@ class ArmJobSettings:
     # Before spreading, a pile domino no grasp takes as it lies (on its edge: no grasp of
     # the family holds it; or refused even ignoring its pile) is pushed over, or
     # slid towards the pile's centre (``clearing.lay_flat``), at most max_lay_flat times a
-    # slot; such pushes cost no attempt. Without them a 45-domino pile ended with every
-    # remaining domino refused, and the run 29 of 30.
+    # slot; such pushes cost no attempt. (A 45-domino pile once ended with every
+    # remaining domino refused, the run at 29 of 30; dominoes on an edge were never
+    # offered.)
     max_lay_flat: int = 4
     spread_clearance: float = 0.016  # m
     spread_radius: float = 0.13  # m
