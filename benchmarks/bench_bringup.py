@@ -4,7 +4,8 @@ Runs ``ros2 run dombot_bringup bringup`` (real node processes over DDS, the simu
 as fast as it can go, ``--real-time-factor 0``; docs/SPEED.md) for a 10-domino arc and
 a 20-domino S-curve over a set of seeds and prints one JSON object: placement success
 per domino (first attempt and after retries), runs completed, full topples, simulated
-and wall seconds per domino. Reports and pictures of every run go to
+and wall seconds per domino; for the ``--cycles`` case each cycle and each process's
+memory growth from the first cycle to the last. Reports and pictures of every run go to
 ``--out`` (default out/bench_bringup); with ``--record-picks`` every pick's record too
 (``<out>/<case>_seed<N>/picks/``, for benchmarks/replay_pick.py).
 """
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import subprocess
 import sys
 import threading
@@ -25,6 +27,9 @@ from ament_index_python.packages import get_package_prefix
 
 CASES = {
     "arc10": ["--layout", "arc", "--count", "10", "--pile", "30"],
+    # the perpetual cycle: the arc built, knocked down and built again from its own
+    # dominoes and the pile, five times (issue 23: 5/5 cycles, RSS growing < 10 %)
+    "arc10_cycles5": ["--layout", "arc", "--count", "10", "--pile", "30", "--cycles", "5"],
     "s_curve20": [
         "--layout",
         "s-curve",
@@ -106,6 +111,7 @@ def run_case(
     summary = report["summary"]
     log(f"{name} seed {seed}: {summary}")
     return {
+        **cycles_of(report),
         "case": name,
         "seed": seed,
         "exit": exit_code,
@@ -127,12 +133,47 @@ def run_case(
     }
 
 
+def cycles_of(report: dict) -> dict:
+    """A ``--cycles`` run's cycles (placed, toppled, exit status, RSS per process) and
+    how much each process's resident memory grew from the first cycle's end to the
+    last's; nothing for a run of one cycle."""
+    cycles = report.get("cycles", [])
+    if len(cycles) < 2:
+        return {}
+    first, last = cycles[0]["rss_mb"], cycles[-1]["rss_mb"]
+    growth = {name: last[name] / first[name] - 1.0 for name in first if name in last}
+    return {
+        "cycles": len(cycles),
+        "cycles_full": sum(c["exit_status"] == 0 for c in cycles),
+        "rss_growth": {name: round(g, 3) for name, g in growth.items()},
+        "per_cycle": [
+            {
+                k: c[k]
+                for k in (
+                    "cycle",
+                    "placed",
+                    "dominoes",
+                    "toppled_found",
+                    "toppled_picked",
+                    "toppled_by_perception",
+                    "exit_status",
+                    "simulated_s",
+                    "wall_s",
+                    "rss_mb",
+                )
+            }
+            for c in cycles
+        ],
+    }
+
+
 def aggregate(runs: list[dict]) -> dict:
     dominoes = sum(r.get("dominoes", 0) for r in runs)
     first = sum(r.get("placed_first_attempt", 0) for r in runs)
     placed = sum(r.get("placed", 0) for r in runs)
     completed = [r for r in runs if r["completed"]]
     per_domino = [r["simulated_s_per_domino"] for r in runs if r.get("simulated_s_per_domino")]
+    cycled = [r for r in runs if r.get("cycles")]
     return {
         "runs": len(runs),
         "placements_first_attempt_rate": first / dominoes if dominoes else None,
@@ -148,6 +189,14 @@ def aggregate(runs: list[dict]) -> dict:
         ),
         "simulated_s_per_domino_mean": float(np.mean(per_domino)) if per_domino else None,
         "simulated_s_per_domino_max": float(np.max(per_domino)) if per_domino else None,
+        "cycles_full_rate": (
+            sum(r["cycles_full"] for r in cycled) / sum(r["cycles"] for r in cycled)
+            if cycled
+            else None
+        ),
+        "rss_growth_max": (
+            max(max(r["rss_growth"].values(), default=0.0) for r in cycled) if cycled else None
+        ),
         "wall_s_per_domino_mean": float(
             np.mean([r["wall_s_per_domino"] for r in runs if r.get("wall_s_per_domino")])
         )
@@ -165,8 +214,15 @@ def main() -> None:
     parser.add_argument(
         "--real-time-factor", type=float, default=0.0, help="sim_node's (0: as fast as possible)"
     )
+    parser.add_argument(
+        "--options",
+        default="",
+        help="bringup options after each case's, which they override: e.g. a short cycles run, "
+        "'--cycles 2 --count 4'",
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    extra = shlex.split(args.options)
     report = {
         "benchmark": "bringup",
         "load_average_at_start": os.getloadavg(),
@@ -174,11 +230,12 @@ def main() -> None:
         "cases": {},
     }
     for name in args.cases:
+        arguments = [*CASES[name], *extra]
         runs = [
-            run_case(name, CASES[name], seed, args.out, args.record_picks, args.real_time_factor)
+            run_case(name, arguments, seed, args.out, args.record_picks, args.real_time_factor)
             for seed in args.seeds
         ]
-        report["cases"][name] = {"arguments": CASES[name], **aggregate(runs), "per_seed": runs}
+        report["cases"][name] = {"arguments": arguments, **aggregate(runs), "per_seed": runs}
     report["load_average_at_end"] = os.getloadavg()
     print(json.dumps(report, indent=2))
 

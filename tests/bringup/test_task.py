@@ -430,7 +430,7 @@ def test_a_run_domino_whose_pick_failed_stays_an_obstacle_where_it_lies() -> Non
     assert tried.outcome is Outcome.MISSED
     assert tried.why.startswith("approach_grasp: grasp on an edge")
     assert 2 in run_job.state.fallen  # still there, not offered again:
-    assert candidates(run_job, [])[0] == []
+    assert candidates(run_job, [], 0)[0] == []
     # but kept clear of, where the check after the failed pick saw it
     assert [x_of(p) for p in debris(run_job, Candidate(lying(0.55, -0.30)))] == [
         pytest.approx(0.45)
@@ -937,7 +937,7 @@ def test_perceptions_grasp_is_offered_to_the_planner_first_a_fallen_dominos_none
     """Perception cleared its grasp against every point the cameras saw; the planner
     knows only the detected pile (it falls back to its own grasps)."""
     run_job = job(grasping())
-    pile = next(c for c in candidates(run_job, [])[0] if c.run_index is None)
+    pile = next(c for c in candidates(run_job, [], 0)[0] if c.run_index is None)
     assert place_request(run_job, 0, pile, PILE_BOXES).grasp is GRASP
     fallen = Candidate(lying(0.45, 0.05), 1)
     assert place_request(run_job, 0, fallen, PILE_BOXES).grasp is None
@@ -950,7 +950,7 @@ def test_points_seen_on_no_detected_domino_near_a_pick_go_to_the_planner_with_it
     pile's cores, those come on top, and the pads may reach into the boxes (the gripper
     body keeps clear of them)."""
     run_job = job(grasping())
-    pile = next(c for c in candidates(run_job, [])[0] if c.run_index is None)
+    pile = next(c for c in candidates(run_job, [], 0)[0] if c.run_index is None)
     boxes, ignoring, cores = (
         place_request(run_job, 0, pile, mode) for mode in (PILE_BOXES, PILE_IGNORED, PILE_CORES)
     )

@@ -8,9 +8,15 @@ from scipy.spatial.transform import Rotation
 
 from dombot_description.scenario import load_scenario
 from dombot_perception import geometric_segmentation
+from dombot_perception import pipeline as pipeline_module
 from dombot_perception.backprojection import backproject, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, fit_statistics
-from dombot_perception.depth_check import DepthCheckConfig, correct_box, depth_evidence
+from dombot_perception.depth_check import (
+    DepthCheckConfig,
+    correct_box,
+    depth_evidence,
+    silhouette,
+)
 from dombot_perception.domino_model import HALF_SIZE, orientation_error
 from dombot_perception.frames import POSTURE_FLAT, POSTURE_ON_EDGE, POSTURE_UPRIGHT, CameraView
 from dombot_perception.pipeline import build_pipeline
@@ -105,6 +111,43 @@ def test_after_a_pick_unchanged_regions_keep_their_parts_unsplit(
         assert remembered == masks(geometric_segmentation.GeometricSegmenter(), view)
         assert splits, "a segmenter that never saw the first frame splits it"
         splits.clear()
+
+
+def _detected(result) -> list[tuple]:
+    return sorted(
+        (tuple(d.X_WD.ravel()), d.score, d.clearance, tuple(d.grasp_pose.ravel()))
+        for d in result.detections
+    )
+
+
+def test_after_a_pick_unchanged_clouds_keep_their_boxes(render_scene, monkeypatch):
+    """The pipeline remembers the last frame's fits: a domino whose points and depth pixels
+    are as they were is not fitted again, one whose depth window changed is, and every
+    detection is what a pipeline that never saw the first frame finds."""
+    lone, other = flat(X0 + 0.05, Y0 - 0.04, 0.3), flat(X0 - 0.04, Y0 + 0.03, 2.0)
+    picked = flat(X0 - 0.06, Y0 - 0.06, 1.0)
+    remembering = build_pipeline(load_scenario())
+    assert len(remembering.run(render_scene({0: lone, 1: other, 2: picked})).detections) == 3
+    fits = []
+    fit = pipeline_module.fit_domino_box
+    monkeypatch.setattr(
+        pipeline_module, "fit_domino_box", lambda *args: fits.append(args[0]) or fit(*args)
+    )
+    views = render_scene({0: lone, 1: other})
+    remembered = remembering.run(views)
+    assert not fits, "an unchanged domino was fitted again"
+    fresh = build_pipeline(load_scenario()).run(views)
+    assert fits, "a pipeline that never saw the first frame fits them"
+    assert _detected(remembered) == _detected(fresh) and len(fresh.detections) == 2
+    fits.clear()
+    # a table pixel at a corner of the lone domino's silhouette window: its cloud is the
+    # same, but its depth check read that pixel, so it is checked again
+    changed = [CameraView(v.name, v.rgb, v.depth.copy(), v.K, v.X_WC) for v in views]
+    top, _, left, _ = silhouette(closest(fresh.detections, lone).X_WD, changed[0]).window
+    changed[0].depth[top, left] += 0.0005
+    again = remembering.run(changed)
+    assert len(fits) == 1, "only the domino whose depth window changed is fitted again"
+    assert _detected(again) == _detected(fresh)
 
 
 def test_upright_domino_is_classified_upright(pipeline, render_scene):

@@ -4,10 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
 from dombot_perception.backprojection import WorkRegion, backproject, image_normals
-from dombot_perception.box_fit import BoxFitConfig, fit_domino_box, min_area_rectangle
+from dombot_perception.box_fit import (
+    BoxFitConfig,
+    fit_domino_box,
+    hull_candidates,
+    min_area_rectangle,
+    refine_pose,
+)
 from dombot_perception.canonical import canonical_rotation, posture
 from dombot_perception.domino_model import (
     DOMINO_SIZE,
@@ -127,6 +134,56 @@ def test_min_area_rectangle_of_a_turned_rectangle() -> None:
     assert np.allclose(sides, [0.048, 0.024], atol=0.001)
     assert abs(abs(direction @ turn[:, 0]) - 1) < 1e-3
     assert np.allclose(centre, [0.1, 0.2], atol=0.001)
+
+
+@pytest.mark.parametrize("shape", ["disc", "rectangle", "line"])
+def testhull_candidates_keep_every_vertex_of_the_convex_hull(shape) -> None:
+    rng = np.random.default_rng(RNG_SEED)
+    points = rng.uniform(-0.02, 0.02, size=(500, 2))
+    if shape == "disc":
+        points = points[np.hypot(*points.T) < 0.02]
+    elif shape == "line":
+        points[:, 1] = 0.5 * points[:, 0]  # collinear: no polygon, every point kept
+    candidates = hull_candidates(points)
+    if shape == "line":
+        assert candidates.shape == points.shape
+        return
+    assert candidates.shape[0] < points.shape[0] / 4
+    hull = {tuple(p) for p in points[ConvexHull(points).vertices]}
+    assert hull == {tuple(p) for p in candidates[ConvexHull(candidates).vertices]}
+
+
+def _reference_icp_step(pose: np.ndarray, points: np.ndarray, config: BoxFitConfig):
+    """One damped, Huber-weighted Gauss-Newton step on the point-to-face distances, written
+    plainly: the signed face normal, np.cross, np.linalg.solve, scipy's rotation vector."""
+    body = (points - pose[:3, 3]) @ pose[:3, :3]
+    axis = np.argmax(np.abs(body) - HALF_SIZE, axis=1)
+    signed = body[np.arange(len(body)), axis]
+    normal = np.eye(3)[axis] * np.sign(signed)[:, None]
+    residual = np.abs(signed) - HALF_SIZE[axis]
+    jacobian = np.hstack([np.cross(normal, body), -normal])
+    weight = np.minimum(1.0, config.loss_scale / np.abs(residual))
+    hessian = jacobian.T @ (weight[:, None] * jacobian)
+    hessian += config.damping * np.trace(hessian) / 6.0 * np.eye(6)
+    step = np.linalg.solve(hessian, -jacobian.T @ (weight * residual))
+    stepped = np.eye(4)
+    stepped[:3, :3] = pose[:3, :3] @ Rotation.from_rotvec(step[:3]).as_matrix()
+    stepped[:3, 3] = pose[:3, 3] + pose[:3, :3] @ step[3:]
+    return stepped
+
+
+def test_icp_step_is_the_plain_gauss_newton_step() -> None:
+    turn = Rotation.from_euler("xyz", [0.3, -0.2, 1.1]).as_matrix()
+    truth = domino_pose((0.55, -0.30, 0.03), turn)
+    points, _ = visible_surface(truth, CAMERA)
+    start = truth.copy()
+    start[:3, :3] = Rotation.from_rotvec([0.03, -0.02, 0.05]).as_matrix() @ truth[:3, :3]
+    start[:3, 3] += [0.002, -0.001, 0.001]
+    config = BoxFitConfig(iterations=1)
+    assert not np.allclose(refine_pose(start, points, config), start, atol=1e-4)
+    assert np.allclose(
+        refine_pose(start, points, config), _reference_icp_step(start, points, config), atol=1e-12
+    )
 
 
 def test_canonical_rotation_picks_one_of_the_four_equivalents() -> None:

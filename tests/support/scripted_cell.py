@@ -110,6 +110,7 @@ class ScriptedCell:
     sim_time: float = 0.0
     time_spent: dict[str, float] = field(default_factory=dict)
     # what the task asked
+    resets: list[tuple[int, int]] = field(default_factory=list)  # (pile, seed) poured
     looks: list[float] = field(default_factory=list)  # each look's not_before
     place_requests: list[PlaceRequest] = field(default_factory=list)
     strike_requests: list[StrikeRequest] = field(default_factory=list)
@@ -118,6 +119,7 @@ class ScriptedCell:
     openings: list[float] = field(default_factory=list)  # every gripper command's opening
 
     def reset(self, pile: int, seed: int) -> str:
+        self.resets.append((pile, seed))
         return f"poured {pile} (seed {seed})"
 
     def detect(self, not_before: float) -> Detections:

@@ -20,11 +20,10 @@ import numpy as np
 import rclpy
 
 from dombot_bringup.cell_client import CellClient
-from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import NodeDiedError, ProcessGroup
 from dombot_bringup.run_report import RunReport, write_report
 from dombot_bringup.sections import VERDICTS
-from dombot_bringup.task.loop import run
+from dombot_bringup.task.cycles import Layout, run_cycles
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job, log
 
@@ -47,13 +46,14 @@ def restarted(group: ProcessGroup) -> dict[str, int]:
 
 def run_arm_job(
     out_dir: Path,
-    layout: Sequence[DominoPlacement],
-    layout_name: str,
+    cycles: Sequence[Layout],
     settings: ArmJobSettings,
     node_command: NodeCommand,
 ) -> int:
-    """Start the nodes, run the job, write the report; the exit status: 0 full success,
-    3 partial (slots left empty, what stood knocked down), 1 failed."""
+    """Start the nodes, run the job (a cycle per layout of ``cycles``: built and knocked
+    down, the first from a freshly poured pile), write the report; the exit status: 0 full
+    success, 3 partial (slots left empty, what stood knocked down), 1 failed; the worst of
+    the cycles'."""
     sim_parameters = {
         "domino_count": 0,  # the job's reset pours the pile
         "real_time_factor": settings.real_time_factor,
@@ -89,27 +89,38 @@ def run_arm_job(
         )
         rclpy.init()
         client = CellClient(watchdog=group.check, restarts=group.restarts)
-        job = None
+        started: list[Job] = []  # each cycle's, as it starts
+        # written when the nodes stop, whatever happens: named in the report in OUT/
+        recording = {"recording": RECORDING_FILE, "meshcat_scene": SCENE_FILE}
         try:
             group.wait_until(lambda: client.ready(NEEDED_SERVICES), 600.0, "the nodes to be ready")
             if settings.meshcat and meshcat_urls:
                 log(f"Meshcat: {meshcat_urls[0]}")
+            name, layout = cycles[0]
             log(
-                f"nodes ready; building '{layout_name}' ({len(layout)} dominoes) "
+                f"nodes ready; building '{name}' ({len(layout)} dominoes) "
                 f"from a pile of {settings.pile} (seed {settings.seed})"
+                + (f", {len(cycles)} cycles" if len(cycles) > 1 else "")
             )
-            job = Job.new(client, layout, layout_name, settings)
-            if settings.record:  # written when the nodes stop, whatever happens
-                job.report.files |= {"recording": RECORDING_FILE, "meshcat_scene": SCENE_FILE}
-            report = run(job)
+            jobs = run_cycles(client, cycles, settings, group.resident_mb, started.append)
             group.check()
-            report.node_restarts = restarted(group)
-            status = finish_report(report, out_dir, job.pictures)
+            job = jobs[-1]
+            if len(cycles) > 1:  # each cycle's own report and pictures
+                for number, done in enumerate(jobs, 1):
+                    done.report.node_restarts = restarted(group)
+                    write_report(done.report, out_dir / f"cycle{number}", done.pictures)
+            job.report.node_restarts = restarted(group)
+            if settings.record:
+                job.report.files |= recording
+            status = finish_report(job.report, out_dir, job.pictures)
             if settings.meshcat and meshcat_urls:
                 hold_viewer(meshcat_urls[0])
         except NodeDiedError as error:
-            if job is not None:  # what was built so far, for the user to see
+            if started:  # what was built so far, for the user to see
+                job = started[-1]
                 job.report.node_restarts = restarted(group)
+                if settings.record:
+                    job.report.files |= recording
                 job.report.message = (
                     f"stopped: node '{error.name}' died (exit code {error.returncode})"
                 )

@@ -15,20 +15,26 @@ Examples::
     bringup --layout line --start 0.45 0.0 --heading 90 --count 8
     bringup --layout s-curve --start 0.45 -0.05 --heading 80 --length 0.45 --amplitude 0.05
     bringup --layout csv --csv my_run.csv --visual
+    bringup --layout line --start 0.5 0.1 --count 3 --pile 8 --cycles 3   # build, topple, again
+    bringup --count 4 --cycles 2 --next-layout 'line --start 0.5 0.1'      # then a line of 4
     bringup --job layer --radius 0.5 --sweep 270
 
 Exit status: 0 the run was built and knocked down; 3 partial: slots that could not be
 filled were left empty (report: ``empty_slots`` and why), the rest was built and knocked
 down section by section, every domino seen down; 1 otherwise (nothing stood, a strike
-failed or left dominoes standing, a node died); 2 layout or options refused; 130 Ctrl-C.
+failed or left dominoes standing, a node died); with ``--cycles``, the worst of the
+cycles'; 2 layout or options refused; 130 Ctrl-C.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import math
+import shlex
 import sys
 from pathlib import Path
+from typing import NoReturn
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
@@ -41,6 +47,8 @@ from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_description.scenario import ScenarioError, load_scenario
 
+MAX_CYCLES = 50  # --cycles: each takes minutes; more is a typo
+
 
 def node_command(package: str, executable: str, parameters: dict) -> list[str]:
     """argv for an installed node with parameters, found through the ament index like ros2 run."""
@@ -51,26 +59,21 @@ def node_command(package: str, executable: str, parameters: dict) -> list[str]:
     return [str(path), "--ros-args", *overrides]
 
 
-def parse_args(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog="bringup", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--job", choices=["arm", "layer"], default="arm")
-    parser.add_argument("--out", type=Path, default=Path("out"), help="report folder (out/)")
-    run = parser.add_argument_group("arm job: the run")
-    run.add_argument(
-        "--layout", choices=["line", "arc", "circle", "spiral", "s-curve", "csv"], default="arc"
-    )
-    run.add_argument(
+LAYOUTS = ("line", "arc", "circle", "spiral", "s-curve", "csv")
+
+
+def add_layout_options(group: argparse._ArgumentGroup | argparse.ArgumentParser) -> None:
+    """The options that shape a layout: the first one's and ``--next-layout``'s."""
+    group.add_argument(
         "--count",
         type=int,
         default=10,
         help="dominoes in the run (default 10; circle: as many as fit around its --radius)",
     )
-    run.add_argument("--spacing", type=float, help="centre spacing [m] (default 60%% of height)")
-    run.add_argument("--start", type=float, nargs=2, default=(0.45, 0.0), metavar=("X", "Y"))
-    run.add_argument("--heading", type=float, default=90.0, help="line/s-curve heading [deg]")
-    run.add_argument(
+    group.add_argument("--spacing", type=float, help="centre spacing [m] (default 60%% of height)")
+    group.add_argument("--start", type=float, nargs=2, default=(0.45, 0.0), metavar=("X", "Y"))
+    group.add_argument("--heading", type=float, default=90.0, help="line/s-curve heading [deg]")
+    group.add_argument(
         "--center",
         type=float,
         nargs=2,
@@ -78,15 +81,62 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="arc/circle/spiral centre [m] (arc: the arm base 0 0; circle, spiral: the middle "
         "of the build area)",
     )
-    run.add_argument(
+    group.add_argument(
         "--radius", type=float, help="arc/circle radius [m] (arc 0.6; circle 0.1; layer 0.5)"
     )
-    run.add_argument("--start-angle", type=float, default=5.0, help="arc start [deg] (5)")
-    run.add_argument("--inner-radius", type=float, default=0.08, help="spiral [m]")
-    run.add_argument("--pitch", type=float, default=0.06, help="spiral [m per turn]")
-    run.add_argument("--length", type=float, default=0.45, help="s-curve length [m]")
-    run.add_argument("--amplitude", type=float, default=0.05, help="s-curve amplitude [m]")
-    run.add_argument("--csv", type=Path, help="x,y points in metres (world frame)")
+    group.add_argument("--start-angle", type=float, default=5.0, help="arc start [deg] (5)")
+    group.add_argument("--inner-radius", type=float, default=0.08, help="spiral [m]")
+    group.add_argument("--pitch", type=float, default=0.06, help="spiral [m per turn]")
+    group.add_argument("--length", type=float, default=0.45, help="s-curve length [m]")
+    group.add_argument("--amplitude", type=float, default=0.05, help="s-curve amplitude [m]")
+    group.add_argument("--csv", type=Path, help="x,y points in metres (world frame)")
+
+
+class NextLayoutParser(argparse.ArgumentParser):
+    """``--next-layout``'s words: a layout name and its options; a mistake is a LayoutError
+    (exit 2 with the option named), not argparse's exit."""
+
+    def __init__(self) -> None:
+        super().__init__(prog="--next-layout", add_help=False)
+        self.add_argument("layout", choices=LAYOUTS)
+        add_layout_options(self)
+
+    def error(self, message: str) -> NoReturn:
+        raise layouts.LayoutError(f"--next-layout: {message}")
+
+
+def next_layout_args(args: argparse.Namespace) -> argparse.Namespace:
+    """The layout options of the cycles after the first: ``--next-layout``'s, the first
+    layout's where it gives none."""
+    words = shlex.split(args.next_layout or "")
+    if not words:
+        raise layouts.LayoutError("--next-layout needs a layout name, e.g. 'line --count 3'")
+    return NextLayoutParser().parse_args(words, namespace=copy.copy(args))
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="bringup", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--job", choices=["arm", "layer"], default="arm")
+    parser.add_argument("--out", type=Path, default=Path("out"), help="report folder (out/)")
+    run = parser.add_argument_group("arm job: the run")
+    run.add_argument("--layout", choices=LAYOUTS, default="arc")
+    add_layout_options(run)
+    run.add_argument(
+        "--cycles",
+        type=int,
+        default=1,
+        help="build the layout, knock it down, then build the next from the toppled "
+        "dominoes and what is left of the pile, this many times in all (1; 1..50)",
+    )
+    run.add_argument(
+        "--next-layout",
+        metavar="'LAYOUT [OPTIONS]'",
+        help="with --cycles: the layout of the cycles after the first, in one quoted "
+        "argument, e.g. 'line --start 0.5 0.1 --count 3' or 'csv --csv next.csv'; options "
+        "not given are the first layout's (default: the first layout again)",
+    )
     run.add_argument(
         "--section",
         type=int,
@@ -213,11 +263,39 @@ def make_layout(args: argparse.Namespace, area: layouts.BuildArea) -> list[layou
     return layouts.from_csv(args.csv, args.count, args.spacing)
 
 
+def cycle_layouts(
+    args: argparse.Namespace, area: layouts.BuildArea
+) -> list[tuple[str, list[layouts.DominoPlacement]]]:
+    """Each cycle's layout (name, placements), every one validated: the first, then
+    ``--next-layout``'s (or the first again) for the ``--cycles`` after it."""
+    if not 1 <= args.cycles <= MAX_CYCLES:
+        raise layouts.LayoutError(f"--cycles must be 1..{MAX_CYCLES}: {args.cycles}")
+    if args.next_layout is not None and args.cycles < 2:
+        raise layouts.LayoutError("--next-layout is built from the second cycle on: --cycles 2+")
+    first = (args.layout, make_layout(args, area))
+    following = first
+    if args.next_layout is not None:
+        after = next_layout_args(args)
+        following = (after.layout, make_layout(after, area))
+    chosen = [first] + [following] * (args.cycles - 1)
+    for number, (name, placements) in enumerate(chosen[:2], 1):
+        where = f"cycle {number} ('{name}'): " if following is not first else ""
+        try:
+            layouts.validate(placements, area)
+        except layouts.LayoutError as error:
+            raise layouts.LayoutError(f"{where}{error}") from None
+        if args.pile < len(placements):
+            raise layouts.LayoutError(
+                f"{where}a run of {len(placements)} needs at least as many dominoes in the "
+                f"pile (--pile {args.pile})"
+            )
+    return chosen
+
+
 def run_arm(args: argparse.Namespace) -> int:
     scenario = load_scenario()
     area = layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
-    placements = make_layout(args, area)
-    layouts.validate(placements, area)
+    chosen = cycle_layouts(args, area)
     if not 1 <= args.pile <= 200:
         raise layouts.LayoutError(f"--pile must be 1..200, got {args.pile}")
     if args.section < 0:
@@ -240,11 +318,6 @@ def run_arm(args: argparse.Namespace) -> int:
         raise layouts.LayoutError(
             f"--record-image-rate must be 0..100 Hz: {args.record_image_rate}"
         )
-    if args.pile < len(placements):
-        raise layouts.LayoutError(
-            f"a run of {len(placements)} needs at least as many dominoes in the pile "
-            f"(--pile {args.pile})"
-        )
     settings = ArmJobSettings(
         pile=args.pile,
         seed=args.seed,
@@ -264,7 +337,7 @@ def run_arm(args: argparse.Namespace) -> int:
         foxglove_port=args.foxglove,
         record_picks=args.out / "picks" if args.record_picks else None,
     )
-    return run_arm_job(args.out, placements, args.layout, settings, node_command)
+    return run_arm_job(args.out, chosen, settings, node_command)
 
 
 def run_layer(args: argparse.Namespace) -> int:

@@ -26,6 +26,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TextIO
 
 TAIL_LINES = 20
@@ -47,6 +48,19 @@ def write_line(name: str, line: str, sink: TextIO | None = None) -> None:
 def say(message: str, sink: TextIO | None = None) -> None:
     """A line of the bring-up's own, named like the nodes' forwarded lines."""
     write_line(BRINGUP, message, sink)
+
+
+def resident_mb(pid: int | str = "self") -> float | None:
+    """A process's resident memory (VmRSS) in MB, from /proc; None where there is none
+    (not Linux, or the process is gone)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return None
+    for line in status.splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0  # kB
+    return None
 
 
 def _die_with_parent() -> None:
@@ -172,6 +186,16 @@ class ProcessGroup:
     def restarts(self) -> dict[str, int]:
         """How often each process has been started again."""
         return {managed.name: managed.restarts for managed in self.processes}
+
+    def resident_mb(self) -> dict[str, float]:
+        """The bring-up's and each running process's resident memory [MB]."""
+        running = [(BRINGUP, "self")] + [
+            (managed.name, managed.process.pid)
+            for managed in self.processes
+            if managed.process is not None and managed.returncode is None
+        ]
+        sizes = {name: resident_mb(pid) for name, pid in running}
+        return {name: mb for name, mb in sizes.items() if mb is not None}
 
     def wait_until(self, ready: Callable[[], bool], timeout: float, what: str) -> None:
         """Poll ``ready`` while checking that no node died; TimeoutError names ``what``."""

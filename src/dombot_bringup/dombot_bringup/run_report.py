@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.patches import Polygon
 
 from dombot_bringup.layouts import DOMINO_THICKNESS, DOMINO_WIDTH, DominoPlacement
-from dombot_bringup.sections import VERDICTS, exit_status
+from dombot_bringup.sections import VERDICTS, exit_status, worst_status
 
 LABEL_GAP = 0.008  # m between a domino's end and its number in the picture
 TRUTH_TOLERANCE = (3.0, 3.0)  # mm, deg: "standing where intended" in the simulator's truth
@@ -104,6 +104,29 @@ class SectionOutcome:
 
 
 @dataclass
+class CycleOutcome:
+    """One cycle of ``--cycles``: a layout built (from the pile and what the cycle before
+    toppled) and knocked down."""
+
+    cycle: int  # counted from 1
+    layout: str
+    dominoes: int
+    placed: int
+    placed_first_attempt: int
+    # dominoes the cycle before left lying where perception could fit them, and of them
+    # how many were picked up (into the run, or tried and put back on the pile)
+    toppled_found: int
+    toppled_picked: int
+    empty_slots: list[int]  # counted from 1
+    toppled_by_perception: int  # dominoes seen down after the strike
+    toppled_by_truth: bool | None
+    exit_status: int
+    simulated_s: float
+    wall_s: float
+    rss_mb: dict[str, float]  # resident memory of each process at the cycle's end
+
+
+@dataclass
 class RunReport:
     layout: str
     dominoes: list[DominoOutcome]
@@ -126,6 +149,8 @@ class RunReport:
     # what else the run wrote into the report folder (file names in it): camera pictures
     # before and after the strike, the recording, Meshcat's scene
     files: dict[str, str] = field(default_factory=dict)
+    # --cycles: every cycle so far, this run the last (its exit status the worst of them)
+    cycles: list[CycleOutcome] = field(default_factory=list)
 
     @property
     def success(self) -> bool:
@@ -133,14 +158,16 @@ class RunReport:
 
     @property
     def exit_status(self) -> int:
-        """The arm job's exit status (``sections.exit_status``): 0, 3 partial, or 1."""
-        return exit_status(
+        """The arm job's exit status (``sections.exit_status``): 0, 3 partial, or 1; with
+        cycles, the worst of them (``sections.worst_status``)."""
+        own = exit_status(
             len(self.empty_slots),
             len(self.sections),
             sum(s.struck for s in self.sections),
             self.toppled_by_perception,
             self.toppled_by_truth,
         )
+        return worst_status([own, *(c.exit_status for c in self.cycles)])
 
     def summary(self) -> dict:
         placed = [d for d in self.dominoes if d.placed]

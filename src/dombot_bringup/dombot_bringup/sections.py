@@ -141,3 +141,10 @@ def exit_status(
     if not down or toppled_by_truth is False:
         return EXIT_FAILED
     return EXIT_PARTIAL if empty else EXIT_SUCCESS
+
+
+def worst_status(statuses: Iterable[int]) -> int:
+    """The exit status of several runs (``--cycles``): EXIT_FAILED if one failed, else
+    EXIT_PARTIAL if one was partial, else EXIT_SUCCESS."""
+    ranked = (EXIT_SUCCESS, EXIT_PARTIAL, EXIT_FAILED)
+    return max(statuses, key=ranked.index, default=EXIT_SUCCESS)

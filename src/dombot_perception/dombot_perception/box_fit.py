@@ -31,6 +31,9 @@ RECTANGLE_POINTS = 500  # points whose hull gives the initial in-plane axes
 # (long, short) sides of the face normal to body x, y, z
 IDENTITY_3, IDENTITY_6 = np.eye(3), np.eye(6)
 FACE_SIDES = np.array([np.sort(np.delete(DOMINO_SIZE, axis))[::-1] for axis in range(3)])
+# directions (counter-clockwise) whose extreme points span a polygon inside the hull
+_ANGLES = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+HULL_DIRECTIONS = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
 
 @dataclass(frozen=True)
@@ -116,6 +119,7 @@ def initial_pose(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) 
 
 def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre, unit long-side direction and (long, short) sides of the smallest rectangle."""
+    planar = hull_candidates(planar)
     try:
         hull = planar[ConvexHull(planar).vertices]
     except (QhullError, ValueError) as error:
@@ -137,6 +141,21 @@ def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     if width[best] >= height[best]:
         return center, axis_x, np.array([width[best], height[best]])
     return center, axis_y, np.array([height[best], width[best]])
+
+
+def hull_candidates(planar: np.ndarray) -> np.ndarray:
+    """The points not strictly inside the polygon of the extreme points along
+    ``HULL_DIRECTIONS``: the same convex hull, and Qhull's time grows with its input
+    (500 points: four times the time of the ~40 left)."""
+    extreme = np.argmax(planar @ HULL_DIRECTIONS.T, axis=0)
+    extreme = extreme[extreme != np.concatenate([extreme[-1:], extreme[:-1]])]  # no repeats
+    if extreme.size < 3:
+        return planar
+    corners = planar[extreme]  # counter-clockwise
+    edges = np.concatenate([corners[1:], corners[:1]]) - corners
+    offsets = planar[:, None, :] - corners[None]
+    cross = edges[:, 0] * offsets[..., 1] - edges[:, 1] * offsets[..., 0]
+    return planar[~np.all(cross > 1e-12, axis=1)]
 
 
 def _which_face(dims_2d: np.ndarray, tolerance: float) -> int:
@@ -182,15 +201,17 @@ def refine_pose(
         if outside is not None and outside_axis is not None and outside.shape[0]:
             body, axis = _with_outside(body, axis, (outside - centre) @ rotation, outside_axis)
         signed = body[np.arange(body.shape[0]), axis]
-        normal = IDENTITY_3[axis] * np.sign(signed)[:, None]
         residual = np.abs(signed) - HALF_SIZE[axis]
+        # the face normal is sign * e_axis: the Jacobian row (e_axis x body, -e_axis) times
+        # the sign, which squares to 1 in the Hessian and goes into the gradient
+        face = IDENTITY_3[axis]
         jacobian = np.empty((body.shape[0], 6))
-        jacobian[:, :3] = _cross(normal, body)  # -(body x normal)
-        np.negative(normal, out=jacobian[:, 3:])
+        _cross_into(face, body, jacobian)
+        np.negative(face, out=jacobian[:, 3:])
         weight = np.minimum(1.0, config.loss_scale / np.maximum(np.abs(residual), 1e-12))
         hessian = jacobian.T @ (weight[:, None] * jacobian)
         hessian += config.damping * hessian.trace() / 6.0 * IDENTITY_6
-        step = _solve(hessian, -jacobian.T @ (weight * residual))
+        step = _solve(hessian, -jacobian.T @ (weight * np.sign(signed) * residual))
         centre = centre + rotation @ step[3:]
         rotation = rotation @ _rodrigues(step[:3])
         if _norm(step[3:]) < 1e-5 and _norm(step[:3]) < 1e-4:
@@ -219,19 +240,31 @@ def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product (np.cross costs more than the rest of an ICP step here)."""
-    return a[:, [1, 2, 0]] * b[:, [2, 0, 1]] - a[:, [2, 0, 1]] * b[:, [1, 2, 0]]
+def _cross_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """Row-wise a x b into the first three columns of ``out``, column by column (np.cross,
+    or fancy-indexed columns, cost more than the rest of an ICP step here)."""
+    a0, a1, a2, b0, b1, b2 = a[:, 0], a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2]
+    np.subtract(a1 * b2, a2 * b1, out=out[:, 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[:, 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[:, 2])
 
 
 def _rodrigues(rotation_vector: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues' formula)."""
-    angle = _norm(rotation_vector)
+    """Rotation matrix of a rotation vector (Rodrigues' formula, written out: numpy's calls
+    on a 3-vector cost more than the arithmetic)."""
+    x, y, z = rotation_vector.tolist()
+    angle = math.sqrt(x * x + y * y + z * z)
     if angle < 1e-12:
-        return np.eye(3)
-    x, y, z = rotation_vector / angle
-    skew = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return IDENTITY_3 + np.sin(angle) * skew + (1.0 - np.cos(angle)) * skew @ skew
+        return IDENTITY_3
+    x, y, z = x / angle, y / angle, z / angle
+    s, c = math.sin(angle), 1.0 - math.cos(angle)
+    return np.array(
+        [
+            [1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
+            [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
+            [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)],
+        ]
+    )
 
 
 def _solve(matrix: np.ndarray, vector: np.ndarray) -> np.ndarray:

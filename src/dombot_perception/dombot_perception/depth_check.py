@@ -51,6 +51,7 @@ class Silhouette:
     measured: np.ndarray  # depth [m] in the image; inf where there is no return
     entry: np.ndarray  # Nx3 entry points of the rays, world
     entry_axis: np.ndarray  # body axis of the face each ray enters through
+    window: tuple[int, int, int, int]  # top, bottom, left, right: the depth pixels read
 
 
 @dataclass
@@ -63,6 +64,9 @@ class DepthEvidence:
     see_through: int = 0
     outside: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # world
     outside_axis: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    # (camera, window) of every depth window read on the way: the evidence depends on the
+    # views only through these pixels (and the camera matrices and poses)
+    reads: list[tuple[str, tuple[int, int, int, int]]] = field(default_factory=list)
 
     @property
     def hidden_fraction(self) -> float:
@@ -128,6 +132,7 @@ def silhouette(pose: np.ndarray, view: CameraView) -> Silhouette | None:
         measured=measured,
         entry=entry_body @ pose[:3, :3].T + pose[:3, 3],
         entry_axis=axis[facing],
+        window=(top, bottom + 1, left, right + 1),
     )
 
 
@@ -137,10 +142,13 @@ def depth_evidence(
     """How the measured depth agrees with the box at ``pose``, summed over the views."""
     counts = np.zeros(3, dtype=int)
     outside, outside_axis = [np.zeros((0, 3))], [np.zeros(0, dtype=int)]
+    reads = []
     for view in views:
         seen = silhouette(pose, view)
         if seen is None:
+            reads.append((view.name, (0, 0, 0, 0)))
             continue
+        reads.append((view.name, seen.window))
         with np.errstate(invalid="ignore"):
             difference = seen.measured - seen.predicted  # NaN (no return): unknown
             beyond = difference > config.margin
@@ -152,7 +160,7 @@ def depth_evidence(
         outside.append(seen.entry[beyond])
         outside_axis.append(seen.entry_axis[beyond])
     return DepthEvidence(
-        *(int(c) for c in counts), np.concatenate(outside), np.concatenate(outside_axis)
+        *(int(c) for c in counts), np.concatenate(outside), np.concatenate(outside_axis), reads
     )
 
 
@@ -172,6 +180,7 @@ def correct_box(
     the box's pixels are seen through.
     """
     evidence = depth_evidence(fit.X_WD, views, config)
+    reads = evidence.reads
     for _ in range(config.corrections):
         if evidence.see_through_fraction <= config.correct_above:
             break
@@ -181,10 +190,12 @@ def correct_box(
             fit.X_WD, points[on_box][::stride], fit_config, evidence.outside, evidence.outside_axis
         )
         corrected = depth_evidence(pose, views, config)
+        reads += corrected.reads
         if corrected.see_through_fraction >= evidence.see_through_fraction:
             break
         fit = fit_statistics(pose, points, _on_box(pose, points, fit_config.inlier_distance))
         evidence = corrected
+    evidence.reads = reads
     return fit, evidence
 
 

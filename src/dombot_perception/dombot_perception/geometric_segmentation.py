@@ -76,6 +76,8 @@ class GeometricSegmenter:
         masks: list[np.ndarray] = []
         previous, current = self._previous.get(view.name, {}), {}
         for pixels in components:
+            if pixels.size < config.min_pixels:
+                continue  # nor could any of its parts be a mask
             region = (
                 cloud.full_index(pixels),  # the image's pixels: the crop may move between frames
                 flat_points[pixels],

@@ -27,10 +27,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RigidTransform
-from scipy.spatial import cKDTree
 
 from dombot_description.grasp import Grasp, comes_from_above, nearest_distance, pick_grasps
-from dombot_perception.domino_model import HALF_SIZE, box_signed_distance
+from dombot_perception.domino_model import HALF_SIZE, box_signed_distance, dot3
 from dombot_perception.frames import Detection
 
 # m: clearance reported when no point is nearer: the score saturates at good_clearance,
@@ -78,11 +77,10 @@ def score_detections(
         return []
     tops = np.array([_top_height(d.X_WD) for d in detections])
     span = tops.max() - tops.min()
-    tree = cKDTree(scene_points) if scene_points.shape[0] else None
     for detection, top in zip(detections, tops, strict=True):
-        nearby = scene_points[:0]
-        if tree is not None:
-            nearby = scene_points[tree.query_ball_point(detection.X_WD[:3, 3], NEIGHBOURHOOD)]
+        # a distance mask: a k-d tree's answer, as a list, costs more to turn into an index
+        offsets = scene_points - detection.X_WD[:3, 3]
+        nearby = scene_points[dot3(offsets, offsets) <= NEIGHBOURHOOD**2]
         obstacles = _obstacles(detection.X_WD, nearby, config.own_surface)
         choice = best_grasp(detection.X_WD, obstacles, config)
         covered = _points_on_top(detection.X_WD, obstacles, config.cover_height)

@@ -8,6 +8,8 @@ was dropped, so a caller can show it.
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -84,10 +86,34 @@ class PipelineResult:
     cpu_timings: dict[str, float] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class _FitRecord:
+    """What ``_fit_one`` made of one cloud, and the depth pixels its checks read."""
+
+    detection: Detection | None
+    fit: BoxFit | None
+    messages: list[str]
+    patches: list[tuple[str, tuple[int, int, int, int], np.ndarray]]  # camera, window, depth
+
+    def still_holds(self, views: dict[str, CameraView]) -> bool:
+        """Whether every depth window read is the same in ``views``."""
+        return all(
+            np.array_equal(views[name].depth[top:bottom, left:right], patch)
+            for name, (top, bottom, left, right), patch in self.patches
+        )
+
+
 class PerceptionPipeline:
     def __init__(self, segmenter: Segmenter, config: PipelineConfig | None = None) -> None:
         self.segmenter = segmenter
         self.config = config or PipelineConfig()
+        # the fits of the last frame and of this one, by content: after a pick most of the
+        # pile looks as it did, and a cloud whose points and depth pixels are unchanged
+        # gets its box back instead of being fitted and checked again
+        self._previous_fits: dict[bytes, _FitRecord] = {}
+        self._fits: dict[bytes, _FitRecord] = {}
+        self._previous_kept: dict[bytes, np.ndarray] = {}  # the same for outlier removal
+        self._kept: dict[bytes, np.ndarray] = {}
 
     def run(self, views: list[CameraView]) -> PipelineResult:
         """Detect dominoes in ``views`` (one frame per camera, same instant)."""
@@ -113,6 +139,7 @@ class PerceptionPipeline:
                 view.name: self.segmenter.segment(view, clouds[view.name]) for view in usable
             }
         with _timed(result, "backprojection"):
+            self._previous_kept, self._kept = self._kept, {}
             mask_clouds = self._mask_clouds(clouds, result.masks)
             scene = self._scene_points(clouds)
         if not mask_clouds:
@@ -121,6 +148,7 @@ class PerceptionPipeline:
         with _timed(result, "fusion"):
             fused = fuse(mask_clouds, self.config.fusion)
         with _timed(result, "box_fit"):
+            self._previous_fits, self._fits = self._fits, {}
             detections = self._fit(fused, usable, result.rejected)
         with _timed(result, "scoring"):
             result.detections = score_detections(detections, scene, self.config.scoring)
@@ -147,12 +175,22 @@ class PerceptionPipeline:
                 pixels, local = pixels[inside], local[inside]
                 usable = valid[local]
                 pixels, local = pixels[usable], local[usable]
-                kept = remove_outliers(points[local], self.config.filtering)
+                kept = self._inliers(points[local])
                 if kept.size:
                     result.append(
                         MaskCloud(name, pixels[kept], points[local[kept]], normals[local[kept]])
                     )
         return result
+
+    def _inliers(self, points: np.ndarray) -> np.ndarray:
+        """``remove_outliers`` of ``points``; the last frame's answer for the same points."""
+        filtering = self.config.filtering
+        digest = hashlib.blake2b(repr(filtering).encode(), digest_size=20)
+        digest.update(np.ascontiguousarray(points).data)
+        key = digest.digest()
+        kept = self._previous_kept.get(key)
+        self._kept[key] = remove_outliers(points, filtering) if kept is None else kept
+        return self._kept[key]
 
     def _scene_points(self, clouds: dict[str, OrganisedCloud | None]) -> np.ndarray:
         """Every point seen in the work region (all cameras), subsampled, for clearance checks."""
@@ -212,25 +250,45 @@ class PerceptionPipeline:
         rejected: list[str],
         filtering: FilterConfig | None = None,
     ) -> tuple[Detection | None, BoxFit | None]:
-        """The detection (None when rejected, with the reason in ``rejected``) and the fit."""
+        """The detection (None when rejected, with the reason in ``rejected``) and the fit;
+        the last frame's when the cloud and the depth pixels its checks read are the same."""
+        filtering = filtering or self.config.filtering
+        config = (self.config.box_fit, self.config.depth_check, filtering)
+        key = _fit_key(cloud, views, config)
+        record = self._previous_fits.get(key)
+        if record is None or not record.still_holds({view.name: view for view in views}):
+            record = self._fit_cloud(cloud, views, filtering)
+        self._fits[key] = record
+        rejected.extend(record.messages)
+        detection = record.detection and dataclasses.replace(record.detection)  # scored later
+        return detection, record.fit
+
+    def _fit_cloud(
+        self, cloud: FusedCloud, views: list[CameraView], filtering: FilterConfig
+    ) -> _FitRecord:
         points, normals = cloud.points, cloud.normals
         try:
             fit = fit_domino_box(points, normals, self.config.box_fit)
         except BoxFitError as error:
-            rejected.append(str(error))
-            return None, None
-        filtering = filtering or self.config.filtering
+            return _FitRecord(None, None, [str(error)], [])
         reason = rejection_reason(fit, points.shape[0], filtering)
+        reads = []
         if reason is None:
             fit, evidence = correct_box(
                 fit, points, views, self.config.depth_check, self.config.box_fit
             )
+            reads = evidence.reads
             reason = rejection_reason(fit, points.shape[0], filtering)
             if reason is None and evidence.see_through_fraction > filtering.max_see_through:
                 reason = f"cameras see past {evidence.see_through_fraction:.0%} of it"
+        depth = {view.name: view.depth for view in views}
+        patches = [
+            (name, window, depth[name][window[0] : window[1], window[2] : window[3]].copy())
+            for name, window in reads
+        ]
         if reason:
-            rejected.append(f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}")
-            return None, fit
+            message = f"cloud at {np.round(points.mean(axis=0), 3)}: {reason}"
+            return _FitRecord(None, fit, [message], patches)
         pose = canonical_pose(fit.X_WD)
         detection = Detection(
             X_WD=pose,
@@ -241,7 +299,7 @@ class PerceptionPipeline:
             cameras=cloud.cameras,
             points=points,
         )
-        return detection, fit
+        return _FitRecord(detection, fit, [], patches)
 
     def _merge_duplicates(
         self, detections: list[Detection], rejected: list[str]
@@ -291,6 +349,19 @@ def unexplained_points(
         local = (points[near] - detection.X_WD[:3, 3]) @ detection.X_WD[:3, :3]
         explained[near[box_signed_distance(local) <= margin]] = True
     return points[~explained]
+
+
+def _fit_key(cloud: FusedCloud, views: list[CameraView], config: tuple) -> bytes:
+    """A digest of everything a fit reads but the depth pixels: the cloud, the ``config``
+    (fit, depth check, filters), each camera's name, matrix, pose and image size."""
+    digest = hashlib.blake2b(repr(config).encode(), digest_size=20)
+    for array in (cloud.points, cloud.normals):
+        digest.update(np.ascontiguousarray(array).data)
+    for view in views:
+        digest.update(f"{view.name}{view.depth.shape}".encode())
+        digest.update(np.ascontiguousarray(view.K, dtype=float).data)
+        digest.update(np.ascontiguousarray(view.X_WC, dtype=float).data)
+    return digest.digest()
 
 
 @contextmanager

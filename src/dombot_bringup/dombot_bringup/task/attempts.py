@@ -75,7 +75,7 @@ def attempt(
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
     picked blind where the plan expected it to settle, 3 of 7 such picks missed.
     """
-    found, stuck = candidates(job, failed)
+    found, stuck = candidates(job, failed, index)
     settings = job.settings
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
     roomiest = roomiest_first(found)[: settings.last_resort_candidates]
@@ -97,7 +97,7 @@ def attempt(
         refused += more
     if offer is None:
         if about_the_pile:
-            name_out_of_reach(job, index, [c for c in found if c.run_index is None] + stuck)
+            name_out_of_reach(job, index, [c for c in found if c.from_pile] + stuck)
         why = f"planning: {refused} offers refused" if refused else "no graspable domino seen"
         return Attempt(Outcome.NO_PLAN, why)
     job.report.pile_out_of_reach.clear()
@@ -159,8 +159,10 @@ def pick(
     held = plan.held_above_place
     execution = execute(job, segments, None if held is None else Hold(index, held, candidate.pose))
     write_pick_record(job, record, execution.why or ("turned in place only" if look_again else ""))
-    if candidate.run_index is not None and execution.ran is not Ran.FAILED:
-        state.fallen.pop(candidate.run_index, None)  # carried away
+    if execution.ran is not Ran.FAILED:  # carried away
+        if candidate.run_index is not None:
+            state.fallen.pop(candidate.run_index, None)
+        state.toppled = [pose for pose in state.toppled if pose is not candidate.pose]
     if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
         return Attempt(Outcome.NOT_PLACED, execution.why)
     if execution.ran is Ran.FAILED:  # blocked or missed: unless it moved, it would recur

@@ -23,28 +23,35 @@ SPREAD_TRIES = 2  # pushes of one pile domino offered to the planner (the shorte
 
 
 def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
-    """Push aside the nearest fallen domino within a domino length of slot ``index`` that
-    no grasp reached (refused, or its pick failed); True once one was pushed (or the push
-    failed after the arm moved)."""
+    """Push aside the nearest fallen or toppled domino within a domino length of slot
+    ``index`` that no grasp reached (refused, or its pick failed); True once one was
+    pushed (or the push failed after the arm moved)."""
     state = job.state
     place, avoid = spot_of(job.releases[index]), failed + state.unpickable
+    lying = [*state.fallen.items(), *((None, pose) for pose in state.toppled)]
     debris = sorted(
-        (float(np.linalg.norm(spot_of(pose) - place)), k)
-        for k, pose in state.fallen.items()
+        (float(np.linalg.norm(spot_of(pose) - place)), n)
+        for n, (_, pose) in enumerate(lying)
         if near(spot_of(pose), place, DOMINO_LENGTH) and near_any(spot_of(pose), avoid)
     )
-    for _, k in debris:
-        pose = state.fallen[k]
-        others = [p for i, p in state.fallen.items() if i != k]
+    for _, n in debris:
+        k, pose = lying[n]
+        others = [p for p in state.lying() if p is not pose]
         for direction, distance in sweep_pushes(pose, job.layout[index], job.settings.sweep_margin):
-            what = f"domino {k + 1} lying at {spot_of(pose).round(3).tolist()}"
+            name = "toppled domino" if k is None else f"domino {k + 1}"
+            what = f"{name} lying at {spot_of(pose).round(3).tolist()}"
             swept = sweep(job, pose, others, direction, distance, what, "across the run")
             if swept is None:
                 continue
             job.report.dominoes[index].sweeps.append(swept)
             log(f"{job.domino(index)}: {swept}")
-            state.fallen.pop(k)
-            check(job, k, just_placed=False)  # still there (fallen again) or gone
+            if k is None:  # not a slot perception checks: taken to lie where it was pushed
+                moved = pose.copy()
+                moved[:2, 3] += distance * np.asarray(direction)[:2]
+                state.toppled = [moved if p is pose else p for p in state.toppled]
+            else:
+                state.fallen.pop(k)
+                check(job, k, just_placed=False)  # still there (fallen again) or gone
             return True
     return False
 
@@ -56,7 +63,7 @@ def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:
     jammed), asking the planner at most spread_plans times for each; True once the arm
     moved."""
     settings, asked = job.settings, [0, 0]
-    pile = roomiest_first([c for c in candidates if c.run_index is None])
+    pile = roomiest_first([c for c in candidates if c.from_pile])
     for jammed in (False, True):
         for candidate in pile:
             if asked[jammed] == settings.spread_plans:
@@ -115,7 +122,7 @@ def pushes(
     settings, state = job.settings, job.state
     seen = [*candidate.neighbours, *state.standing.values()]
     centre = np.asarray(settings.pile_center)
-    fallen = list(state.fallen.values())
+    fallen = state.lying()
     if jammed:  # the neighbours are pushed along: only the run is an obstacle
         found = stir_pushes(candidate.pose, seen, candidate.points, centre, settings.spread_radius)
         return found, fallen, "through its neighbours"

@@ -35,11 +35,15 @@ class Turn(Enum):
     DEFERRED = "deferred"  # nothing planned: put off for other slots to go first
 
 
-def run(job: Job, turn: Callable[[Job, int, bool], Turn] | None = None) -> RunReport:
-    """Pour the pile, build the layout (``turn``: one slot's turn, ``place_slot``) around
-    the slots given up, knock down what stands; the report."""
+def run(
+    job: Job, turn: Callable[[Job, int, bool], Turn] | None = None, pour: bool = True
+) -> RunReport:
+    """Pour the pile (unless not ``pour``: a next cycle builds from what lies in the cell),
+    build the layout (``turn``: one slot's turn, ``place_slot``) around the slots given
+    up, knock down what stands; the report."""
     started_wall, cell, report = time.monotonic(), job.cell, job.report
-    log(cell.reset(job.settings.pile, job.settings.seed))
+    if pour:
+        log(cell.reset(job.settings.pile, job.settings.seed))
     started_sim = cell.sim_time
     build(job, turn or place_slot)
     report.built = len(job.state.standing) == len(job.layout)

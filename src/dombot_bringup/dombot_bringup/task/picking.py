@@ -54,6 +54,7 @@ class Candidate:
     grasp: Pose | None = None
     # seen points near it on no detected domino: the planner keeps the pads' path clear
     points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    toppled: bool = False  # one an earlier cycle knocked down (``BuildState.toppled``)
 
     def spot(self) -> np.ndarray:
         return spot_of(self.pose)
@@ -67,7 +68,13 @@ class Candidate:
         return "fallen" if self.posture is None else POSTURE_NAMES[self.posture]
 
     @property
+    def from_pile(self) -> bool:
+        return self.run_index is None and not self.toppled
+
+    @property
     def source(self) -> str:
+        if self.toppled:
+            return "toppled domino"
         return "pile" if self.run_index is None else f"run domino {self.run_index + 1}"
 
 
@@ -80,22 +87,25 @@ class Offer:
     plan: Plan
 
 
-def candidates(job: Job, failed: list[np.ndarray]) -> tuple[list[Candidate], list[Candidate]]:
-    """What to offer: fallen run dominoes first (they block the run), then the pile's
-    detections in perception's order (best grasp first); none where an attempt failed or
-    no grasp reaches. And the pile dominoes no grasp takes as they lie, for
+def candidates(
+    job: Job, failed: list[np.ndarray], index: int
+) -> tuple[list[Candidate], list[Candidate]]:
+    """What to offer: fallen run dominoes first (they block the run), then those an
+    earlier cycle toppled (``toppled_candidates``), then the pile's detections in
+    perception's order (best grasp first); none where an attempt failed or no grasp
+    reaches. And the pile dominoes no grasp takes as they lie, for
     ``clearing.lay_flat``: on their edge first (no grasp of the family holds them),
-    then those refused even ignoring their pile (or whose pick failed), and
-    leaning ones refused for this slot (a hold leaning with the domino may have no
-    place pose)."""
+    then those refused even ignoring their pile (or whose pick failed), and leaning ones
+    refused for this slot (a hold leaning with the domino may have no place pose)."""
     unpickable = job.state.unpickable
     avoid = failed + unpickable
-    fallen = job.state.fallen
+    fallen, lying = job.state.fallen, job.state.lying()
     run = [
-        Candidate(pose, index, neighbours_of(pose, fallen.values()))
-        for index, pose in sorted(fallen.items())
+        Candidate(pose, k, neighbours_of(pose, lying))
+        for k, pose in sorted(fallen.items())
         if not near_any(spot_of(pose), avoid)
     ]
+    run += toppled_candidates(job, index, avoid)
     detections, unexplained = look_at_pile(job)
     pile = [pile_candidate(d, detections, unexplained) for d in detections]
     graspable = [c for c in pile if c.posture in PICKABLE_POSTURES]
@@ -106,6 +116,17 @@ def candidates(job: Job, failed: list[np.ndarray]) -> tuple[list[Candidate], lis
         if near_any(c.spot(), unpickable) or (c.leaning and near_any(c.spot(), failed))
     ]
     return run + offers, stuck
+
+
+def toppled_candidates(job: Job, index: int, avoid: list[np.ndarray]) -> list[Candidate]:
+    """The dominoes an earlier cycle toppled, nearest slot ``index`` first: one lying over
+    the slot is cleared by becoming its domino, and the rest of a fallen row lies ahead."""
+    lying, place = job.state.lying(), spot_of(job.targets[index])
+    toppled = [pose for pose in job.state.toppled if not near_any(spot_of(pose), avoid)]
+    toppled.sort(key=lambda pose: float(np.linalg.norm(spot_of(pose) - place)))
+    return [
+        Candidate(pose, neighbours=neighbours_of(pose, lying), toppled=True) for pose in toppled
+    ]
 
 
 def pile_candidate(
@@ -217,9 +238,9 @@ def pile_points(job: Job, candidate: Candidate, pile: str) -> np.ndarray:
 def debris(
     job: Job, candidate: Candidate, with_pile: bool = True, place: np.ndarray | None = None
 ) -> list[Pose]:
-    """Fallen run dominoes lying in the build area (not the one to pick): the carry and
-    the placement must keep clear of them as of the standing ones (a placement that met
-    one fell). Its pile neighbours go to the planner as its pile instead; ignoring its
+    """Fallen and toppled dominoes lying in the build area (not the one to pick): the
+    carry and the placement must keep clear of them as of the standing ones (a placement
+    that met one fell). Its pile neighbours go to the planner as its pile instead; ignoring its
     pile, those within a domino length of the ``place`` stay obstacles: a run domino
     picked so was placed onto the fallen ones beside it, and fell (S-curve seed 2)."""
     pile = [
@@ -229,6 +250,6 @@ def debris(
     ]
     return [
         pose
-        for pose in job.state.fallen.values()
+        for pose in job.state.lying()
         if pose is not candidate.pose and not any(pose is p for p in pile)
     ]

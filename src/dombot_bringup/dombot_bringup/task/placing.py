@@ -143,7 +143,7 @@ def in_hand(job: Job, hold: Hold) -> InHand:
             # refused, and the build stopped at that slot)
             standing=(
                 *job.state.standing.values(),
-                *(pose for pose in job.state.fallen.values() if pose is not hold.picked),
+                *(pose for pose in job.state.lying() if pose is not hold.picked),
             ),
             holding=True,
             time_budget=settings.plan_budget,

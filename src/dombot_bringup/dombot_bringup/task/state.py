@@ -26,6 +26,9 @@ def log(message: str) -> None:
 class BuildState:
     standing: dict[int, Pose] = field(default_factory=dict)  # layout index → target pose
     fallen: dict[int, Pose] = field(default_factory=dict)  # layout index → measured pose
+    # dominoes an earlier cycle knocked down (``task.cycles``), where perception saw them
+    # lie: picked for this run's slots before the pile's, obstacles until then
+    toppled: list[Pose] = field(default_factory=list)
     # (x, y) of dominoes no grasp reaches or whose pick failed: not offered again
     unpickable: list[np.ndarray] = field(default_factory=list)
     stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
@@ -35,6 +38,10 @@ class BuildState:
     pushed: list[np.ndarray] = field(default_factory=list)
     # why the pile domino at (x, y) is out of reach: the last refusal of it or its push
     reasons: list[tuple[np.ndarray, str]] = field(default_factory=list)
+
+    def lying(self) -> list[Pose]:
+        """Every domino known to lie in the build area: the run's fallen, the toppled."""
+        return [*self.fallen.values(), *self.toppled]
 
     def forget_refusals_near(self, spot: np.ndarray) -> None:
         """A pick or push at ``spot`` moved the dominoes around it: offer them again."""

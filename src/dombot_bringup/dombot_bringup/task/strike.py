@@ -1,6 +1,6 @@
 """Knocking down what stands: each section (consecutive standing slots) struck from its
 own first domino, from the run's end backwards (``sections``); perception's word on what
-fell."""
+fell, and where it lies."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from dombot_bringup.run_report import SectionOutcome
 from dombot_bringup.sections import Section, sections_of, strike_order
 from dombot_bringup.task.cell import Seen, StrikeRequest
-from dombot_bringup.task.checks import settle
+from dombot_bringup.task.checks import remember_fallen, settle
 from dombot_bringup.task.placing import execute
 from dombot_bringup.task.records import take_picture
 from dombot_bringup.task.state import Job, log
@@ -44,6 +44,11 @@ def strike(job: Job, standing: Sequence[int]) -> None:
         outcome.toppled_by_perception = sum(fallen[i] for i in section.slots)
     report.toppled_by_perception = answer.success and all(fallen.values())
     log(f"after the strike perception sees {sum(fallen.values())}/{len(built)} dominoes down")
+    for position, i in enumerate(built):  # where they lie, for a next cycle to pick up
+        if fallen[i]:
+            job.state.standing.pop(i, None)
+            status, tilt = answer.status[position], answer.tilt[position]
+            remember_fallen(job, i, status, answer.measured[position], tilt)
 
 
 def strike_section(job: Job, section: Section, built: Sequence[int]) -> str:

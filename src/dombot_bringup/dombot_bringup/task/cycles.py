@@ -1,0 +1,99 @@
+"""The perpetual cycle (``--cycles``): build a layout, knock it down, build the next one
+from the dominoes the strike left lying in the build area and what is left of the pile,
+and so on.
+
+The pile is poured once. After each strike perception says where the run's dominoes lie
+(``strike``: its look at what fell); the next cycle takes them as ``BuildState.toppled``:
+offered for each slot before the pile's, the nearest the slot first (one lying over the
+slot is cleared by becoming its domino), and obstacles for every carry and placement
+until picked up. A cycle that failed (a strike refused, or dominoes left standing) ends
+the cycles: what stands where the next layout goes is nothing the next cycle knows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+from dombot_bringup.layouts import DominoPlacement
+from dombot_bringup.run_report import CycleOutcome, RunReport
+from dombot_bringup.sections import EXIT_FAILED, VERDICTS
+from dombot_bringup.task.cell import Cell
+from dombot_bringup.task.loop import run
+from dombot_bringup.task.settings import ArmJobSettings
+from dombot_bringup.task.state import Job, log
+
+Layout = tuple[str, Sequence[DominoPlacement]]  # a layout's name and its dominoes
+
+
+def run_cycles(
+    cell: Cell,
+    layouts: Sequence[Layout],
+    settings: ArmJobSettings,
+    memory: Callable[[], Mapping[str, float]] = dict,
+    started: Callable[[Job], None] = lambda job: None,
+) -> list[Job]:
+    """One cycle per layout of ``layouts`` (the first pours the pile), until they are done
+    or one failed; the cycles' jobs, each report's ``cycles`` listing every cycle up to
+    its own. ``memory``: resident MB of each process, read at each cycle's end;
+    ``started``: told each cycle's job as it starts (for a report if a node dies)."""
+    jobs: list[Job] = []
+    outcomes: list[CycleOutcome] = []
+    for number, (name, layout) in enumerate(layouts, 1):
+        job = Job.new(cell, layout, name, settings)
+        if jobs:
+            job.state.toppled = jobs[-1].state.lying()
+            log(
+                f"cycle {number}/{len(layouts)}: building '{name}' ({len(layout)} dominoes) "
+                f"from {len(job.state.toppled)} toppled dominoes seen lying and the pile"
+            )
+        found = len(job.state.toppled)
+        job.report.cycles = list(outcomes)  # the report of a cycle cut short has the others
+        started(job)
+        report = run(job, pour=not jobs)
+        outcomes.append(cycle_outcome(number, report, found, len(job.state.toppled), memory()))
+        report.cycles = list(outcomes)
+        jobs.append(job)
+        if len(layouts) > 1:
+            log(cycle_line(outcomes[-1], len(layouts)))
+        if outcomes[-1].exit_status == EXIT_FAILED and number < len(layouts):
+            log(f"cycle {number} failed: no more cycles ({report.message})")
+            break
+    return jobs
+
+
+def cycle_outcome(
+    number: int, report: RunReport, found: int, left: int, rss: Mapping[str, float]
+) -> CycleOutcome:
+    """What cycle ``number`` did: ``found`` toppled dominoes at its start, ``left`` of them
+    never picked up."""
+    summary = report.summary()
+    return CycleOutcome(
+        cycle=number,
+        layout=report.layout,
+        dominoes=summary["dominoes"],
+        placed=summary["placed"],
+        placed_first_attempt=summary["placed_first_attempt"],
+        toppled_found=found,
+        toppled_picked=found - left,
+        empty_slots=summary["empty_slots"],
+        toppled_by_perception=sum(s.toppled_by_perception for s in report.sections),
+        toppled_by_truth=report.toppled_by_truth,
+        exit_status=summary["exit_status"],
+        simulated_s=report.simulated_s,
+        wall_s=report.wall_s,
+        rss_mb={name: round(mb, 1) for name, mb in rss.items()},
+    )
+
+
+def cycle_line(outcome: CycleOutcome, cycles: int) -> str:
+    """The log's one line for a cycle."""
+    memory = ", ".join(f"{name} {mb:.0f}" for name, mb in outcome.rss_mb.items())
+    empty = ", ".join(map(str, outcome.empty_slots)) or "none"
+    return (
+        f"cycle {outcome.cycle}/{cycles} '{outcome.layout}': {VERDICTS[outcome.exit_status]}, "
+        f"{outcome.placed}/{outcome.dominoes} placed ({outcome.placed_first_attempt} at the "
+        f"first attempt), {outcome.toppled_picked} of {outcome.toppled_found} toppled "
+        f"picked up, empty slots: {empty}, {outcome.toppled_by_perception} seen down; "
+        f"{outcome.simulated_s:.0f} s simulated, {outcome.wall_s:.0f} s wall; "
+        f"RSS MB: {memory or 'not measured'}"
+    )

@@ -1,0 +1,228 @@
+"""The perpetual cycle (``--cycles``) without ROS: a scripted cell, the real task core.
+
+After each strike perception's look says where the run's dominoes lie; the next cycle
+builds from them (nearest the slot first) before the pile, never pours again, and
+reports each cycle; the job's exit status is the worst cycle's."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import pytest
+
+from dombot_bringup import layouts
+from dombot_bringup.bringup import cycle_layouts, parse_args
+from dombot_bringup.layouts import LayoutError
+from dombot_bringup.process_group import resident_mb
+from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, EXIT_SUCCESS, worst_status
+from dombot_bringup.task.cell import PlacementCheck, Pose, Seen
+from dombot_bringup.task.cycles import cycle_line, run_cycles
+from dombot_bringup.task.geometry import spot_of
+from dombot_bringup.task.loop import Turn, place_slot
+from dombot_bringup.task.settings import ArmJobSettings
+from dombot_bringup.task.state import Job
+from dombot_description.scenario import load_scenario
+from dombot_planner.errors import ErrorCode
+from support.scripted_cell import ScriptedCell, flat, lying, planned, refused
+
+LINE = layouts.line((0.45, 0.0), math.pi / 2, 3)  # slots at y = 0, 28.8 and 57.6 mm
+# where the line's dominoes lie after a strike: each fell ahead onto the next
+FALLEN_Y = [0.020, 0.0488, 0.0776]
+PILE_Y = -0.3
+
+
+def toppling_cell(fallen_y: Sequence[float] = FALLEN_Y) -> ScriptedCell:
+    """A cell where every placement stands and every strike topples the run: its
+    dominoes are then seen lying at ``fallen_y`` along the line (perception answers them
+    in slot order)."""
+    cell = ScriptedCell(pile=[flat(0.50), flat(0.60)], place=lambda request: planned("place"))
+    cell.strike = lambda request: planned("strike")
+
+    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
+        struck = cell.executed and cell.executed[-1].joint_names == ("strike",)
+        count = len(expected)
+        if not struck:
+            return PlacementCheck(
+                True,
+                "",
+                (Seen.STANDING,) * count,
+                tuple(expected),
+                (0.001,) * count,
+                (0.0,) * count,
+            )
+        lie = tuple(lying(0.45, y) for y in fallen_y[:count])
+        return PlacementCheck(
+            True, "", (Seen.FALLEN,) * count, lie, (0.02,) * count, (math.radians(85.0),) * count
+        )
+
+    cell.placements = placements
+    return cell
+
+
+def picked_from(cell: ScriptedCell) -> list[tuple[float, float]]:
+    """Where each planned pick's domino lay (x, y), rounded to 0.1 mm."""
+    return [(round(r.domino[0, 3], 4), round(r.domino[1, 3], 4)) for r in cell.place_requests]
+
+
+def test_the_next_cycle_builds_from_the_toppled_dominoes_nearest_each_slot_first() -> None:
+    cell = toppling_cell()
+    jobs = run_cycles(cell, [("line", LINE)] * 2, ArmJobSettings(pile=8), lambda: {"sim": 512.0})
+    assert len(jobs) == 2 and cell.resets == [(8, 0)]  # poured once
+    first, second = picked_from(cell)[:3], picked_from(cell)[3:]
+    assert first == [(0.5, PILE_Y), (0.5, PILE_Y), (0.5, PILE_Y)]  # the scripted pile
+    # the toppled ones, each slot's nearest: the one lying over it becomes its domino
+    assert second == [(0.45, 0.02), (0.45, 0.0488), (0.45, 0.0776)]
+    report = jobs[-1].report
+    assert [c.cycle for c in report.cycles] == [1, 2]
+    one, two = report.cycles
+    assert (one.toppled_found, one.toppled_picked) == (0, 0)
+    assert (two.toppled_found, two.toppled_picked) == (3, 3)
+    assert [(c.placed, c.dominoes, c.empty_slots) for c in report.cycles] == [(3, 3, [])] * 2
+    assert [c.toppled_by_perception for c in report.cycles] == [3, 3]
+    assert two.rss_mb == {"sim": 512.0} and report.exit_status == EXIT_SUCCESS
+    # a cycle's own report lists the cycles up to it
+    assert [c.cycle for c in jobs[0].report.cycles] == [1]
+    line = cycle_line(two, 2)
+    assert line.startswith("cycle 2/2 'line': SUCCESS, 3/3 placed") and "sim 512" in line
+
+
+def test_the_next_layout_is_built_in_the_second_cycle_from_the_first_ones_toppled() -> None:
+    cell = toppling_cell()
+    beside = layouts.line((0.50, 0.0), math.pi / 2, 2)  # two, 5 cm further out
+    jobs = run_cycles(cell, [("line", LINE), ("line of two", beside)], ArmJobSettings(pile=8))
+    second = cell.place_requests[3:]
+    assert [round(r.place[0, 3], 4) for r in second] == [0.5, 0.5]  # the new slots
+    assert [(round(r.domino[0, 3], 4), round(r.domino[1, 3], 4)) for r in second] == [
+        (0.45, 0.02),  # nearest the first new slot
+        (0.45, 0.0488),
+    ]
+    report = jobs[-1].report
+    assert report.layout == "line of two" and len(report.dominoes) == 2
+    assert [(c.layout, c.dominoes, c.placed) for c in report.cycles] == [
+        ("line", 3, 3),
+        ("line of two", 2, 2),
+    ]
+    assert (report.cycles[1].toppled_found, report.cycles[1].toppled_picked) == (3, 2)
+
+
+def test_a_toppled_domino_no_grasp_reaches_stays_an_obstacle_and_the_pile_fills_in() -> None:
+    cell = toppling_cell()
+    built = 0
+
+    def place(request):  # the pile's dominoes plan; in the second cycle the toppled do not
+        nonlocal built
+        if request.domino[1, 3] > PILE_Y + 0.1 and built >= 3:
+            return refused(ErrorCode.GRASP_UNREACHABLE)
+        built += 1
+        return planned("place")
+
+    cell.place = place
+    jobs = run_cycles(cell, [("line", LINE)] * 2, ArmJobSettings(pile=8))
+    second = [r for r in cell.place_requests[3:] if r.domino[1, 3] == PILE_Y]
+    assert len(second) == 3  # every slot from the pile
+    lying_y = sorted(round(p[1, 3], 4) for p in second[0].standing)
+    assert lying_y == FALLEN_Y  # the toppled dominoes kept clear of
+    assert jobs[-1].report.cycles[1].toppled_picked == 0
+
+
+def test_a_toppled_domino_no_grasp_reaches_over_a_slot_is_swept_aside_and_kept_in_mind() -> None:
+    """Its pick refused, it would block the slot for good: pushed across the run (no slot
+    of this layout to check it by), it is taken to lie where the push left it."""
+    cell = ScriptedCell(pile=[flat(0.55)], strike=lambda request: planned())
+    from_pile = lambda request: request.domino[1, 3] < PILE_Y + 0.1  # noqa: E731
+    cell.place = lambda r: planned("place") if cell.strike_requests and from_pile(r) else refused()
+    layout = layouts.line((0.45, 0.0), math.pi / 2, 3)
+    job = Job.new(cell, layout, "line", ArmJobSettings())
+    over_slot = lying(0.463, 0.0)  # 13 mm beside slot 1's centre, across the run
+    job.state.toppled = [over_slot]
+    job.state.unpickable.append(spot_of(over_slot))
+    assert place_slot(job, 0, may_defer=True) is Turn.PLACED
+    (sweep,) = cell.strike_requests
+    assert sweep.domino is over_slot and sweep.sweep.tolist() == pytest.approx([1.0, 0.0])
+    (moved,) = job.state.toppled
+    assert moved[0, 3] == pytest.approx(0.463 + sweep.push_distance)
+    assert len(job.report.dominoes[0].sweeps) == 1
+
+
+def test_a_failed_cycle_ends_the_cycles_and_the_exit_status_is_the_worst() -> None:
+    cell = toppling_cell()
+    strikes = 0
+
+    def strike(request):  # the second cycle's strike is refused: the run stays standing
+        nonlocal strikes
+        strikes += 1
+        return planned("strike") if strikes == 1 else refused()
+
+    cell.strike = strike
+    jobs = run_cycles(cell, [("line", LINE)] * 3, ArmJobSettings(pile=8))
+    assert len(jobs) == 2  # no third cycle on a run left standing
+    report = jobs[-1].report
+    assert [c.exit_status for c in report.cycles] == [EXIT_SUCCESS, EXIT_FAILED]
+    assert report.exit_status == EXIT_FAILED and jobs[0].report.exit_status == EXIT_SUCCESS
+
+
+def test_the_worst_cycle_decides_failed_over_partial_over_success() -> None:
+    assert worst_status([EXIT_SUCCESS, EXIT_PARTIAL, EXIT_SUCCESS]) == EXIT_PARTIAL
+    assert worst_status([EXIT_PARTIAL, EXIT_FAILED, EXIT_SUCCESS]) == EXIT_FAILED
+    assert worst_status([EXIT_SUCCESS]) == EXIT_SUCCESS
+
+
+def area() -> layouts.BuildArea:
+    scenario = load_scenario()
+    return layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
+
+
+def test_the_next_layout_is_given_like_the_first_and_keeps_what_it_does_not_say() -> None:
+    args = parse_args(
+        [
+            *("--layout", "line", "--start", "0.5", "0.1", "--count", "3", "--pile", "8"),
+            *("--cycles", "3", "--next-layout", "line --heading 60"),
+        ]
+    )
+    chosen = cycle_layouts(args, area())
+    assert [(name, len(p)) for name, p in chosen] == [("line", 3)] * 3
+    first, following = chosen[0][1], chosen[1][1]
+    assert (following[0].x, following[0].y) == (first[0].x, first[0].y)  # --start kept
+    assert math.degrees(following[0].heading) == pytest.approx(60.0)
+    assert math.degrees(first[0].heading) == pytest.approx(90.0)
+    again = cycle_layouts(parse_args(["--count", "4", "--cycles", "2"]), area())
+    assert again[0] is again[1] and again[0][0] == "arc"
+
+
+def test_a_next_layout_from_a_csv(tmp_path) -> None:
+    csv = tmp_path / "next.csv"
+    csv.write_text("0.5,0.1\n0.5,0.2\n")
+    args = parse_args(["--count", "4", "--cycles", "2", "--next-layout", f"csv --csv '{csv}'"])
+    chosen = cycle_layouts(args, area())
+    assert [(name, len(p)) for name, p in chosen] == [("arc", 4), ("csv", 4)]
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--cycles", "0"], r"--cycles must be 1\.\.50"),
+        (["--next-layout", "line"], r"--next-layout is built from the second cycle on"),
+        (["--cycles", "2", "--next-layout", "hexagon"], r"--next-layout: argument layout"),
+        (["--cycles", "2", "--next-layout", "line --pile 3"], r"--next-layout: unrecognized"),
+        (["--cycles", "2", "--next-layout", ""], r"--next-layout needs a layout name"),
+        (
+            ["--cycles", "2", "--next-layout", "line --start 0.2 0.0"],
+            r"cycle 2 \('line'\): .*outside the build area",
+        ),
+        (
+            ["--pile", "10", "--cycles", "2", "--next-layout", "line --count 12"],
+            r"cycle 2 \('line'\): a run of 12 needs at least as many dominoes",
+        ),
+    ],
+)
+def test_a_bad_cycle_option_is_refused_before_anything_starts(
+    options: list[str], message: str
+) -> None:
+    with pytest.raises(LayoutError, match=message):
+        cycle_layouts(parse_args(options), area())
+
+
+def test_resident_memory_is_read_for_a_running_process_and_none_for_a_gone_one() -> None:
+    assert resident_mb() > 10.0  # this test's python
+    assert resident_mb(2**22 + 1) is None  # above the kernel's pid_max default
