@@ -103,6 +103,8 @@ def summarise(reports: list[RunReport], cell: SimCell) -> dict:
         "put_back_on_pile": sum(len(d.put_back) for d in dominoes),
         "debris_swept": sum(len(d.sweeps) for d in dominoes),
         "pile_spread": sum(len(d.spreads) for d in dominoes),
+        "pile_laid_flat": sum(len(d.laid_flat) for d in dominoes),
+        "pile_out_of_reach": sum(len(report.pile_out_of_reach) for report in reports),
         "plan_requests": len(places),
         "refused_candidates": dict(
             Counter(p.error.name for p in places if p.error is not ErrorCode.SUCCESS)
@@ -160,7 +162,12 @@ def main() -> None:
         "candidates_per_attempt": args.candidates or ArmJobSettings().max_candidates,
         **summarise(reports, cell),
         "reports": [
-            {"seed": r.seed, "built": r.built, "dominoes": [asdict(d) for d in r.dominoes]}
+            {
+                "seed": r.seed,
+                "built": r.built,
+                "dominoes": [asdict(d) for d in r.dominoes],
+                "pile_out_of_reach": [asdict(d) for d in r.pile_out_of_reach],
+            }
             for r in reports
         ],
         "load_average": {"before": load_before, "after": os.getloadavg()},

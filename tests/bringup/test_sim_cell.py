@@ -14,12 +14,24 @@ import pytest
 
 from dombot_bringup import layouts
 from dombot_bringup.sim_cell import SimCell
-from dombot_bringup.task.cell import Cell
-from dombot_bringup.task.geometry import foot_distance
+from dombot_bringup.spread import lay_flat_pushes
+from dombot_bringup.task.cell import Cell, PlaceRequest, StrikeRequest
+from dombot_bringup.task.geometry import foot_distance, placement_pose
 from dombot_bringup.task.loop import Turn, place_slot
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
-from dombot_description import tilt_from_vertical
+from dombot_description import DOMINO_SIZE, tilt_from_vertical
+from support.planning_clock import UNHURRIED
+
+
+def on_edge(x: float, y: float, yaw: float) -> np.ndarray:
+    """A domino standing on its long edge (body y up), its length turned ``yaw`` from x."""
+    length = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([length, up, np.cross(length, up)])
+    pose[:3, 3] = [x, y, DOMINO_SIZE[1] / 2]
+    return pose
 
 
 def protocol_members() -> list[str]:
@@ -78,3 +90,41 @@ def test_the_real_loop_places_a_domino_from_a_pile_through_sim_cell() -> None:
     assert foot_distance(nearest, job.targets[0]) < 0.004
     assert tilt_from_vertical(nearest) < math.radians(3.0)
     assert np.isclose(cell.sim_time, world.time)
+
+
+@pytest.mark.slow
+def test_a_domino_on_its_edge_no_grasp_holds_is_pushed_over_and_then_plans() -> None:
+    """In Drake: the planner refuses a pile domino standing on its long edge (no grasp of
+    the family holds it so); the bring-up's first push over (``spread.lay_flat_pushes``),
+    planned as a sweep and run in the world, leaves it lying flat, and its pick plans."""
+    from dombot_description.scenario import load_scenario
+    from dombot_planner.errors import ErrorCode
+    from dombot_planner.planner import PickPlacePlanner
+    from dombot_planner.settings import PlannerSettings
+    from dombot_sim.world import CellWorld, WorldConfig
+
+    scenario = load_scenario()
+    world = CellWorld(WorldConfig(cameras=False, domino_capacity=1), scenario)
+    planner = PickPlacePlanner(scenario, PlannerSettings(default_time_budget=UNHURRIED))
+    cell = SimCell(world, None, planner)
+    world.set_domino_poses({0: on_edge(0.55, -0.25, yaw=0.3)})
+    world.settle(1.0)
+    lying = world.domino_truth()[0].X_WD
+    place = placement_pose(layouts.arc((0.0, 0.0), 0.6, math.radians(5.0), 1)[0])
+
+    refused = cell.plan_place(PlaceRequest(lying, place))
+    assert refused.error is ErrorCode.GRASP_UNREACHABLE, refused.message
+
+    direction, distance = lay_flat_pushes(lying, np.array(scenario.pile_center))[0]
+    push = cell.plan_strike(StrikeRequest(lying, sweep=direction[:2], push_distance=distance))
+    assert push.success, push.message
+    for segment in push.segments:
+        if len(segment.trajectory.times):
+            assert cell.execute(segment.trajectory).ok
+        if segment.gripper_after:
+            cell.gripper(segment.gripper_position, segment.gripper_max_effort)
+    cell.wait_for_sim_time(1.0)
+    flat = world.domino_truth()[0].X_WD
+    assert abs(flat[2, 2]) > math.cos(math.radians(5.0))  # its thickness axis vertical
+    planned = cell.plan_place(PlaceRequest(flat, place))
+    assert planned.success, planned.message

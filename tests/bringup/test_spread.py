@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 
 from dombot_bringup.debris import MAX_SWEEP
-from dombot_bringup.spread import STIR_DISTANCE, spread_pushes, stir_pushes, surfaces
+from dombot_bringup.spread import (
+    SLIDE_DISTANCE,
+    STIR_DISTANCE,
+    TIP_DISTANCE,
+    lay_flat_pushes,
+    spread_pushes,
+    stir_pushes,
+    surfaces,
+)
 
 CENTRE = np.array([0.55, -0.30])
 
@@ -121,3 +129,26 @@ def test_a_jammed_domino_is_pushed_through_its_neighbours_outwards_first() -> No
 def test_no_stir_where_the_pusher_cannot_come_down_beside_the_jammed_domino() -> None:
     target, neighbours = jam(0.50, end_gap=0.003)  # packed: 3 mm between ends too
     assert stir_pushes(target, neighbours, np.zeros((0, 3)), CENTRE, 0.12) == []
+
+
+def on_edge(x: float, y: float) -> np.ndarray:
+    """A domino standing on its long edge (body y up), its length along x, its thickness
+    axis along -y."""
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+    pose[:3, 3] = [x, y, 0.012]
+    return pose
+
+
+def test_a_domino_on_its_edge_is_pushed_over_along_its_thickness_towards_the_centre_first():
+    (first, towards), (second, back) = lay_flat_pushes(on_edge(0.55, -0.25), CENTRE)
+    assert first == pytest.approx([0.0, -1.0, 0.0])  # over towards the pile's centre
+    assert second == pytest.approx([0.0, 1.0, 0.0])
+    assert towards == back == TIP_DISTANCE
+
+
+def test_a_flat_domino_out_of_reach_is_slid_towards_the_centre_unless_it_lies_there() -> None:
+    ((direction, distance),) = lay_flat_pushes(flat(0.45, -0.30), CENTRE)
+    assert direction == pytest.approx([1.0, 0.0, 0.0])
+    assert distance == SLIDE_DISTANCE
+    assert lay_flat_pushes(flat(0.555, -0.30), CENTRE) == []

@@ -14,15 +14,24 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
 from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED
 from dombot_bringup.run_report import DominoOutcome, TruthPose, plot_run, write_report
 from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, count_refusal
-from dombot_bringup.spread import STIR_DISTANCE
+from dombot_bringup.spread import SLIDE_DISTANCE, STIR_DISTANCE, TIP_DISTANCE
 from dombot_bringup.task.attempts import Outcome, attempt
-from dombot_bringup.task.cell import GripperEvent, Posture, Seen, Segment
+from dombot_bringup.task.cell import (
+    Detection,
+    GripperEvent,
+    Plan,
+    Posture,
+    Seen,
+    Segment,
+    StrikeRequest,
+)
 from dombot_bringup.task.checks import check, remember_fallen
 from dombot_bringup.task.clearing import sweep_debris
 from dombot_bringup.task.geometry import neighbours_of, spot_of
@@ -421,7 +430,7 @@ def test_a_run_domino_whose_pick_failed_stays_an_obstacle_where_it_lies() -> Non
     assert tried.outcome is Outcome.MISSED
     assert tried.why.startswith("approach_grasp: grasp on an edge")
     assert 2 in run_job.state.fallen  # still there, not offered again:
-    assert candidates(run_job, [], 0) == []
+    assert candidates(run_job, [], 0)[0] == []
     # but kept clear of, where the check after the failed pick saw it
     assert [x_of(p) for p in debris(run_job, Candidate(lying(0.55, -0.30)))] == [
         pytest.approx(0.45)
@@ -810,6 +819,108 @@ def test_with_no_spreads_allowed_the_crowded_pile_is_ignored_as_before() -> None
     assert offered(cell)[-1][1:] == (0, False)  # planned ignoring the pile
 
 
+def edge(x: float, y: float = -0.3) -> Detection:
+    """A pile domino standing on its long edge (body y up), its thickness axis along -y."""
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+    pose[:3, 3] = [x, y, DOMINO_SIZE[1] / 2]
+    return Detection(pose, Posture.ON_EDGE)
+
+
+def test_a_pile_domino_on_its_edge_is_pushed_over_flat_then_picked() -> None:
+    """No grasp of the family holds a domino on its edge (the pads would close above and
+    below it): it is never offered, and a 45-domino pile ended with none but such left.
+    It is pushed over along its thickness axis instead, towards the pile's centre first,
+    and picked where it lies flat at the next look; the push costs no attempt."""
+    cell = ScriptedCell(pile=[edge(0.55, -0.27)])
+
+    def push(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.55, -0.285)]
+        return planned("push")
+
+    cell.strike = push
+    cell.place = lambda request: planned() if cell.strike_requests else refused()
+    run_job = job(cell)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    (pushed,) = cell.strike_requests
+    assert x_of(pushed.domino) == 0.55
+    assert pushed.sweep == pytest.approx([0.0, -1.0])  # over, towards the pile's centre
+    assert pushed.push_distance == TIP_DISTANCE
+    assert cell.place_requests[0].domino[2, 3] == pytest.approx(0.00375)  # picked flat
+    outcome = run_job.report.dominoes[0]
+    assert outcome.attempts == 1 and "to push it over" in outcome.laid_flat[0]
+    assert run_job.report.summary()["pile_laid_flat"] == 1
+    assert run_job.report.pile_out_of_reach == []
+
+
+def test_an_upright_pile_domino_is_offered_one_on_its_edge_is_not() -> None:
+    """Upright, the canonical grasp holds a domino as it holds it placed."""
+    standing = lying(0.60, -0.3)
+    standing[:3, :3] = Rotation.from_euler("y", -90.0, degrees=True).as_matrix()
+    standing[2, 3] = DOMINO_SIZE[0] / 2
+    cell = ScriptedCell(pile=[edge(0.50), Detection(standing, Posture.UPRIGHT, 0.5, 0.01)])
+    cell.place = lambda request: planned()
+    assert place_slot(job(cell), 0, may_defer=False) is Turn.PLACED
+    assert [x_of(r.domino) for r in cell.place_requests] == [0.60]
+    assert cell.strike_requests == []
+
+
+def test_a_pile_domino_no_grasp_or_push_reaches_is_named_with_why(capsys) -> None:
+    """Refused even ignoring its pile, a flat domino is slid towards the pile's centre at
+    the next attempt; refused that too, it is not pushed again where it lies, and the
+    slot's last attempt names it, where it lies and why, in the log and the report."""
+    cell = ScriptedCell(
+        pile=[flat(0.45)],
+        place=lambda request: refused(ErrorCode.GRASP_UNREACHABLE, "GRASP_UNREACHABLE: no IK"),
+        strike=lambda request: refused(ErrorCode.PLACE_UNREACHABLE, "PLACE_UNREACHABLE: far"),
+        dominoes=[("domino_7", lying(0.451, -0.3))],
+    )
+    run_job = job(cell, max_spreads=0)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.FAILED
+    (slide,) = cell.strike_requests  # once: not again where it still lies
+    assert slide.sweep == pytest.approx([1.0, 0.0]) and slide.push_distance == SLIDE_DISTANCE
+    (left,) = run_job.report.pile_out_of_reach
+    assert (left.x, left.y, left.posture, left.truth) == (0.45, -0.3, "flat", "domino_7")
+    assert left.why == "no push lays it flat (PLACE_UNREACHABLE: far)"
+    assert run_job.report.summary()["pile_out_of_reach"] == 1
+    out = capsys.readouterr().out
+    assert "1 pile dominoes out of reach for now" in out
+    assert "flat at [0.450, -0.300] (domino_7): no push lays it flat" in out
+
+
+def test_a_leaning_domino_whose_hold_has_no_place_is_pushed_flat_at_the_next_attempt() -> None:
+    """A hold leaning with the domino may have no place pose (PLACE_UNREACHABLE, about
+    the slot): with nothing else to pick, the leaning domino is pushed along its
+    thickness axis, and picked flat."""
+    leaning = lying(0.55, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
+
+    def push(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.56)]
+        return planned("push")
+
+    cell.strike = push
+    cell.place = lambda request: (
+        planned() if cell.strike_requests else refused(ErrorCode.PLACE_UNREACHABLE)
+    )
+    run_job = job(cell, max_spreads=0)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    (pushed,) = cell.strike_requests
+    assert abs(pushed.sweep[0]) == pytest.approx(1.0)  # along its thickness axis, seen above
+    assert run_job.report.dominoes[0].attempts == 2
+
+
+def test_a_domino_on_its_edge_whose_push_is_refused_is_named_as_never_graspable() -> None:
+    cell = ScriptedCell(pile=[edge(0.55)], strike=lambda request: refused())
+    run_job = job(cell, max_spreads=0)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.FAILED
+    assert len(cell.strike_requests) == 2  # over either way, once
+    assert cell.place_requests == []
+    (left,) = run_job.report.pile_out_of_reach
+    assert left.posture == "on edge" and left.why == "no push lays it flat (refused)"
+
+
 GRASP = lying(0.54, -0.3)
 
 
@@ -826,7 +937,7 @@ def test_perceptions_grasp_is_offered_to_the_planner_first_a_fallen_dominos_none
     """Perception cleared its grasp against every point the cameras saw; the planner
     knows only the detected pile (it falls back to its own grasps)."""
     run_job = job(grasping())
-    pile = next(c for c in candidates(run_job, [], 0) if c.run_index is None)
+    pile = next(c for c in candidates(run_job, [], 0)[0] if c.run_index is None)
     assert place_request(run_job, 0, pile, PILE_BOXES).grasp is GRASP
     fallen = Candidate(lying(0.45, 0.05), 1)
     assert place_request(run_job, 0, fallen, PILE_BOXES).grasp is None
@@ -839,7 +950,7 @@ def test_points_seen_on_no_detected_domino_near_a_pick_go_to_the_planner_with_it
     pile's cores, those come on top, and the pads may reach into the boxes (the gripper
     body keeps clear of them)."""
     run_job = job(grasping())
-    pile = next(c for c in candidates(run_job, [], 0) if c.run_index is None)
+    pile = next(c for c in candidates(run_job, [], 0)[0] if c.run_index is None)
     boxes, ignoring, cores = (
         place_request(run_job, 0, pile, mode) for mode in (PILE_BOXES, PILE_IGNORED, PILE_CORES)
     )

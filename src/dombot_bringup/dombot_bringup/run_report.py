@@ -58,6 +58,9 @@ class DominoOutcome:
     sweeps: list[str] = field(default_factory=list)
     # Crowded pile dominoes pushed apart when no pick planned (before ignoring the pile).
     spreads: list[str] = field(default_factory=list)
+    # Pile dominoes no grasp took as they lay (on edge, upright, out of reach) pushed over
+    # or slid so that they lie flat within reach.
+    laid_flat: list[str] = field(default_factory=list)
     simulated_s: float = 0.0
     wall_s: float = 0.0
     # ... of it waiting for each kind of answer (motion, planning, perception, gripper,
@@ -76,6 +79,17 @@ class EmptySlot:
 
     slot: int  # counted from 1, as in the log
     reason: str
+
+
+@dataclass
+class PileDomino:
+    """A pile domino no grasp or push reached when the last slot found nothing to pick."""
+
+    x: float
+    y: float
+    posture: str  # as perception saw it: flat, on edge, upright, leaning
+    why: str
+    truth: str = ""  # the simulator's name for the nearest domino (report only)
 
 
 @dataclass
@@ -129,6 +143,9 @@ class RunReport:
     simulated_s: float = 0.0
     wall_s: float = 0.0
     node_restarts: dict[str, int] = field(default_factory=dict)  # nodes started again
+    # the pile dominoes out of every grasp's and push's reach when a slot last found
+    # nothing to pick (empty once a later pick planned)
+    pile_out_of_reach: list[PileDomino] = field(default_factory=list)
     # what else the run wrote into the report folder (file names in it): camera pictures
     # before and after the strike, the recording, Meshcat's scene
     files: dict[str, str] = field(default_factory=dict)
@@ -169,6 +186,8 @@ class RunReport:
             "put_back_on_pile": sum(len(d.put_back) for d in self.dominoes),
             "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
             "pile_spread": sum(len(d.spreads) for d in self.dominoes),
+            "pile_laid_flat": sum(len(d.laid_flat) for d in self.dominoes),
+            "pile_out_of_reach": len(self.pile_out_of_reach),
             "empty_slots": [e.slot for e in self.empty_slots],
             "sections_struck": sum(s.struck for s in self.sections),
             "sections": len(self.sections),

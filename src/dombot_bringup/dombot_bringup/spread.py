@@ -8,7 +8,8 @@ which way and how far: where the pusher has room to come down behind it, and the
 shortest push after which the fingers have room beside it. When no such push exists (a
 jam: every push is blocked by a neighbour, or none frees the fingers within MAX_SWEEP),
 ``stir_pushes``: a fixed push through the neighbours, which move along
-(docs/decisions/0007-spread-and-stir.md).
+(docs/decisions/0007-spread-and-stir.md). A domino no grasp takes as it lies (on its edge,
+upright, leaning, or flat out of reach) is pushed over or slid by ``lay_flat_pushes``.
 """
 
 from __future__ import annotations
@@ -44,6 +45,14 @@ FINGERS_END = 0.005  # m beyond its ends that the fingers' room must reach
 # m a jammed domino is pushed through its neighbours: a missed grasp in a jam moved them
 # 3-25 mm, after which the next pick planned
 STIR_DISTANCE = 0.04
+# m past its back face that a domino standing on its edge or end, or leaning, is pushed
+# along its thickness axis: pushed so at SWEEP_HEIGHT in Drake, 4 of 4 (two on edge, two
+# upright) tipped over and lay flat
+TIP_DISTANCE = 0.02
+# m a flat domino no grasp reaches (even ignoring its pile) is slid towards the pile's
+# centre, where the arm reaches it leaning either way
+SLIDE_DISTANCE = 0.03
+FLAT_TILT = np.sin(np.radians(15.0))  # thickness axis this close to vertical: lying flat
 
 
 def surfaces(poses: Sequence[np.ndarray]) -> np.ndarray:
@@ -129,6 +138,23 @@ def stir_pushes(
         if _pusher_has_room(pusher_tree, corners, direction, 0.0):  # it may push them
             pushes.append((np.array([*direction, 0.0]), STIR_DISTANCE))
     return sorted(pushes, key=lambda push: -push[0][:2] @ outward)
+
+
+def lay_flat_pushes(target: np.ndarray, centre: np.ndarray) -> list[tuple[np.ndarray, float]]:
+    """(direction, distance) pushes that may bring the domino at ``target`` (4×4) within
+    a grasp's reach: standing on its edge or end, or leaning, it is pushed over along its
+    thickness axis (horizontally, either way: towards the pile's ``centre`` (x, y) first)
+    and lies flat; lying flat, it is slid towards ``centre`` (none when it lies there)."""
+    start, centre = target[:2, 3], np.asarray(centre, dtype=float)
+    inward = -_outward(start, centre)
+    thickness = target[:2, 2]
+    if np.linalg.norm(thickness) <= FLAT_TILT:
+        if np.linalg.norm(centre - start) < MIN_SPREAD:
+            return []
+        return [(np.array([*inward, 0.0]), SLIDE_DISTANCE)]
+    over = thickness / np.linalg.norm(thickness)
+    pushes = [(np.array([*side * over, 0.0]), TIP_DISTANCE) for side in (1.0, -1.0)]
+    return sorted(pushes, key=lambda push: -push[0][:2] @ inward)
 
 
 def _outward(start: np.ndarray, centre: np.ndarray) -> np.ndarray:

@@ -15,10 +15,18 @@ from dombot_bringup.offers import (
     roomiest_first,
     with_pile_first,
 )
+from dombot_bringup.run_report import PileDomino
 from dombot_bringup.task.checks import check
-from dombot_bringup.task.clearing import spread
+from dombot_bringup.task.clearing import lay_flat, spread
 from dombot_bringup.task.geometry import near_any
-from dombot_bringup.task.picking import PILE_WORDS, Offer, candidates, first_plan
+from dombot_bringup.task.picking import (
+    PICKABLE_POSTURES,
+    PILE_WORDS,
+    Candidate,
+    Offer,
+    candidates,
+    first_plan,
+)
 from dombot_bringup.task.placing import REGRASP_PREFIX, Hold, Ran, execute
 from dombot_bringup.task.records import nearest_truth, pick_record, truth, write_pick_record
 from dombot_bringup.task.state import Job, log
@@ -67,7 +75,7 @@ def attempt(
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
     picked blind where the plan expected it to settle, 3 of 7 such picks missed.
     """
-    found = candidates(job, failed, index)
+    found, stuck = candidates(job, failed, index)
     settings = job.settings
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
     roomiest = roomiest_first(found)[: settings.last_resort_candidates]
@@ -77,17 +85,57 @@ def attempt(
         *((c, PILE_CORES) for c in roomiest),
     ]
     offer, refused = first_plan(job, index, with_pile, failed, slot_refusals)
-    if offer is None and (ignore_pile or not slot_refusals):
-        spreads = job.report.dominoes[index].spreads
-        if len(spreads) < settings.max_spreads and spread(job, index, found):
+    about_the_pile = ignore_pile or not slot_refusals
+    if offer is None and about_the_pile:
+        outcome = job.report.dominoes[index]
+        if len(outcome.laid_flat) < settings.max_lay_flat and lay_flat(job, index, stuck):
+            return attempt(job, index, failed, ignore_pile, turned)
+        if len(outcome.spreads) < settings.max_spreads and spread(job, index, found):
             return attempt(job, index, failed, ignore_pile, turned)
         ignoring = [(c, PILE_IGNORED) for c in roomiest]
         offer, more = first_plan(job, index, ignoring, failed, slot_refusals)
         refused += more
     if offer is None:
+        if about_the_pile:
+            name_out_of_reach(job, index, [c for c in found if c.from_pile] + stuck)
         why = f"planning: {refused} offers refused" if refused else "no graspable domino seen"
         return Attempt(Outcome.NO_PLAN, why)
+    job.report.pile_out_of_reach.clear()
     return pick(job, index, offer, failed, ignore_pile, turned)
+
+
+def name_out_of_reach(job: Job, index: int, pile: list[Candidate]) -> None:
+    """Say which pile dominoes no grasp or push reached for slot ``index``, where they lie,
+    how and why (the simulator's name for each, for the report only), in the log and in
+    the report (``pile_out_of_reach``)."""
+    dominoes = truth(job)
+    left = []
+    for candidate in pile:
+        spot = candidate.spot()
+        why = job.state.why(spot) or default_why(job, candidate)
+        name, _ = nearest_truth(dominoes, candidate.pose)
+        left.append(PileDomino(*spot.round(4).tolist(), candidate.posture_name, why, name))
+    job.report.pile_out_of_reach = left
+    if not left:
+        log(f"{job.domino(index)}: the pile is empty")
+        return
+    log(f"{job.domino(index)}: {len(left)} pile dominoes out of reach for now:")
+    for domino in left:
+        named = f" ({domino.truth})" if domino.truth else ""
+        log(f"  {domino.posture} at [{domino.x:.3f}, {domino.y:.3f}]{named}: {domino.why}")
+
+
+def default_why(job: Job, candidate: Candidate) -> str:
+    """Why a pile domino with no refusal remembered was not picked or pushed."""
+    if candidate.posture not in PICKABLE_POSTURES:
+        return f"no grasp holds a domino {candidate.posture_name}; " + (
+            "pushed where it lies already"
+            if near_any(candidate.spot(), job.state.pushed)
+            else "this slot's pushes are used up"
+        )
+    if near_any(candidate.spot(), job.state.crowded):
+        return "refused with its pile (crowded); not among the roomiest offered without it"
+    return "not offered: others were tried first"
 
 
 def pick(
@@ -124,6 +172,7 @@ def pick(
         # A run domino stays where it was: an obstacle for every later carry (a new
         # domino was once built into one that still stood there).
         state.unpickable.append(spot)
+        state.remember_why(spot, f"its pick failed: {execution.why}")
         if candidate.run_index is not None:
             return keep_if_standing(job, index, candidate.run_index, execution.why, spot)
         return Attempt(Outcome.MISSED, execution.why, spot)

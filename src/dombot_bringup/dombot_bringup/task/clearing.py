@@ -1,5 +1,6 @@
 """Clearing the way with pushes (/plan_strike's sweep): fallen debris out of a slot it
-blocks, a crowded pile spread, a jammed one stirred."""
+blocks, a crowded pile spread, a jammed one stirred, a pile domino no grasp takes as it
+lies pushed over or slid into reach."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.offers import roomiest_first
-from dombot_bringup.spread import spread_pushes, stir_pushes
+from dombot_bringup.spread import TIP_DISTANCE, lay_flat_pushes, spread_pushes, stir_pushes
 from dombot_bringup.task.cell import Pose, StrikeRequest
 from dombot_bringup.task.checks import check
 from dombot_bringup.task.geometry import near, near_any, spot_of
@@ -83,6 +84,36 @@ def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:
     return False
 
 
+def lay_flat(job: Job, index: int, stuck: Sequence[Candidate]) -> bool:
+    """Push one of the pile dominoes no grasp takes as they lie (``stuck``: on their edge,
+    or refused even ignoring their pile) so that it lies flat within reach
+    (``spread.lay_flat_pushes``), the planner keeping it clear of its neighbours; True
+    once the arm moved. One pushed where it lies already, or whose pushes were all
+    refused, is not pushed again until something near it moves (``BuildState.pushed``);
+    the planner's refusal is remembered as why it is out of reach."""
+    state, centre = job.state, np.asarray(job.settings.pile_center)
+    fallen = list(state.fallen.values())
+    for candidate in stuck:
+        spot = candidate.spot()
+        if near_any(spot, state.pushed):
+            continue
+        what = f"pile domino {candidate.posture_name} at {spot.round(3).tolist()}"
+        refusals: list[str] = []
+        for direction, distance in lay_flat_pushes(candidate.pose, centre):
+            how = "to push it over" if distance == TIP_DISTANCE else "towards the pile's centre"
+            others = [*candidate.neighbours, *fallen]
+            pushed = sweep(job, candidate.pose, others, direction, distance, what, how, refusals)
+            if pushed is not None:
+                job.report.dominoes[index].laid_flat.append(pushed)
+                log(f"{job.domino(index)}: laying the pile flat: {pushed}")
+                state.pushed.append(spot)
+                return True
+        state.pushed.append(spot)
+        if refusals:
+            state.remember_why(spot, f"no push lays it flat ({refusals[-1]})")
+    return False
+
+
 def pushes(
     job: Job, candidate: Candidate, jammed: bool
 ) -> tuple[list[tuple[np.ndarray, float]], list[Pose], str]:
@@ -114,10 +145,11 @@ def sweep(
     distance: float,
     what: str,
     where: str = "",
+    refusals: list[str] | None = None,
 ) -> str | None:
     """Push the domino at ``pose`` ``distance`` along ``direction`` (/plan_strike's
     sweep), keeping clear of ``others`` and the standing run: what was done, or None if
-    the planner refused (the arm has not moved)."""
+    the planner refused (the arm has not moved; its reason goes to ``refusals``)."""
     plan = job.cell.plan_strike(
         StrikeRequest(
             domino=pose,
@@ -128,7 +160,10 @@ def sweep(
         )
     )
     if not plan.success:
-        log(f"sweeping {what} refused: {plan.message.split(' (')[0]}")
+        reason = plan.message.split(" (")[0]
+        log(f"sweeping {what} refused: {reason}")
+        if refusals is not None:
+            refusals.append(reason)
         return None
     execution = execute(job, plan.segments, holds_domino=False)
     job.state.forget_refusals_near(spot_of(pose))

@@ -27,7 +27,10 @@ from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
 
 DETECT_TRIES = 5
-PICKABLE_POSTURES = (Posture.FLAT, Posture.TILTED)  # the planner has the last word
+# The planner has the last word. Upright, the canonical grasp holds a domino as it holds
+# it placed (bench_lay_flat: 3 of 3 lone upright pile dominoes planned); no grasp of the
+# family holds one on its edge (the fingers would close across its vertical width).
+PICKABLE_POSTURES = (Posture.FLAT, Posture.TILTED, Posture.UPRIGHT)
 # Refusals about the domino, not the slot: remembered for the run. A search that used up
 # its budget (one domino cost 5 s at every slot of an S-curve) would use it up again.
 GRASP_REFUSALS = (ErrorCode.GRASP_UNREACHABLE, ErrorCode.TIMEOUT)
@@ -92,11 +95,18 @@ class Offer:
     plan: Plan
 
 
-def candidates(job: Job, failed: list[np.ndarray], index: int) -> list[Candidate]:
-    """Fallen run dominoes first (they block the run), then those an earlier cycle toppled
-    (``toppled_candidates``), then the pile's detections in perception's order (best grasp
-    first); none where an attempt failed or no grasp reaches."""
-    avoid = failed + job.state.unpickable
+def candidates(
+    job: Job, failed: list[np.ndarray], index: int
+) -> tuple[list[Candidate], list[Candidate]]:
+    """What to offer: fallen run dominoes first (they block the run), then those an
+    earlier cycle toppled (``toppled_candidates``), then the pile's detections in
+    perception's order (best grasp first); none where an attempt failed or no grasp
+    reaches. And the pile dominoes no grasp takes as they lie, for
+    ``clearing.lay_flat``: on their edge first (no grasp of the family holds them),
+    then those refused even ignoring their pile (or whose pick failed), and leaning ones
+    refused for this slot (a hold leaning with the domino may have no place pose)."""
+    unpickable = job.state.unpickable
+    avoid = failed + unpickable
     fallen, lying = job.state.fallen, job.state.lying()
     run = [
         Candidate(pose, k, neighbours_of(pose, lying))
@@ -105,11 +115,15 @@ def candidates(job: Job, failed: list[np.ndarray], index: int) -> list[Candidate
     ]
     run += toppled_candidates(job, index, avoid)
     detections, unexplained = look_at_pile(job)
-    return run + [
-        pile_candidate(d, detections, unexplained)
-        for d in detections
-        if d.posture in PICKABLE_POSTURES and not near_any(spot_of(d.pose), avoid)
+    pile = [pile_candidate(d, detections, unexplained) for d in detections]
+    graspable = [c for c in pile if c.posture in PICKABLE_POSTURES]
+    offers = [c for c in graspable if not near_any(c.spot(), avoid)]
+    stuck = [c for c in pile if c.posture not in PICKABLE_POSTURES] + [
+        c
+        for c in graspable
+        if near_any(c.spot(), unpickable) or (c.leaning and near_any(c.spot(), failed))
     ]
+    return run + offers, stuck
 
 
 def toppled_candidates(job: Job, index: int, avoid: list[np.ndarray]) -> list[Candidate]:
@@ -201,6 +215,7 @@ def first_plan(
             job.state.crowded.append(spot)
         elif pile == PILE_IGNORED:
             job.state.unpickable.append(spot)
+            job.state.remember_why(spot, f"refused ignoring its pile: {plan.message}")
     return None, refused
 
 

@@ -38,6 +38,13 @@ class ArmJobSettings:
     # none of those plans (the pile is jammed), a push through the neighbours
     # (``spread.stir_pushes``), as many times at most.
     max_spreads: int = 2
+    # Before spreading, a pile domino no grasp takes as it lies (on its edge: no grasp of
+    # the family holds it; or refused even ignoring its pile) is pushed over, or
+    # slid towards the pile's centre (``clearing.lay_flat``), at most max_lay_flat times a
+    # slot; such pushes cost no attempt. (A 45-domino pile once ended with every
+    # remaining domino refused, the run at 29 of 30; dominoes on an edge were never
+    # offered.)
+    max_lay_flat: int = 4
     spread_clearance: float = 0.016  # m
     spread_radius: float = 0.13  # m
     spread_plans: int = 6

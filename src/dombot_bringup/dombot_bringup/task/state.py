@@ -11,7 +11,7 @@ from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import say
 from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
 from dombot_bringup.task.cell import Cell, Detections, Pose
-from dombot_bringup.task.geometry import near, placement_pose
+from dombot_bringup.task.geometry import SAME_SPOT, near, placement_pose
 from dombot_bringup.task.settings import ArmJobSettings
 
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
@@ -33,6 +33,11 @@ class BuildState:
     unpickable: list[np.ndarray] = field(default_factory=list)
     stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
     crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
+    # (x, y) of pile dominoes pushed to lay them flat, or whose pushes were all refused:
+    # not pushed again there (one that did not move would be pushed for ever)
+    pushed: list[np.ndarray] = field(default_factory=list)
+    # why the pile domino at (x, y) is out of reach: the last refusal of it or its push
+    reasons: list[tuple[np.ndarray, str]] = field(default_factory=list)
 
     def lying(self) -> list[Pose]:
         """Every domino known to lie in the build area: the run's fallen, the toppled."""
@@ -42,6 +47,17 @@ class BuildState:
         """A pick or push at ``spot`` moved the dominoes around it: offer them again."""
         self.unpickable = [u for u in self.unpickable if not near(u, spot, DISTURBED_RADIUS)]
         self.crowded = [u for u in self.crowded if not near(u, spot, DISTURBED_RADIUS)]
+        self.pushed = [u for u in self.pushed if not near(u, spot, DISTURBED_RADIUS)]
+        self.reasons = [r for r in self.reasons if not near(r[0], spot, DISTURBED_RADIUS)]
+
+    def remember_why(self, spot: np.ndarray, why: str) -> None:
+        """The pile domino at ``spot`` is out of reach for now, because ``why``."""
+        self.reasons = [r for r in self.reasons if not near(r[0], spot, SAME_SPOT)]
+        self.reasons.append((spot, why))
+
+    def why(self, spot: np.ndarray) -> str:
+        """Why the pile domino at ``spot`` is out of reach, as last remembered."""
+        return next((w for s, w in reversed(self.reasons) if near(s, spot, SAME_SPOT)), "")
 
 
 @dataclass
