@@ -274,7 +274,7 @@ def main() -> None:
     parser.add_argument("--push-speed", type=float, default=0.0, help="m/s; 0: default")
     parser.add_argument("--time-budget", type=float, default=0.0, help="s; 0: default")
     parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
-    parser.add_argument("--figure", help="also write the strike figure of docs/PLANNER.md here")
+    parser.add_argument("--figure", help="also write the strike figure of docs/STRIKE.md here")
     args = parser.parse_args()
     scenario = load_scenario()
     settings = PlannerSettings(**json.loads(args.settings or "{}"))
