@@ -301,7 +301,7 @@ def test_param_list_get_and_set_on_a_running_node(layer_node) -> None:
     got = ros2("param", "get", "/layer_node", "command_rate", "--hide-type").stdout
     assert got == "10.0\n"
     ros2("param", "set", "/layer_node", "command_rate", "20.0")
-    everyone = ros2("param", "list").stdout.splitlines()
+    everyone = ros2_until("/layer_node:", "param", "list").splitlines()  # a graph listing
     assert "/layer_node:" in everyone and "  command_rate" in everyone
 
 

@@ -117,7 +117,10 @@ class SleepManager:
         self._refresh_filter(root)
 
     def wake_all(self, root: Context) -> None:
+        """Wake every sleeper and restart the check schedule: a new scene is then judged at
+        the same steps whenever it starts, so a seeded pour settles the same way."""
         self.wake(root, [int(i) for i in np.flatnonzero(self._asleep)])
+        self._next_check = -np.inf
 
     def update(self, root: Context) -> None:
         """After a simulator step: wake sleepers near moving bodies, put resting ones to sleep."""
