@@ -107,8 +107,9 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
     """Attempts at slot ``index`` until PLACED; FAILED after max_attempts carries or
     max_missed_picks picks that failed; or DEFERRED: nothing planned (e.g. fallen dominoes
     lie where it stands) and other slots may be built first, which may use up those fallen
-    dominoes. A deferral costs planning calls, not an attempt; so does a sweep of debris
-    out of the slot."""
+    dominoes; FAILED at once when it cannot be put off and no domino can be placed there
+    (``attempts.no_place``). A deferral costs planning calls, not an attempt; so does a
+    sweep of debris out of the slot."""
     outcome, settings, cell = job.report.dominoes[index], job.settings, job.cell
     failed: list[np.ndarray] = []  # spots refused for this slot, or whose pick failed
     missed = sweeps = 0
@@ -122,6 +123,10 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
         outcome.wall_s += time.monotonic() - wall_start
         sim_start, wall_start = cell.sim_time, time.monotonic()
         spent = add_spent(outcome.simulated_by_activity, cell.time_spent, spent)
+        if tried.outcome is Outcome.NO_PLACE:  # nothing a push, a sweep or time would cure
+            outcome.attempts += 1
+            outcome.failures.append(tried.why)
+            return Turn.FAILED
         if not tried.moved and sweeps < settings.max_sweeps and sweep_debris(job, index, failed):
             sweeps += 1
             failed.clear()  # refused while the debris lay there (missed picks: unpickable)
