@@ -26,6 +26,7 @@ from dombot_bringup.task.attempts import Outcome, attempt
 from dombot_bringup.task.cell import (
     Detection,
     GripperEvent,
+    PlaceRequest,
     Plan,
     Posture,
     Seen,
@@ -922,9 +923,12 @@ def unplaceable(pile: list[Detection], codes: dict[float, ErrorCode] | None = No
     those ``codes`` names by x; any push would plan."""
     codes = codes or {}
     cell = ScriptedCell(pile=pile, strike=lambda request: planned("push"))
-    cell.place = lambda request: refused(
-        codes.get(round(x_of(request.domino), 6), ErrorCode.PLACE_UNREACHABLE), NO_PLACE_POSE
-    )
+
+    def place(request: PlaceRequest) -> Plan:
+        code = codes.get(round(x_of(request.domino), 6), ErrorCode.PLACE_UNREACHABLE)
+        return refused(code, NO_PLACE_POSE if code == ErrorCode.PLACE_UNREACHABLE else code.name)
+
+    cell.place = place
     return cell
 
 
@@ -978,6 +982,27 @@ def test_a_slot_with_debris_beside_it_is_not_given_up_for_its_place() -> None:
     remember_fallen(run_job, 1, FALLEN, lying(0.46, 0.045), math.radians(85.0))
     tried = attempt(run_job, 0, [], ignore_pile=True)
     assert tried.outcome is Outcome.NO_PLAN
+
+
+def test_the_refusals_of_a_slots_turn_add_up_over_its_spreads() -> None:
+    """The spiral's safety gap: two flat dominoes refused for its place, the rest of the
+    crowded pile GRASP_UNREACHABLE; the pile was spread, and a third flat one refused
+    for the place at the next look. Given up then, not spread again."""
+    cell = unplaceable(
+        [flat(0.50), flat(0.55), flat(0.60), flat(0.61)],
+        {0.60: ErrorCode.GRASP_UNREACHABLE, 0.61: ErrorCode.GRASP_UNREACHABLE},
+    )
+
+    def spread(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.50), flat(0.55), flat(0.65)]
+        return planned("push")
+
+    cell.strike = spread
+    run_job = job(cell, max_spreads=2)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.FAILED
+    assert len(cell.strike_requests) == 1 and len(run_job.report.dominoes[0].spreads) == 1
+    (why,) = run_job.report.dominoes[0].failures
+    assert why.startswith("no domino can be placed there: the planner refused 3 flat")
 
 
 def test_grasp_refusals_say_nothing_of_the_slot_it_is_still_given_up() -> None:

@@ -58,7 +58,12 @@ class Attempt:
 
 
 def attempt(
-    job: Job, index: int, failed: list[np.ndarray], ignore_pile: bool = False, turned: bool = False
+    job: Job,
+    index: int,
+    failed: list[np.ndarray],
+    ignore_pile: bool = False,
+    turned: bool = False,
+    refusals: list[Refusal] | None = None,
 ) -> Attempt:
     """Offer the planner candidates until one plans; execute and check it.
 
@@ -72,11 +77,12 @@ def attempt(
     max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught by the
     grasp check and backed out of, and stirs the pile). A refusal costs a planning call,
     not an attempt: the arm has not moved (NO_PLAN). When the slot cannot be put off
-    (``ignore_pile``) and its refusals show no domino can be placed there (``no_place``),
-    nothing is pushed for it: NO_PLACE, and the slot is given up. Refusals and failed picks are
-    remembered for the run (refused with the pile: not offered with it again; refused
-    ignoring it, or the pick blocked or missed: not offered at all), until a pick within
-    DISTURBED_RADIUS moves it.
+    (``ignore_pile``) and the refusals of its turn (``refusals``, kept over the turn's
+    attempts, spreads and pushes until something plans) show no domino can be placed there
+    (``no_place``), nothing more is pushed for it: NO_PLACE, and the slot is given up.
+    Refusals and failed picks are remembered for the run (refused with the pile: not
+    offered with it again; refused ignoring it, or the pick blocked or missed: not offered
+    at all), until a pick within DISTURBED_RADIUS moves it.
 
     A pile domino the planner turns in place first (no grasp reached it as it lay) is
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
@@ -86,21 +92,22 @@ def attempt(
     settings = job.settings
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
     roomiest = roomiest_first(found)[: settings.last_resort_candidates]
-    refusals: list[Refusal] = []
+    refusals = [] if refusals is None else refusals
+    earlier = len(refusals)  # this attempt's refusals follow
     with_pile = [
         *((c, PILE_BOXES) for c in ranked[: settings.max_candidates]),
         *((c, PILE_CORES) for c in roomiest),
     ]
     offer, refused = first_plan(job, index, with_pile, failed, refusals)
-    about_the_pile = ignore_pile or not any(r.about_the_slot for r in refusals)
+    about_the_pile = ignore_pile or not any(r.about_the_slot for r in refusals[earlier:])
     if offer is None and ignore_pile and (why := no_place(job, index, refusals)):
         return Attempt(Outcome.NO_PLACE, why)
     if offer is None and about_the_pile:
         outcome = job.report.dominoes[index]
         if len(outcome.laid_flat) < settings.max_lay_flat and lay_flat(job, index, stuck):
-            return attempt(job, index, failed, ignore_pile, turned)
+            return attempt(job, index, failed, ignore_pile, turned, refusals)
         if len(outcome.spreads) < settings.max_spreads and spread(job, index, found):
-            return attempt(job, index, failed, ignore_pile, turned)
+            return attempt(job, index, failed, ignore_pile, turned, refusals)
         ignoring = [(c, PILE_IGNORED) for c in roomiest]
         offer, more = first_plan(job, index, ignoring, failed, refusals)
         refused += more
@@ -110,6 +117,7 @@ def attempt(
         why = f"planning: {refused} offers refused" if refused else "no graspable domino seen"
         return Attempt(Outcome.NO_PLAN, why)
     job.report.pile_out_of_reach.clear()
+    refusals.clear()  # something plans for the slot: what was refused tells nothing of it
     return pick(job, index, offer, failed, ignore_pile, turned)
 
 

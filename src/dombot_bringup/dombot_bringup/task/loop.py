@@ -22,6 +22,7 @@ from dombot_bringup.sections import empty_message, empty_reason
 from dombot_bringup.task.attempts import Attempt, Outcome, attempt
 from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.clearing import sweep_debris
+from dombot_bringup.task.picking import Refusal
 from dombot_bringup.task.records import add_spent, record_truth, take_picture
 from dombot_bringup.task.state import Job, log
 from dombot_bringup.task.strike import strike
@@ -112,11 +113,12 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
     sweep of debris out of the slot."""
     outcome, settings, cell = job.report.dominoes[index], job.settings, job.cell
     failed: list[np.ndarray] = []  # spots refused for this slot, or whose pick failed
+    refusals: list[Refusal] = []  # the planner's, since the last plan (``attempts.no_place``)
     missed = sweeps = 0
     sim_start, wall_start, spent = cell.sim_time, time.monotonic(), dict(cell.time_spent)
     while outcome.attempts - missed < settings.max_attempts and missed < settings.max_missed_picks:
         try:
-            tried = attempt(job, index, failed, ignore_pile=not may_defer)
+            tried = attempt(job, index, failed, ignore_pile=not may_defer, refusals=refusals)
         except CellError as error:
             tried = Attempt(Outcome.NOT_PLACED, str(error))
         outcome.simulated_s += cell.sim_time - sim_start
@@ -130,6 +132,7 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
         if not tried.moved and sweeps < settings.max_sweeps and sweep_debris(job, index, failed):
             sweeps += 1
             failed.clear()  # refused while the debris lay there (missed picks: unpickable)
+            refusals.clear()
             continue
         if not tried.moved and may_defer:
             outcome.deferrals.append(tried.why)
