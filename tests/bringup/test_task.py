@@ -26,6 +26,7 @@ from dombot_bringup.task.attempts import Outcome, attempt
 from dombot_bringup.task.cell import (
     Detection,
     GripperEvent,
+    PlaceRequest,
     Plan,
     Posture,
     Seen,
@@ -909,6 +910,139 @@ def test_a_leaning_domino_whose_hold_has_no_place_is_pushed_flat_at_the_next_att
     (pushed,) = cell.strike_requests
     assert abs(pushed.sweep[0]) == pytest.approx(1.0)  # along its thickness axis, seen above
     assert run_job.report.dominoes[0].attempts == 2
+
+
+NO_PLACE_POSE = (
+    "PLACE_UNREACHABLE at place: no collision-free IK and approach line for any of 24 place "
+    "poses (standing neighbour x24)"
+)
+
+
+def unplaceable(pile: list[Detection], codes: dict[float, ErrorCode] | None = None) -> ScriptedCell:
+    """The planner refuses every pick of ``pile`` for its place (PLACE_UNREACHABLE), but
+    those ``codes`` names by x; any push would plan."""
+    codes = codes or {}
+    cell = ScriptedCell(pile=pile, strike=lambda request: planned("push"))
+
+    def place(request: PlaceRequest) -> Plan:
+        code = codes.get(round(x_of(request.domino), 6), ErrorCode.PLACE_UNREACHABLE)
+        return refused(code, NO_PLACE_POSE if code == ErrorCode.PLACE_UNREACHABLE else code.name)
+
+    cell.place = place
+    return cell
+
+
+FOUR_FLAT = [flat(0.50), flat(0.55), flat(0.60), flat(0.65)]
+
+
+def test_a_slot_no_flat_domino_can_be_placed_at_is_given_up_without_a_push(capsys) -> None:
+    """Spiral seed 4711: a safety gap between two standing neighbours on a tight curve,
+    every flat domino's hold refused PLACE_UNREACHABLE, spent its attempts, spreads and
+    lay-flat pushes (~10 min) before it was left empty. A flat domino is held by the
+    canonical grasp: once give_up_unplaceable of them were refused so, and the slot cannot
+    be put off, it is left empty at once with why, nothing pushed for it."""
+    cell = unplaceable(FOUR_FLAT)
+    run_job = job(cell, count=1)
+    report = run(run_job)
+    assert cell.strike_requests == []  # no spread, no lay-flat push (and nothing to strike)
+    assert len(cell.place_requests) == 4  # each once, with its pile
+    why = "no domino can be placed there: the planner refused 4 flat dominoes' place"
+    why += f" ({NO_PLACE_POSE})"
+    assert report.dominoes[0].failures == [why]
+    assert report.dominoes[0].attempts == 1
+    ((slot, reason),) = [(e.slot, e.reason) for e in report.empty_slots]
+    assert slot == 1 and reason == f"{why}; the planner refused: PLACE_UNREACHABLE x4"
+    assert f"domino 1 could not be placed ({why}" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("pile", "codes", "settings"),
+    [
+        (FOUR_FLAT[:2], {}, {}),  # too few flat dominoes refused to tell
+        (FOUR_FLAT, {}, {"give_up_unplaceable": 0}),  # never given up so
+        (FOUR_FLAT, {0.55: ErrorCode.PLACE_IN_COLLISION}, {}),  # a sweep may cure
+        (FOUR_FLAT, {0.55: ErrorCode.TIMEOUT}, {}),  # the planner did not finish
+    ],
+)
+def test_a_slot_is_not_given_up_on_what_a_push_or_more_planning_may_cure(
+    pile: list[Detection], codes: dict[float, ErrorCode], settings: dict
+) -> None:
+    cell = unplaceable(pile, codes)
+    run_job = job(cell, max_lay_flat=0, **settings)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.FAILED
+    assert cell.strike_requests  # the pile was spread
+    assert run_job.report.dominoes[0].attempts == run_job.settings.max_attempts
+    assert not any("no domino can be placed" in why for why in run_job.report.dominoes[0].failures)
+
+
+def test_a_slot_with_debris_beside_it_is_not_given_up_for_its_place() -> None:
+    """A fallen domino within a domino length may be what leaves no room: swept first."""
+    cell = unplaceable(FOUR_FLAT)
+    run_job = job(cell, max_lay_flat=0, max_spreads=0)
+    remember_fallen(run_job, 1, FALLEN, lying(0.46, 0.045), math.radians(85.0))
+    tried = attempt(run_job, 0, [], ignore_pile=True)
+    assert tried.outcome is Outcome.NO_PLAN
+
+
+def test_the_refusals_of_a_slots_turn_add_up_over_its_spreads() -> None:
+    """The spiral's safety gap: two flat dominoes refused for its place, the rest of the
+    crowded pile GRASP_UNREACHABLE; the pile was spread, and a third flat one refused
+    for the place at the next look. Given up then, not spread again."""
+    cell = unplaceable(
+        [flat(0.50), flat(0.55), flat(0.60), flat(0.61)],
+        {0.60: ErrorCode.GRASP_UNREACHABLE, 0.61: ErrorCode.GRASP_UNREACHABLE},
+    )
+
+    def spread(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.50), flat(0.55), flat(0.65)]
+        return planned("push")
+
+    cell.strike = spread
+    run_job = job(cell, max_spreads=2)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.FAILED
+    assert len(cell.strike_requests) == 1 and len(run_job.report.dominoes[0].spreads) == 1
+    (why,) = run_job.report.dominoes[0].failures
+    assert why.startswith("no domino can be placed there: the planner refused 3 flat")
+
+
+def test_grasp_refusals_say_nothing_of_the_slot_it_is_still_given_up() -> None:
+    """GRASP_UNREACHABLE: no pick found, the place never tried."""
+    no_grasp = {0.65: ErrorCode.GRASP_UNREACHABLE}
+    cell = unplaceable([*FOUR_FLAT, flat(0.70)], no_grasp)
+    tried = attempt(job(cell), 0, [], ignore_pile=True)
+    assert tried.outcome is Outcome.NO_PLACE and not tried.moved
+    assert tried.why.startswith("no domino can be placed there: the planner refused 4 flat")
+    assert cell.strike_requests == []
+
+
+def test_a_slot_whose_place_only_leaning_holds_were_refused_still_gets_them_laid_flat() -> None:
+    """A leaning domino's hold leans with it: laid flat, the canonical hold may be placed."""
+    pile = []
+    for x in (0.50, 0.55, 0.60):
+        leaning = lying(x, -0.3)
+        leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+        pile.append(Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01))
+    cell = unplaceable(pile)
+
+    def push(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.56)]
+        cell.place = lambda request: planned()
+        return planned("push")
+
+    cell.strike = push
+    run_job = job(cell, max_spreads=0)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    assert len(cell.strike_requests) == 1 and run_job.report.dominoes[0].laid_flat
+
+
+def test_a_slot_no_domino_can_be_placed_at_is_still_put_off_while_others_may_go_first() -> None:
+    cell = unplaceable(FOUR_FLAT)
+    run_job = job(cell)
+    assert place_slot(run_job, 0, may_defer=True) is Turn.DEFERRED
+    outcome = run_job.report.dominoes[0]
+    assert outcome.failures == [] and outcome.attempts == 0
+    assert outcome.deferrals == ["planning: 4 offers refused"]
+    assert cell.strike_requests == []
 
 
 def test_a_domino_on_its_edge_whose_push_is_refused_is_named_as_never_graspable() -> None:

@@ -8,6 +8,7 @@ from enum import Enum
 
 import numpy as np
 
+from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.offers import (
     PILE_BOXES,
     PILE_CORES,
@@ -16,20 +17,23 @@ from dombot_bringup.offers import (
     with_pile_first,
 )
 from dombot_bringup.run_report import PileDomino
+from dombot_bringup.task.cell import Posture
 from dombot_bringup.task.checks import check
 from dombot_bringup.task.clearing import lay_flat, spread
-from dombot_bringup.task.geometry import near_any
+from dombot_bringup.task.geometry import near, near_any, spot_of
 from dombot_bringup.task.picking import (
     PICKABLE_POSTURES,
     PILE_WORDS,
     Candidate,
     Offer,
+    Refusal,
     candidates,
     first_plan,
 )
 from dombot_bringup.task.placing import REGRASP_PREFIX, Hold, Ran, execute
 from dombot_bringup.task.records import nearest_truth, pick_record, truth, write_pick_record
 from dombot_bringup.task.state import Job, log
+from dombot_planner.errors import ErrorCode
 
 
 class Outcome(Enum):
@@ -39,6 +43,7 @@ class Outcome(Enum):
     NOT_PLACED = "not placed"  # carried (or put back, or a call failed): the arm moved
     MISSED = "missed"  # the pick failed (blocked or missed): the run is as it was
     NO_PLAN = "no plan"  # nothing planned: the arm has not moved
+    NO_PLACE = "no place"  # nothing planned, and no domino can be placed at the slot
 
 
 @dataclass(frozen=True)
@@ -49,11 +54,16 @@ class Attempt:
 
     @property
     def moved(self) -> bool:
-        return self.outcome is not Outcome.NO_PLAN
+        return self.outcome not in (Outcome.NO_PLAN, Outcome.NO_PLACE)
 
 
 def attempt(
-    job: Job, index: int, failed: list[np.ndarray], ignore_pile: bool = False, turned: bool = False
+    job: Job,
+    index: int,
+    failed: list[np.ndarray],
+    ignore_pile: bool = False,
+    turned: bool = False,
+    refusals: list[Refusal] | None = None,
 ) -> Attempt:
     """Offer the planner candidates until one plans; execute and check it.
 
@@ -66,10 +76,13 @@ def attempt(
     its crowd (``clearing.spread``) and the attempt starts again from a fresh look (up to
     max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught by the
     grasp check and backed out of, and stirs the pile). A refusal costs a planning call,
-    not an attempt: the arm has not moved (NO_PLAN). Refusals and failed picks are
-    remembered for the run (refused with the pile: not offered with it again; refused
-    ignoring it, or the pick blocked or missed: not offered at all), until a pick within
-    DISTURBED_RADIUS moves it.
+    not an attempt: the arm has not moved (NO_PLAN). When the slot cannot be put off
+    (``ignore_pile``) and the refusals of its turn (``refusals``, kept over the turn's
+    attempts, spreads and pushes until something plans) show no domino can be placed there
+    (``no_place``), nothing more is pushed for it: NO_PLACE, and the slot is given up.
+    Refusals and failed picks are remembered for the run (refused with the pile: not
+    offered with it again; refused ignoring it, or the pick blocked or missed: not offered
+    at all), until a pick within DISTURBED_RADIUS moves it.
 
     A pile domino the planner turns in place first (no grasp reached it as it lay) is
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
@@ -79,21 +92,24 @@ def attempt(
     settings = job.settings
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
     roomiest = roomiest_first(found)[: settings.last_resort_candidates]
-    slot_refusals: list[np.ndarray] = []
+    refusals = [] if refusals is None else refusals
+    earlier = len(refusals)  # this attempt's refusals follow
     with_pile = [
         *((c, PILE_BOXES) for c in ranked[: settings.max_candidates]),
         *((c, PILE_CORES) for c in roomiest),
     ]
-    offer, refused = first_plan(job, index, with_pile, failed, slot_refusals)
-    about_the_pile = ignore_pile or not slot_refusals
+    offer, refused = first_plan(job, index, with_pile, failed, refusals)
+    about_the_pile = ignore_pile or not any(r.about_the_slot for r in refusals[earlier:])
+    if offer is None and ignore_pile and (why := no_place(job, index, refusals)):
+        return Attempt(Outcome.NO_PLACE, why)
     if offer is None and about_the_pile:
         outcome = job.report.dominoes[index]
         if len(outcome.laid_flat) < settings.max_lay_flat and lay_flat(job, index, stuck):
-            return attempt(job, index, failed, ignore_pile, turned)
+            return attempt(job, index, failed, ignore_pile, turned, refusals)
         if len(outcome.spreads) < settings.max_spreads and spread(job, index, found):
-            return attempt(job, index, failed, ignore_pile, turned)
+            return attempt(job, index, failed, ignore_pile, turned, refusals)
         ignoring = [(c, PILE_IGNORED) for c in roomiest]
-        offer, more = first_plan(job, index, ignoring, failed, slot_refusals)
+        offer, more = first_plan(job, index, ignoring, failed, refusals)
         refused += more
     if offer is None:
         if about_the_pile:
@@ -101,7 +117,38 @@ def attempt(
         why = f"planning: {refused} offers refused" if refused else "no graspable domino seen"
         return Attempt(Outcome.NO_PLAN, why)
     job.report.pile_out_of_reach.clear()
+    refusals.clear()  # something plans for the slot: what was refused tells nothing of it
     return pick(job, index, offer, failed, ignore_pile, turned)
+
+
+def no_place(job: Job, index: int, refusals: list[Refusal]) -> str:
+    """Why no domino can be placed at slot ``index``, or "" while one may: the planner
+    refused the place of at least ``give_up_unplaceable`` flat pile dominoes
+    (PLACE_UNREACHABLE; a flat domino's hold is the canonical one, so any other flat one,
+    after a spread or a push, gets the same refusal), no refusal was one a sweep or a
+    deferral may cure (PLACE_IN_COLLISION, TIMEOUT, ...; GRASP_UNREACHABLE says nothing of
+    the slot, nor does a leaning domino's hold, which laying it flat may change), and no
+    fallen domino lies within a domino length of the slot (a sweep may make room)."""
+    if any(
+        r.code not in (ErrorCode.PLACE_UNREACHABLE, ErrorCode.GRASP_UNREACHABLE) for r in refusals
+    ):
+        return ""
+    unplaceable = [  # each a different domino: one refused for the slot is not offered again
+        r
+        for r in refusals
+        if r.code == ErrorCode.PLACE_UNREACHABLE
+        and r.candidate.from_pile
+        and r.candidate.posture == Posture.FLAT
+    ]
+    place = spot_of(job.releases[index])
+    debris = [pose for pose in job.state.lying() if near(spot_of(pose), place, DOMINO_LENGTH)]
+    needed = job.settings.give_up_unplaceable
+    if needed == 0 or len(unplaceable) < needed or debris:
+        return ""
+    return (
+        f"no domino can be placed there: the planner refused {len(unplaceable)} flat "
+        f"dominoes' place ({unplaceable[-1].message})"
+    )
 
 
 def name_out_of_reach(job: Job, index: int, pile: list[Candidate]) -> None:

@@ -22,6 +22,7 @@ from dombot_bringup.sections import empty_message, empty_reason
 from dombot_bringup.task.attempts import Attempt, Outcome, attempt
 from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.clearing import sweep_debris
+from dombot_bringup.task.picking import Refusal
 from dombot_bringup.task.records import add_spent, record_truth, take_picture
 from dombot_bringup.task.state import Job, log
 from dombot_bringup.task.strike import strike
@@ -107,24 +108,31 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
     """Attempts at slot ``index`` until PLACED; FAILED after max_attempts carries or
     max_missed_picks picks that failed; or DEFERRED: nothing planned (e.g. fallen dominoes
     lie where it stands) and other slots may be built first, which may use up those fallen
-    dominoes. A deferral costs planning calls, not an attempt; so does a sweep of debris
-    out of the slot."""
+    dominoes; FAILED at once when it cannot be put off and no domino can be placed there
+    (``attempts.no_place``). A deferral costs planning calls, not an attempt; so does a
+    sweep of debris out of the slot."""
     outcome, settings, cell = job.report.dominoes[index], job.settings, job.cell
     failed: list[np.ndarray] = []  # spots refused for this slot, or whose pick failed
+    refusals: list[Refusal] = []  # the planner's, since the last plan (``attempts.no_place``)
     missed = sweeps = 0
     sim_start, wall_start, spent = cell.sim_time, time.monotonic(), dict(cell.time_spent)
     while outcome.attempts - missed < settings.max_attempts and missed < settings.max_missed_picks:
         try:
-            tried = attempt(job, index, failed, ignore_pile=not may_defer)
+            tried = attempt(job, index, failed, ignore_pile=not may_defer, refusals=refusals)
         except CellError as error:
             tried = Attempt(Outcome.NOT_PLACED, str(error))
         outcome.simulated_s += cell.sim_time - sim_start
         outcome.wall_s += time.monotonic() - wall_start
         sim_start, wall_start = cell.sim_time, time.monotonic()
         spent = add_spent(outcome.simulated_by_activity, cell.time_spent, spent)
+        if tried.outcome is Outcome.NO_PLACE:  # nothing a push, a sweep or time would cure
+            outcome.attempts += 1
+            outcome.failures.append(tried.why)
+            return Turn.FAILED
         if not tried.moved and sweeps < settings.max_sweeps and sweep_debris(job, index, failed):
             sweeps += 1
             failed.clear()  # refused while the debris lay there (missed picks: unpickable)
+            refusals.clear()
             continue
         if not tried.moved and may_defer:
             outcome.deferrals.append(tried.why)

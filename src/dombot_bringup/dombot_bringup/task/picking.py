@@ -87,6 +87,19 @@ class Candidate:
 
 
 @dataclass(frozen=True)
+class Refusal:
+    """A candidate the planner refused for a slot, with its error code and message."""
+
+    candidate: Candidate
+    code: int
+    message: str
+
+    @property
+    def about_the_slot(self) -> bool:
+        return self.code not in GRASP_REFUSALS
+
+
+@dataclass(frozen=True)
 class Offer:
     """A candidate that planned, with how its pile went to the planner (offers.PILE_*)."""
 
@@ -190,11 +203,11 @@ def first_plan(
     index: int,
     offers: Sequence[tuple[Candidate, str]],
     failed: list[np.ndarray],
-    slot_refusals: list[np.ndarray],
+    refusals: list[Refusal],
 ) -> tuple[Offer | None, int]:
     """The first of ``offers`` (candidate, pile tier) that plans for slot ``index`` and how
-    many were refused before it. Refusals about the slot go to ``failed`` and
-    ``slot_refusals``; those about the domino are remembered for the run (see
+    many were refused before it. Every refusal goes to ``refusals``; those about the slot
+    to ``failed`` too; those about the domino are remembered for the run (see
     ``attempts.attempt``)."""
     refused = 0
     for candidate, pile in offers:
@@ -208,9 +221,9 @@ def first_plan(
         where = f"{candidate.source} at {spot.round(3).tolist()}{PILE_WORDS[pile]}"
         log(f"{job.domino(index)}: refused {where}: {plan.message.split(' (')[0]}")
         count_refusal(job.report.dominoes[index].refusals, plan.error)
-        if plan.error not in GRASP_REFUSALS:
+        refusals.append(Refusal(candidate, plan.error, plan.message))
+        if refusals[-1].about_the_slot:
             failed.append(spot)
-            slot_refusals.append(spot)
         elif pile == PILE_BOXES:
             job.state.crowded.append(spot)
         elif pile == PILE_IGNORED:

@@ -45,6 +45,14 @@ class ArmJobSettings:
     # remaining domino refused, the run at 29 of 30; dominoes on an edge were never
     # offered.)
     max_lay_flat: int = 4
+    # A slot that cannot be put off any more, whose place the planner refused
+    # (PLACE_UNREACHABLE) for this many flat pile dominoes in one attempt and nothing else
+    # (bar GRASP_UNREACHABLE, which says nothing of the slot), is given up at once: a flat
+    # domino is held by the canonical grasp, so every other flat one, and every one a push
+    # lays flat, gets the same refusal. (A safety gap between two standing neighbours on a
+    # spiral's tight curve spent 4 attempts, 2 spreads and 4 lay-flat pushes, ~10 min
+    # wall, before it was left empty.) 0: never; its attempts are spent as before.
+    give_up_unplaceable: int = 3
     spread_clearance: float = 0.016  # m
     spread_radius: float = 0.13  # m
     spread_plans: int = 6
