@@ -45,8 +45,10 @@ def trajectory_problem(reply: GoalReply) -> str | None:
     if reply.result is None:
         return None
     code, text = reply.result.error_code, reply.result.error_string
+    if reply.status == GoalStatus.STATUS_UNKNOWN:  # the server no longer had the goal
+        return "result asked for after the server dropped the goal (status UNKNOWN)"
     if not text:
-        return "empty error_string"
+        return f"empty error_string (status {reply.status})"
     succeeded = reply.status == GoalStatus.STATUS_SUCCEEDED
     if succeeded != (code == 0) and not (code == 0 and "preempted" in text):
         return f"status {reply.status} with error_code {code}"
