@@ -773,10 +773,14 @@ def main(args: list[str] | None = None) -> int:
     finally:
         stop.set()
         frames = ", ".join(f"{name} {count}" for name, count in node.frames_rendered.items())
-        node.get_logger().info(f"camera frames rendered: {frames or 'none (no cameras)'}")
         executor.shutdown(timeout_sec=2.0)
         spinner.join(timeout=2.0)
         node.save_meshcat_recording()
+        # a logger of its own, not the node's (nor its child, which rclpy registers with
+        # rosout): Ctrl-C may have shut the context down, and rosout would refuse the line
+        rclpy.logging.get_logger(f"{node.get_name()}.shutdown").info(
+            f"camera frames rendered: {frames or 'none (no cameras)'}"
+        )
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
