@@ -6,6 +6,8 @@ unreachable domino is proven so by its search, not cut short by a loaded machine
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -294,6 +296,51 @@ def test_empty_start_state_uses_joint_states(client: Client) -> None:
     assert response.success, response.message
     start = response.segments[1].trajectory.points[0].positions
     assert start == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
+
+
+def arm_state(offset: float, speed: float) -> JointState:
+    """Home with joint 2 ``offset`` rad off it, moving at ``speed`` rad/s."""
+    position, velocity = SCENARIO.home_position.copy(), np.zeros(7)
+    position[1], velocity[1] = position[1] + offset, speed
+    return JointState(
+        name=list(SCENARIO.arm_joints), position=position.tolist(), velocity=velocity.tolist()
+    )
+
+
+# joint 2 decelerating at 8.5 rad/s², 25 mrad before it stops: as the latest /joint_states
+# was when a strike's plan started that far off where the arm stopped (the sim refused it)
+STOPPING = arm_state(0.025, 0.65)
+
+
+def strike_start(client: Client, publish: JointState) -> list[float]:
+    """Where a strike with an empty start state starts: STOPPING is the latest joint state
+    when it is asked for, ``publish`` after that until it is answered."""
+
+    def published_for(seconds: float) -> Callable[[], bool]:
+        until = time.monotonic() + seconds
+        return lambda: client.joints.publish(STOPPING) or time.monotonic() > until
+
+    spin_until(client.node, published_for(1.0), timeout=30)
+    future = client.call_async(strike_request(start_state=JointState()))
+    assert spin_until(
+        client.node, lambda: client.joints.publish(publish) or future.done(), timeout=300
+    )
+    response = future.result()
+    assert response.success, response.message
+    return list(response.segments[0].trajectory.points[0].positions)
+
+
+def test_an_empty_start_state_is_the_arm_at_rest(client: Client) -> None:
+    """Right after a motion the latest /joint_states may be from before the arm stopped."""
+    start = strike_start(client, publish=arm_state(0.0, 0.0))
+    assert start == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
+
+
+def test_an_arm_that_does_not_come_to_rest_is_planned_from_where_it_is(client: Client) -> None:
+    """Waited for REST_WAIT, then planned from the latest joint state."""
+    start = strike_start(client, publish=STOPPING)
+    assert start == pytest.approx(STOPPING.position.tolist(), abs=1e-9)
+    client.joints.publish(arm_state(0.0, 0.0))  # at rest again for the tests after
 
 
 def test_bad_requests_are_answered_while_others_are_planned(client: Client) -> None:

@@ -3,9 +3,10 @@
 
 A thin ROS adapter over ``planner`` and ``strike``: parameters are PlannerSettings' fields
 (validated; a rejected update keeps the old values), /joint_states gives the start state
-when a request has none, requests are checked and converted before they wait for the
-planner, and every failure is answered with an error code and a message and logged with
-its stage and the time spent. Both services run in a reentrant callback group on a
+when a request has none (the latest once it shows the arm at rest, waited for up to
+REST_WAIT), requests are checked and converted before they wait for the planner, and
+every failure is answered with an error code and a message and logged with its stage and
+the time spent. Both services run in a reentrant callback group on a
 multi-threaded executor, so bad requests are answered at once while another request is
 being planned (the two planners share shadow plants and plan one request at a time); a
 request that cannot start planning within its time budget gets TIMEOUT, and so does one
@@ -47,6 +48,7 @@ from dombot_planner.request import (
     PickPlaceRequest,
     StrikeRequest,
     arm_positions,
+    at_rest,
     check_sizes,
     finger_opening,
     pose_from,
@@ -58,6 +60,9 @@ MAX_WAITING = 8  # requests that may wait for the planner at once (docs/PLANNER.
 # executor threads: the waiting requests, the one being planned, /joint_states and one
 # more, so a bad request never waits for a thread
 EXECUTOR_THREADS = MAX_WAITING + 3
+# s a request without start state waits for /joint_states to show the arm at rest: right
+# after a motion the latest one processed may be from before it stopped (tens of ms)
+REST_WAIT = 5.0
 
 GRIPPER_EVENTS = {
     GRIPPER_OPEN: TrajectorySegment.GRIPPER_OPEN,
@@ -105,6 +110,7 @@ class PlannerNode(Node):
         self.lock = threading.Lock()
         self.waiting = threading.BoundedSemaphore(MAX_WAITING)
         self.joint_state: JointState | None = None
+        self.joint_state_changed = threading.Condition()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_subscription(
             JointState,
@@ -142,7 +148,9 @@ class PlannerNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_joint_state(self, message: JointState) -> None:
-        self.joint_state = message
+        with self.joint_state_changed:
+            self.joint_state = message
+            self.joint_state_changed.notify_all()
 
     # ------------------------------------------------------------------ services
     def _on_plan_place(self, request: PlanPlace.Request, response: PlanPlace.Response):
@@ -222,16 +230,30 @@ class PlannerNode(Node):
         )
 
     def _start_state(self, state: JointState) -> JointState:
-        """The request's start state, or the latest /joint_states when it is empty."""
+        """The request's start state, or the latest /joint_states when it is empty (once
+        it shows the arm at rest, waiting up to REST_WAIT)."""
         if state.name or state.position:
             return state
-        if self.joint_state is None:
+        arm = self.scenario.arm_joints
+
+        def settled() -> bool:
+            latest = self.joint_state
+            return latest is None or at_rest(list(latest.name), list(latest.velocity), arm)
+
+        with self.joint_state_changed:
+            if not self.joint_state_changed.wait_for(settled, timeout=REST_WAIT):
+                self.get_logger().warning(
+                    f"the arm did not come to rest within {REST_WAIT} s: planning from the "
+                    "latest /joint_states"
+                )
+            latest = self.joint_state
+        if latest is None:
             raise PlanningError(
                 ErrorCode.NO_START_STATE,
                 "start",
                 "start_state is empty and no /joint_states has been received",
             )
-        return self.joint_state
+        return latest
 
     def _arm(self, state: JointState):
         return arm_positions(

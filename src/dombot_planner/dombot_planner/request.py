@@ -24,6 +24,7 @@ from dombot_planner.settings import PlannerSettings
 
 QUATERNION_TOLERANCE = 1e-3  # |q| must be 1 within this (docs/ARCHITECTURE.md)
 JOINT_LIMIT_TOLERANCE = 1e-3  # rad a start state may sit beyond a limit (it is clipped)
+REST_SPEED = 0.01  # rad/s: an arm whose joints all move slower than this is at rest
 OVERLAP_TOLERANCE = 1e-4  # m two dominoes may overlap (touching faces)
 TABLE_TOLERANCE = 5e-4  # m a place pose may reach into the table top
 GRASP_REACH = 0.05  # m: a grasp TCP farther than this from its domino's centre is a mistake
@@ -150,6 +151,17 @@ def check_velocities(
         limit = math.inf if limits is None else limits[index]
         if not (math.isfinite(value) and abs(value) <= limit * (1 + JOINT_LIMIT_TOLERANCE)):
             raise invalid("validation", f"{what}: {joint} velocity {value} is beyond its limit")
+
+
+def at_rest(names: Sequence[str], velocities: Sequence[float], arm_joints: Sequence[str]) -> bool:
+    """Whether a JointState shows every arm joint slower than REST_SPEED (no velocities:
+    taken as at rest). A plan starts at rest: from a state read while the arm still
+    moves it starts off where the arm stops (0.65 rad/s decelerating at 8.5 rad/s² is
+    25 mrad from it)."""
+    if not velocities:
+        return True
+    by_name = dict(zip(names, velocities, strict=False))
+    return all(abs(by_name.get(joint, 0.0)) < REST_SPEED for joint in arm_joints)
 
 
 def finger_opening(

@@ -9,7 +9,10 @@ control_msgs/FollowJointTrajectory, so a client written for a real arm works her
   and efforts, if given, have one value per joint (they are not used: the arm is
   position-controlled) (INVALID_GOAL);
 * a first point later than t = 0 is reached from the current position; a first point at
-  t = 0 must be the current position (within ``start_tolerance``);
+  t = 0 must be the current position (within ``start_tolerance``): the arm starts where it
+  is, and with velocities given the first interval is lengthened as far as the velocity
+  limits need to cover the difference (one 10 ms sample interval covers only ~10 mrad), the
+  rest of the trajectory following that much later;
 * with velocities the spline is cubic Hermite through positions and velocities;
   without, a cubic with continuous accelerations that starts and ends at rest.
 """
@@ -32,6 +35,8 @@ POINT_SPEED_MARGIN = 1e-3  # relative: a time-optimal plan's points sit on the l
 # (a time-optimal trajectory rides the limit); like a robot driver, allow a little.
 INTERPOLATION_SPEED_MARGIN = 0.05
 SPEED_SAMPLES_PER_SEGMENT = 20
+START_STRETCH = 1.25  # factor the first interval grows by per try to cover a start offset
+START_STRETCH_TRIES = 20  # up to 1.25**19 ≈ 70 times its length
 MAX_POINTS = 10_000  # 100 s at the planner's 0.01 s sample period; more is a mistake
 
 
@@ -96,6 +101,8 @@ def build_trajectory(
                 f"(allowed {start_tolerance} rad); start later than 0 to move there",
             )
         q[0] = current
+        if v is not None and len(times) > 1:
+            times = _stretch_first_interval(times, q, v, limits)
     if len(times) == 1:
         return PiecewisePolynomial.ZeroOrderHold([0.0, 1e-3], np.column_stack([q[0], q[0]]))
     if v is None:
@@ -154,21 +161,49 @@ def _check_values(
         _check_speeds(np.abs(v), limits, "velocity at point", POINT_SPEED_MARGIN)
 
 
-def _check_spline_speed(
-    spline: PiecewisePolynomial, times: np.ndarray, limits: JointLimits
-) -> None:
+def _stretch_first_interval(
+    times: np.ndarray, q: np.ndarray, v: np.ndarray, limits: JointLimits
+) -> np.ndarray:
+    """``times`` with the first interval (from the current position, put in place of the
+    first point) lengthened until its cubic passes the interpolated speed check, the rest
+    shifted by as much; unchanged if it passes already or no length does (then refused).
+
+    A planner samples its trajectory from the start state it was given; the arm may be a
+    few mrad from it when the goal arrives (e.g. a joint state read while it still moved),
+    which one 10 ms interval covers only at 150 rad/s per rad: 11 mrad at 1.66 rad/s."""
+    first = times[1] - times[0]
+    for tries in range(START_STRETCH_TRIES):
+        length = first * START_STRETCH**tries
+        piece = PiecewisePolynomial.CubicHermite([0.0, length], q[:2].T, v[:2].T)
+        speed = _interpolated_speed(piece, [0.0, length])
+        if not _over_speed(speed, limits, INTERPOLATION_SPEED_MARGIN).any():
+            return np.concatenate([times[:1], times[1:] + (length - first)])
+    return times
+
+
+def _interpolated_speed(spline: PiecewisePolynomial, times: Sequence[float]) -> np.ndarray:
+    """|velocity| (samples × joints) at SPEED_SAMPLES_PER_SEGMENT samples per interval."""
     samples = np.concatenate(
         [np.linspace(a, b, SPEED_SAMPLES_PER_SEGMENT) for a, b in itertools.pairwise(times)]
     )
-    speed = np.abs(spline.MakeDerivative(1).vector_values(samples).T)
+    return np.abs(spline.MakeDerivative(1).vector_values(samples).T)
+
+
+def _check_spline_speed(
+    spline: PiecewisePolynomial, times: np.ndarray, limits: JointLimits
+) -> None:
+    speed = _interpolated_speed(spline, times)
     _check_speeds(speed, limits, "interpolated velocity, sample", INTERPOLATION_SPEED_MARGIN)
+
+
+def _over_speed(speed: np.ndarray, limits: JointLimits, allowance: float) -> np.ndarray:
+    return speed > limits.velocity * (1.0 + allowance) + LIMIT_MARGIN
 
 
 def _check_speeds(
     speed: np.ndarray, limits: JointLimits, where: str, allowance: float = 0.0
 ) -> None:
-    allowed = limits.velocity * (1.0 + allowance) + LIMIT_MARGIN
-    over = speed > allowed
+    over = _over_speed(speed, limits, allowance)
     if over.any():
         row, joint = np.argwhere(over)[0]
         raise TrajectoryError(
