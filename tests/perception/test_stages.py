@@ -320,6 +320,22 @@ def test_radius_outlier_removal_drops_isolated_points() -> None:
     assert kept.size == len(points) and len(points) not in kept
 
 
+def test_outlier_removal_keeps_what_open3d_keeps() -> None:
+    """A sparse cloud, where many points have about six neighbours within 3 mm: the same
+    points as open3d's remove_radius_outlier (which the pipeline used before)."""
+    import open3d as o3d
+
+    rng = np.random.default_rng(RNG_SEED)
+    points = rng.uniform([0.5, -0.3, 0.0], [0.53, -0.27, 0.01], size=(800, 3))
+    config = FilterConfig()
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    _, kept = cloud.remove_radius_outlier(config.outlier_min_neighbours, config.outlier_radius)
+    ours = remove_outliers(points, config)
+    assert 0 < ours.size < len(points)
+    assert np.array_equal(ours, np.asarray(kept))
+    assert remove_outliers(np.zeros((0, 3)), config).size == 0
+
+
 def test_filter_rejects_boxes_that_cannot_be_one_well_seen_domino() -> None:
     points, normals = visible_surface(flat(0.55, -0.30, 0.0), CAMERA)
     config = FilterConfig()
