@@ -67,18 +67,55 @@ class GeometricSegmenter:
 
     def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
         """Flat pixel indices of each mask, one per domino candidate."""
+        return self.segment_views([view], [cloud])[0]
+
+    def segment_views(
+        self, views: list[CameraView], clouds: list[OrganisedCloud | None]
+    ) -> list[list[np.ndarray]]:
+        """``segment`` of each view; the oversized regions of all views are split side by
+        side (``run_batched``: the fewer, larger batches of box fits, the faster)."""
+        found = {
+            view.name: self._regions(view, cloud) for view, cloud in zip(views, clouds, strict=True)
+        }
+        current: dict[str, dict[bytes, list[np.ndarray]]] = {}
+        unsplit = []
+        for name, regions in found.items():
+            if regions is None:
+                continue  # nothing to segment: the view's memory stays as it was
+            known = self._previous.get(name, {})
+            current[name] = {key: known[key] for key in regions if key in known}
+            unsplit += [(name, key) for key in regions if key not in known]
+        margin, seed = self.config.oversize_margin, self.config.seed
+        splits = [split_steps(*found[name][key], margin, seed) for name, key in unsplit]
+        for (name, key), parts in zip(unsplit, run_batched(splits), strict=True):
+            current[name][key] = parts
+        self._previous.update(current)
+        minimum = self.config.min_pixels
+        return [
+            [
+                part
+                for key in found[view.name] or {}
+                for part in current[view.name][key]
+                if part.size >= minimum
+            ]
+            for view in views
+        ]
+
+    def _regions(
+        self, view: CameraView, cloud: OrganisedCloud | None
+    ) -> dict[bytes, tuple[np.ndarray, ...]] | None:
+        """The view's linked regions large enough for a mask, by ``_content_key``: each one's
+        image pixels, points, normals and surface areas; None when too little is seen."""
         config = self.config
         if cloud is None or cloud.valid.sum() < config.min_pixels:
-            return []
-        components = _linked_components(cloud, config)
+            return None
         flat_points = cloud.points.reshape(-1, 3)
         flat_normals = cloud.normals.reshape(-1, 3)
         surface_areas = _surface_areas(
             flat_points, flat_normals, cloud.pixel_size.ravel(), view.X_WC[:3, 3]
         )
-        previous, current = self._previous.get(view.name, {}), {}
         regions = {}
-        for pixels in components:
+        for pixels in _linked_components(cloud, config):
             if pixels.size < config.min_pixels:
                 continue  # nor could any of its parts be a mask
             region = (
@@ -88,14 +125,7 @@ class GeometricSegmenter:
                 surface_areas[pixels],
             )
             regions[_content_key(region)] = region
-        unsplit = [key for key in regions if key not in previous]
-        splits = [
-            split_steps(*regions[key], config.oversize_margin, config.seed) for key in unsplit
-        ]
-        current = {key: previous[key] for key in regions if key in previous}
-        current.update(zip(unsplit, run_batched(splits), strict=True))
-        self._previous[view.name] = current
-        return [part for key in regions for part in current[key] if part.size >= config.min_pixels]
+        return regions
 
 
 def _content_key(arrays: tuple[np.ndarray, ...]) -> bytes:
