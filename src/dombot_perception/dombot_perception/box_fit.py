@@ -76,6 +76,7 @@ def fit_domino_boxes(
     inliers = [np.ones(points.shape[0], dtype=bool) for points, _ in clouds]
     rngs: list[np.random.Generator | None] = [None] * len(clouds)  # most clouds need none
     poses: list[np.ndarray | None] = [None] * len(clouds)
+    frames: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(clouds)  # at the pose
     todo = []
     for index, (points, _) in enumerate(clouds):
         if points.shape[0] < 10:
@@ -101,28 +102,52 @@ def fit_domino_boxes(
             starts.append(start)
             fitted.append(subset)
         todo = []
-        for index, pose in zip(started, refine_poses(starts, fitted, config), strict=True):
-            poses[index] = pose
-            residuals = box_signed_distance((clouds[index][0] - pose[:3, 3]) @ pose[:3, :3])
+        refined = refine_poses(starts, fitted, config)
+        seen = _in_box_frames([clouds[index][0] for index in started], refined)
+        for index, pose, (body, residuals) in zip(started, refined, seen, strict=True):
+            poses[index], frames[index] = pose, (body, residuals)
             trimmed = np.abs(residuals) < config.inlier_distance
             if trimmed.sum() >= 10 and not np.array_equal(trimmed, inliers[index]):
                 inliers[index] = trimmed
                 todo.append(index)
-    for index, (points, _) in enumerate(clouds):
+    for index, pose in enumerate(poses):
         if fits[index] is None:
-            fits[index] = fit_statistics(poses[index], points, inliers[index])
+            fits[index] = _statistics(pose, *frames[index], inliers[index])
     return fits
 
 
 def fit_statistics(pose: np.ndarray, points: np.ndarray, inliers: np.ndarray) -> BoxFit:
     """The fit of the box at ``pose`` to ``points``, judged on the ``inliers`` (a mask)."""
-    body = (points[inliers] - pose[:3, 3]) @ pose[:3, :3]
+    return _statistics(pose, *_in_box_frames([points], [pose])[0], inliers)
+
+
+def _statistics(
+    pose: np.ndarray, body: np.ndarray, residuals: np.ndarray, inliers: np.ndarray
+) -> BoxFit:
+    """``fit_statistics`` from the points in the box frame and their signed distances."""
+    body = body[inliers]
     return BoxFit(
         X_WD=pose,
-        fit_error=float(np.sqrt(np.mean(box_signed_distance(body) ** 2))),
+        fit_error=float(np.sqrt(np.mean(residuals[inliers] ** 2))),
         extents=body.max(axis=0) - body.min(axis=0),
         inlier_fraction=float(inliers.mean()),
     )
+
+
+def _in_box_frames(
+    clouds: list[np.ndarray], poses: list[np.ndarray]
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each cloud in its box's frame and its points' signed distances to the box, all
+    clouds at once."""
+    if not clouds:
+        return []
+    pose = np.array(poses)
+    body = (_padded(clouds) - pose[:, None, :3, 3]) @ pose[:, :3, :3]
+    residuals = box_signed_distance(body)
+    return [
+        (body[box, : cloud.shape[0]], residuals[box, : cloud.shape[0]])
+        for box, cloud in enumerate(clouds)
+    ]
 
 
 def initial_pose(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) -> np.ndarray:
