@@ -305,7 +305,7 @@ def _assign_to_boxes(
         }
         if new:
             fits = yield [(points[part], normals[part]) for part in new.values()]
-            fitted.update(zip(new, (_distances(points, fit) for fit in fits), strict=True))
+            fitted.update(zip(new, _distances(points, fits), strict=True))
         distances = np.array([fitted[key] if key else _no_box(points) for key in keys])
         nearest = distances.min(axis=0)
         if not np.all(np.isfinite(nearest)):
@@ -318,11 +318,14 @@ def _assign_to_boxes(
     return assignment, on_box
 
 
-def _distances(points: np.ndarray, fit: BoxFit | BoxFitError) -> np.ndarray:
-    """Distance of every point to the surface of the fitted box; inf when no box fits."""
-    if isinstance(fit, BoxFitError):
-        return _no_box(points)
-    return np.abs(box_signed_distance((points - fit.X_WD[:3, 3]) @ fit.X_WD[:3, :3]))
+def _distances(points: np.ndarray, fits: list[BoxFit | BoxFitError]) -> list[np.ndarray]:
+    """Distance of every point to the surface of each fitted box (inf where no box fits),
+    all boxes at once."""
+    poses = np.array([fit.X_WD for fit in fits if not isinstance(fit, BoxFitError)])
+    poses = poses.reshape(-1, 4, 4)
+    body = (points - poses[:, None, :3, 3]) @ poses[:, :3, :3]
+    distances = iter(np.abs(box_signed_distance(body)))
+    return [_no_box(points) if isinstance(fit, BoxFitError) else next(distances) for fit in fits]
 
 
 def _no_box(points: np.ndarray) -> np.ndarray:
