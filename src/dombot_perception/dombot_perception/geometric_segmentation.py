@@ -270,7 +270,10 @@ def _best_split(
     best: tuple[float, np.ndarray, int] | None = None
     distances: dict[bytes, np.ndarray] = {}  # a part found again by another start: same box
     for parts, start in ((count, seed), (count, seed + 1), (count, seed + 2), (count + 1, seed)):
-        _, initial = kmeans2(points - points.mean(axis=0), parts, minit="++", seed=start)
+        # the points are finite (valid pixels): no check of them in each of its 20 steps
+        _, initial = kmeans2(
+            points - points.mean(axis=0), parts, minit="++", seed=start, check_finite=False
+        )
         assignment, on_box = yield from _assign_to_boxes(points, normals, initial, parts, distances)
         if best is None or on_box > best[0]:
             best = (on_box, assignment, parts)
