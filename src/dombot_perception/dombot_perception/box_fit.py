@@ -402,7 +402,8 @@ def _icp_step(
     """One Gauss-Newton step (rotation vector, translation in the body frame) per box;
     ``offsets`` are the points minus the box centre (boxes x points x 3, padded)."""
     body = offsets @ rotation
-    axis = argmax3(np.abs(body) - HALF_SIZE)
+    excess = np.abs(body) - HALF_SIZE
+    axis = argmax3(excess)
     used = surface
     if beyond is not None:  # outside points inside the box, paired with their nearest face
         outside, entry = beyond
@@ -411,14 +412,19 @@ def _icp_step(
         np.put_along_axis(depth, entry[..., None], np.inf, axis=-1)
         axis = np.where(outside, depth.argmin(axis=-1), axis)
         used = surface | inside
-    signed = np.take_along_axis(body, axis[..., None], axis=-1)[..., 0]
-    residual = np.abs(signed) - HALF_SIZE[axis]
     # the face normal is sign * e_axis: the Jacobian row (e_axis x body, -e_axis) times
-    # the sign, which squares to 1 in the Hessian and goes into the gradient
-    face = IDENTITY_3[axis]
+    # the sign, which squares to 1 in the Hessian and goes into the gradient; e_axis as
+    # three masks (numpy multiplies them as 1.0 and 0.0), cheaper than gathered rows
+    x, y, z = axis == 0, axis == 1, axis == 2
+    b0, b1, b2 = body[..., 0], body[..., 1], body[..., 2]
+    signed = np.where(x, b0, np.where(y, b1, b2))
+    residual = np.where(x, excess[..., 0], np.where(y, excess[..., 1], excess[..., 2]))
     jacobian = np.empty((*body.shape[:2], 6))
-    _cross_into(face, body, jacobian)
-    np.negative(face, out=jacobian[..., 3:])
+    np.subtract(y * b2, z * b1, out=jacobian[..., 0])
+    np.subtract(z * b0, x * b2, out=jacobian[..., 1])
+    np.subtract(x * b1, y * b0, out=jacobian[..., 2])
+    for column, mask in enumerate((x, y, z), start=3):
+        np.multiply(mask, -1.0, out=jacobian[..., column])
     weight = np.minimum(1.0, config.loss_scale / np.maximum(np.abs(residual), 1e-12)) * used
     transposed = jacobian.transpose(0, 2, 1)
     hessian = transposed @ (weight[..., None] * jacobian)
@@ -432,15 +438,6 @@ def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross product of 3-vectors (np.cross costs ten times as much)."""
     a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def _cross_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    """Row-wise a x b into the first three columns of ``out``, column by column (np.cross,
-    or fancy-indexed columns, cost more than the rest of an ICP step here)."""
-    a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
-    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
-    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
-    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
 
 
 def _rodrigues(rotation_vectors: np.ndarray) -> np.ndarray:
