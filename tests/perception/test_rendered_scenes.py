@@ -119,6 +119,35 @@ def test_after_a_pick_unchanged_regions_keep_their_parts_unsplit(
         splits.clear()
 
 
+def test_views_split_side_by_side_get_each_views_own_masks(pipeline, render_scene, monkeypatch):
+    """segment_views advances the splits of both cameras' regions in one run_batched: each
+    view's masks are those a segmenter given that view alone finds, and a view with
+    nothing in the work region gets none without disturbing the other."""
+    yaw = 0.3
+    first = flat(X0, Y0, yaw)
+    second = first.copy()
+    second[:3, 3] += Rotation.from_euler("z", yaw).as_matrix() @ np.array([0.012, 0.024, 0.0])
+    views = render_scene({0: first, 1: second, 2: flat(X0 - 0.05, Y0 + 0.05, 1.0)})
+    config = pipeline.config
+    clouds = [organised_cloud(view, config.region, config.depth_range) for view in views]
+    runs = []
+    batched = geometric_segmentation.run_batched
+    monkeypatch.setattr(
+        geometric_segmentation,
+        "run_batched",
+        lambda tasks: runs.append(len(tasks)) or batched(tasks),
+    )
+    together = geometric_segmentation.GeometricSegmenter().segment_views(views, clouds)
+    assert runs == [4], "the two regions of each of the two views in one run"
+    for view, cloud, masks in zip(views, clouds, together, strict=True):
+        alone = geometric_segmentation.GeometricSegmenter().segment(view, cloud)
+        assert len(masks) == 3
+        assert sorted(map(tuple, masks)) == sorted(map(tuple, alone))
+    one_empty = geometric_segmentation.GeometricSegmenter().segment_views(views, [clouds[0], None])
+    assert one_empty[1] == []
+    assert sorted(map(tuple, one_empty[0])) == sorted(map(tuple, together[0]))
+
+
 def _detected(result) -> list[tuple]:
     return sorted(
         (tuple(d.X_WD.ravel()), d.score, d.clearance, tuple(d.grasp_pose.ravel()))
