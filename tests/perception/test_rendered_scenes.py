@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dombot_description.scenario import load_scenario
-from dombot_perception import geometric_segmentation
+from dombot_perception import backprojection, geometric_segmentation
 from dombot_perception import pipeline as pipeline_module
 from dombot_perception.backprojection import backproject, organised_cloud
 from dombot_perception.box_fit import (
@@ -117,6 +117,35 @@ def test_after_a_pick_unchanged_regions_keep_their_parts_unsplit(
         assert remembered == masks(geometric_segmentation.GeometricSegmenter(), view)
         assert splits, "a segmenter that never saw the first frame splits it"
         splits.clear()
+
+
+def test_the_height_window_leaves_the_organised_cloud_as_it_was(
+    pipeline, render_scene, monkeypatch
+):
+    """organised_cloud back-projects only the rows and columns around the pixels at the
+    work region's heights; the cloud is the one of the whole projected outline, to the bit."""
+    scene = {
+        0: flat(X0, Y0, 0.3),
+        1: domino_pose(
+            (X0 - 0.06, Y0 + 0.05, 0.024), Rotation.from_euler("y", -np.pi / 2).as_matrix()
+        ),
+        2: flat(X0 + 0.1, Y0 - 0.08, 2.0),
+    }
+    region, depth_range = pipeline.config.region, pipeline.config.depth_range
+    views = render_scene(scene)
+    cropped = [organised_cloud(view, region, depth_range) for view in views]
+    monkeypatch.setattr(
+        backprojection, "_height_window", lambda view, r, d, first, last: (first, last)
+    )
+    for view, cloud in zip(views, cropped, strict=True):
+        whole = organised_cloud(view, region, depth_range)
+        assert (cloud.top, cloud.left, cloud.image_width) == (
+            whole.top,
+            whole.left,
+            whole.image_width,
+        )
+        for name in ("points", "normals", "valid", "pixel_size"):
+            assert np.array_equal(getattr(cloud, name), getattr(whole, name), equal_nan=True), name
 
 
 def test_views_split_side_by_side_get_each_views_own_masks(pipeline, render_scene, monkeypatch):
