@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dombot_description.scenario import load_scenario
-from dombot_perception import geometric_segmentation
+from dombot_perception import backprojection, geometric_segmentation
 from dombot_perception import pipeline as pipeline_module
 from dombot_perception.backprojection import backproject, organised_cloud
 from dombot_perception.box_fit import (
@@ -117,6 +117,64 @@ def test_after_a_pick_unchanged_regions_keep_their_parts_unsplit(
         assert remembered == masks(geometric_segmentation.GeometricSegmenter(), view)
         assert splits, "a segmenter that never saw the first frame splits it"
         splits.clear()
+
+
+def test_the_height_window_leaves_the_organised_cloud_as_it_was(
+    pipeline, render_scene, monkeypatch
+):
+    """organised_cloud back-projects only the rows and columns around the pixels at the
+    work region's heights; the cloud is the one of the whole projected outline, to the bit."""
+    scene = {
+        0: flat(X0, Y0, 0.3),
+        1: domino_pose(
+            (X0 - 0.06, Y0 + 0.05, 0.024), Rotation.from_euler("y", -np.pi / 2).as_matrix()
+        ),
+        2: flat(X0 + 0.1, Y0 - 0.08, 2.0),
+    }
+    region, depth_range = pipeline.config.region, pipeline.config.depth_range
+    views = render_scene(scene)
+    cropped = [organised_cloud(view, region, depth_range) for view in views]
+    monkeypatch.setattr(
+        backprojection, "_height_window", lambda view, r, d, first, last: (first, last)
+    )
+    for view, cloud in zip(views, cropped, strict=True):
+        whole = organised_cloud(view, region, depth_range)
+        assert (cloud.top, cloud.left, cloud.image_width) == (
+            whole.top,
+            whole.left,
+            whole.image_width,
+        )
+        for name in ("points", "normals", "valid", "pixel_size"):
+            assert np.array_equal(getattr(cloud, name), getattr(whole, name), equal_nan=True), name
+
+
+def test_views_split_side_by_side_get_each_views_own_masks(pipeline, render_scene, monkeypatch):
+    """segment_views advances the splits of both cameras' regions in one run_batched: each
+    view's masks are those a segmenter given that view alone finds, and a view with
+    nothing in the work region gets none without disturbing the other."""
+    yaw = 0.3
+    first = flat(X0, Y0, yaw)
+    second = first.copy()
+    second[:3, 3] += Rotation.from_euler("z", yaw).as_matrix() @ np.array([0.012, 0.024, 0.0])
+    views = render_scene({0: first, 1: second, 2: flat(X0 - 0.05, Y0 + 0.05, 1.0)})
+    config = pipeline.config
+    clouds = [organised_cloud(view, config.region, config.depth_range) for view in views]
+    runs = []
+    batched = geometric_segmentation.run_batched
+    monkeypatch.setattr(
+        geometric_segmentation,
+        "run_batched",
+        lambda tasks: runs.append(len(tasks)) or batched(tasks),
+    )
+    together = geometric_segmentation.GeometricSegmenter().segment_views(views, clouds)
+    assert runs == [4], "the two regions of each of the two views in one run"
+    for view, cloud, masks in zip(views, clouds, together, strict=True):
+        alone = geometric_segmentation.GeometricSegmenter().segment(view, cloud)
+        assert len(masks) == 3
+        assert sorted(map(tuple, masks)) == sorted(map(tuple, alone))
+    one_empty = geometric_segmentation.GeometricSegmenter().segment_views(views, [clouds[0], None])
+    assert one_empty[1] == []
+    assert sorted(map(tuple, one_empty[0])) == sorted(map(tuple, together[0]))
 
 
 def _detected(result) -> list[tuple]:

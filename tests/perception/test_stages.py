@@ -10,9 +10,12 @@ from scipy.spatial.transform import Rotation
 from dombot_perception.backprojection import WorkRegion, backproject, image_normals
 from dombot_perception.box_fit import (
     BoxFitConfig,
+    BoxFitError,
     fit_domino_box,
-    hull_candidates,
+    initial_pose,
+    initial_poses,
     min_area_rectangle,
+    min_area_rectangles,
     refine_pose,
 )
 from dombot_perception.canonical import canonical_rotation, posture
@@ -136,21 +139,55 @@ def test_min_area_rectangle_of_a_turned_rectangle() -> None:
     assert np.allclose(centre, [0.1, 0.2], atol=0.001)
 
 
-@pytest.mark.parametrize("shape", ["disc", "rectangle", "line"])
-def testhull_candidates_keep_every_vertex_of_the_convex_hull(shape) -> None:
+def test_rectangles_of_many_point_sets_at_once_are_each_sets_own() -> None:
+    """The batch pads the hulls to one size; each set still gets the rectangle over the
+    edges of its own hull (checked against every edge direction of a dense hull), and a
+    set with no area an error of its own."""
     rng = np.random.default_rng(RNG_SEED)
-    points = rng.uniform(-0.02, 0.02, size=(500, 2))
-    if shape == "disc":
-        points = points[np.hypot(*points.T) < 0.02]
-    elif shape == "line":
-        points[:, 1] = 0.5 * points[:, 0]  # collinear: no polygon, every point kept
-    candidates = hull_candidates(points)
-    if shape == "line":
-        assert candidates.shape == points.shape
-        return
-    assert candidates.shape[0] < points.shape[0] / 4
-    hull = {tuple(p) for p in points[ConvexHull(points).vertices]}
-    assert hull == {tuple(p) for p in candidates[ConvexHull(candidates).vertices]}
+    disc = rng.uniform(-0.02, 0.02, size=(500, 2))
+    sets = [
+        rng.uniform([-0.024, -0.012], [0.024, 0.012], size=(300, 2)) @ _turn(0.5).T,
+        disc[np.hypot(*disc.T) < 0.02] + [0.3, -0.1],
+        np.column_stack([np.linspace(0, 0.01, 40), 0.5 * np.linspace(0, 0.01, 40)]),  # a line
+        rng.uniform([-0.01, -0.003], [0.01, 0.003], size=(12, 2)) @ _turn(-1.2).T,
+    ]
+    batched = min_area_rectangles(sets)
+    assert isinstance(batched[2], BoxFitError)
+    with pytest.raises(BoxFitError):
+        min_area_rectangle(sets[2])
+    for points, rectangle in zip(sets, batched, strict=True):
+        if isinstance(rectangle, BoxFitError):
+            continue
+        for got, alone in zip(rectangle, min_area_rectangle(points), strict=True):
+            assert np.array_equal(got, alone)
+        hull = points[ConvexHull(points).vertices]
+        areas = []
+        for edge in np.roll(hull, -1, axis=0) - hull:
+            along = hull @ edge / np.linalg.norm(edge)
+            across = hull @ np.array([-edge[1], edge[0]]) / np.linalg.norm(edge)
+            areas.append(np.ptp(along) * np.ptp(across))
+        assert np.isclose(np.prod(rectangle[2]), min(areas), rtol=1e-12, atol=0.0)
+
+
+def test_initial_poses_of_many_clouds_at_once_are_each_clouds_own() -> None:
+    """To the last bit: the ICP's pairing of points to faces magnifies any change."""
+    clouds = [
+        visible_surface(domino_pose((0.55, -0.30, 0.03), rotation), CAMERA)
+        for rotation in (
+            Rotation.from_euler("z", 0.7).as_matrix(),
+            Rotation.from_euler("xz", [0.4, 1.9]).as_matrix(),
+            Rotation.from_euler("yz", [np.pi / 2, 0.3]).as_matrix(),
+        )
+    ]
+    points, normals = clouds[0]
+    clouds.append((points[:30], normals[:30]))  # a few points of one face
+    config = BoxFitConfig()
+    for (points, normals), pose in zip(clouds, initial_poses(clouds, config), strict=True):
+        assert np.array_equal(pose, initial_pose(points, normals, config))
+
+
+def _turn(angle: float) -> np.ndarray:
+    return np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
 
 
 def _reference_icp_step(pose: np.ndarray, points: np.ndarray, config: BoxFitConfig):
@@ -281,6 +318,22 @@ def test_radius_outlier_removal_drops_isolated_points() -> None:
     lonely = np.array([[0.7, -0.3, 0.05]])
     kept = remove_outliers(np.vstack([points, lonely]), FilterConfig())
     assert kept.size == len(points) and len(points) not in kept
+
+
+def test_outlier_removal_keeps_what_open3d_keeps() -> None:
+    """A sparse cloud, where many points have about six neighbours within 3 mm: the same
+    points as open3d's remove_radius_outlier (which the pipeline used before)."""
+    import open3d as o3d
+
+    rng = np.random.default_rng(RNG_SEED)
+    points = rng.uniform([0.5, -0.3, 0.0], [0.53, -0.27, 0.01], size=(800, 3))
+    config = FilterConfig()
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    _, kept = cloud.remove_radius_outlier(config.outlier_min_neighbours, config.outlier_radius)
+    ours = remove_outliers(points, config)
+    assert 0 < ours.size < len(points)
+    assert np.array_equal(ours, np.asarray(kept))
+    assert remove_outliers(np.zeros((0, 3)), config).size == 0
 
 
 def test_filter_rejects_boxes_that_cannot_be_one_well_seen_domino() -> None:

@@ -121,7 +121,7 @@ def organised_cloud(
     covers a fraction of the image). None when no pixel sees the region.
     """
     height, width = view.depth.shape
-    first, last = _projected_window(region, view)
+    first, last = _height_window(view, region, depth_range, *_projected_window(region, view))
     depth = view.depth[first[0] : last[0], first[1] : last[1]]
     points = backproject(depth, view.K, view.X_WC, first[0], first[1])
     seen = valid_depth(depth, depth_range) & region.contains(points)
@@ -137,6 +137,41 @@ def organised_cloud(
     valid = seen[window] & np.isfinite(normals[..., 0])
     pixel_size = np.where(valid, view.depth[top:bottom, left:right], 0.0) / view.K[0, 0]
     return OrganisedCloud(int(top), int(left), width, points, normals, valid, pixel_size)
+
+
+def _height_window(
+    view: CameraView,
+    region: WorkRegion,
+    depth_range: tuple[float, float],
+    first: tuple[int, int],
+    last: tuple[int, int],
+) -> tuple[tuple[int, int], ...]:
+    """The part of the window ``first``-``last`` around the pixels whose height above the
+    table lies within the region's (1 mm of slack), with a pixel of margin: the table
+    around the pile is most of the region's outline, and only the height (one row of the
+    camera's rotation) is needed to leave it out before the full back-projection."""
+    depth = view.depth[first[0] : last[0], first[1] : last[1]]
+    rows, cols = np.mgrid[first[0] : last[0], first[1] : last[1]]
+    intrinsics, rotation = view.K, view.X_WC[:3, :3]
+    with np.errstate(invalid="ignore"):
+        height = view.X_WC[2, 3] + depth * (
+            rotation[2, 0] * (cols - intrinsics[0, 2]) / intrinsics[0, 0]
+            + rotation[2, 1] * (rows - intrinsics[1, 2]) / intrinsics[1, 1]
+            + rotation[2, 2]
+        )
+        near = (
+            valid_depth(depth, depth_range)
+            & (height > region.min_height - 0.001)
+            & (height < region.max_height + 0.001)
+        )
+    inside_rows, inside_cols = np.nonzero(near)
+    if inside_rows.size == 0:
+        return first, first  # nothing there: an empty window
+    top = max(first[0] + int(inside_rows.min()) - 1, first[0])
+    left = max(first[1] + int(inside_cols.min()) - 1, first[1])
+    bottom = min(first[0] + int(inside_rows.max()) + 2, last[0])
+    right = min(first[1] + int(inside_cols.max()) + 2, last[1])
+    return (top, left), (bottom, right)
 
 
 def _projected_window(region: WorkRegion, view: CameraView) -> tuple[tuple[int, int], ...]:

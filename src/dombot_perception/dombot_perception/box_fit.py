@@ -30,9 +30,6 @@ RECTANGLE_POINTS = 500  # points whose hull gives the initial in-plane axes
 # (long, short) sides of the face normal to body x, y, z
 IDENTITY_3, IDENTITY_6 = np.eye(3), np.eye(6)
 FACE_SIDES = np.array([np.sort(np.delete(DOMINO_SIZE, axis))[::-1] for axis in range(3)])
-# directions (counter-clockwise) whose extreme points span a polygon inside the hull
-_ANGLES = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
-HULL_DIRECTIONS = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
 
 @dataclass(frozen=True)
@@ -79,6 +76,7 @@ def fit_domino_boxes(
     inliers = [np.ones(points.shape[0], dtype=bool) for points, _ in clouds]
     rngs: list[np.random.Generator | None] = [None] * len(clouds)  # most clouds need none
     poses: list[np.ndarray | None] = [None] * len(clouds)
+    frames: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(clouds)  # at the pose
     todo = []
     for index, (points, _) in enumerate(clouds):
         if points.shape[0] < 10:
@@ -87,127 +85,238 @@ def fit_domino_boxes(
             todo.append(index)
     for _ in range(config.passes):  # fit, drop points off the box (a neighbour's), refit
         started, starts, fitted = [], [], []
-        for index in todo:
-            points, normals = clouds[index]
-            try:
-                starts.append(initial_pose(points[inliers[index]], normals[inliers[index]], config))
-            except BoxFitError as error:
-                fits[index] = error
+        subsets = [
+            (clouds[index][0][inliers[index]], clouds[index][1][inliers[index]]) for index in todo
+        ]
+        for index, (subset, _), start in zip(
+            todo, subsets, initial_poses(subsets, config), strict=True
+        ):
+            if isinstance(start, BoxFitError):
+                fits[index] = start
                 continue
-            subset = points[inliers[index]]
             if subset.shape[0] > config.max_fit_points:
                 rngs[index] = rngs[index] or np.random.default_rng(config.seed)
                 chosen = rngs[index].choice(subset.shape[0], config.max_fit_points, replace=False)
                 subset = subset[chosen]
             started.append(index)
+            starts.append(start)
             fitted.append(subset)
         todo = []
-        for index, pose in zip(started, refine_poses(starts, fitted, config), strict=True):
-            poses[index] = pose
-            residuals = box_signed_distance((clouds[index][0] - pose[:3, 3]) @ pose[:3, :3])
+        refined = refine_poses(starts, fitted, config)
+        seen = _in_box_frames([clouds[index][0] for index in started], refined)
+        for index, pose, (body, residuals) in zip(started, refined, seen, strict=True):
+            poses[index], frames[index] = pose, (body, residuals)
             trimmed = np.abs(residuals) < config.inlier_distance
             if trimmed.sum() >= 10 and not np.array_equal(trimmed, inliers[index]):
                 inliers[index] = trimmed
                 todo.append(index)
-    for index, (points, _) in enumerate(clouds):
+    for index, pose in enumerate(poses):
         if fits[index] is None:
-            fits[index] = fit_statistics(poses[index], points, inliers[index])
+            fits[index] = _statistics(pose, *frames[index], inliers[index])
     return fits
 
 
 def fit_statistics(pose: np.ndarray, points: np.ndarray, inliers: np.ndarray) -> BoxFit:
     """The fit of the box at ``pose`` to ``points``, judged on the ``inliers`` (a mask)."""
-    body = (points[inliers] - pose[:3, 3]) @ pose[:3, :3]
+    return _statistics(pose, *_in_box_frames([points], [pose])[0], inliers)
+
+
+def _statistics(
+    pose: np.ndarray, body: np.ndarray, residuals: np.ndarray, inliers: np.ndarray
+) -> BoxFit:
+    """``fit_statistics`` from the points in the box frame and their signed distances."""
+    body = body[inliers]
     return BoxFit(
         X_WD=pose,
-        fit_error=float(np.sqrt(np.mean(box_signed_distance(body) ** 2))),
+        fit_error=float(np.sqrt(np.mean(residuals[inliers] ** 2))),
         extents=body.max(axis=0) - body.min(axis=0),
         inlier_fraction=float(inliers.mean()),
     )
 
 
+def _in_box_frames(
+    clouds: list[np.ndarray], poses: list[np.ndarray]
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each cloud in its box's frame and its points' signed distances to the box, all
+    clouds at once."""
+    if not clouds:
+        return []
+    pose = np.array(poses)
+    body = (_padded(clouds) - pose[:, None, :3, 3]) @ pose[:, :3, :3]
+    residuals = box_signed_distance(body)
+    return [
+        (body[box, : cloud.shape[0]], residuals[box, : cloud.shape[0]])
+        for box, cloud in enumerate(clouds)
+    ]
+
+
 def initial_pose(points: np.ndarray, normals: np.ndarray, config: BoxFitConfig) -> np.ndarray:
     """Box pose from the dominant face and its minimum-area rectangle."""
-    face = dominant_face(normals)
-    normal = normals[face].mean(axis=0)
-    normal /= np.linalg.norm(normal)
-    u, v = _plane_basis(normal)
-    stride = max(1, points.shape[0] // RECTANGLE_POINTS)  # only a starting guess: ICP refines
-    planar = np.column_stack([points[::stride] @ u, points[::stride] @ v])
-    center_2d, long_2d, dims_2d = min_area_rectangle(planar)
-    face_axis = _which_face(dims_2d, config.size_tolerance)
-    in_plane = [axis for axis in range(3) if axis != face_axis]  # longer body axis first
-    rotation = np.zeros((3, 3))
-    rotation[:, face_axis] = normal
-    rotation[:, in_plane[0]] = long_2d[0] * u + long_2d[1] * v
-    rotation[:, in_plane[1]] = _cross3(
-        rotation[:, (in_plane[1] + 1) % 3], rotation[:, (in_plane[1] + 2) % 3]
-    )
-    face_offset = np.median(points[face] @ normal)
-    center = center_2d[0] * u + center_2d[1] * v + (face_offset - HALF_SIZE[face_axis]) * normal
-    pose = np.eye(4)
-    pose[:3, :3] = rotation
-    pose[:3, 3] = center
+    pose = initial_poses([(points, normals)], config)[0]
+    if isinstance(pose, BoxFitError):
+        raise pose
     return pose
+
+
+def initial_poses(
+    clouds: list[tuple[np.ndarray, np.ndarray]], config: BoxFitConfig
+) -> list[np.ndarray | BoxFitError]:
+    """``initial_pose`` of each (points, normals) cloud, or the error that it raises.
+
+    Every step but the convex hull (one Qhull call per cloud) runs on all clouds at once,
+    padded to one size: one cloud at a time, numpy's per-call overhead was most of it.
+    """
+    if not clouds:
+        return []
+    faces = [dominant_face(normals) for _, normals in clouds]
+    normal = np.array(
+        [normals[face].mean(axis=0) for (_, normals), face in zip(clouds, faces, strict=True)]
+    )
+    normal /= _norms(normal)[:, None]
+    u, v = _plane_bases(normal)
+    # only a starting guess: ICP refines
+    strided = [points[:: max(1, points.shape[0] // RECTANGLE_POINTS)] for points, _ in clouds]
+    padded = _padded(strided)
+    planar = np.concatenate([padded @ u[:, :, None], padded @ v[:, :, None]], axis=2)
+    rectangles = min_area_rectangles(
+        [planar[box, : cloud.shape[0]] for box, cloud in enumerate(strided)]
+    )
+    poses: list[np.ndarray | BoxFitError] = list(rectangles)
+    found = [
+        box for box, rectangle in enumerate(rectangles) if not isinstance(rectangle, BoxFitError)
+    ]
+    if not found:
+        return poses
+    center_2d, long_2d, dims_2d = (
+        np.array([rectangles[box][k] for box in found]) for k in range(3)
+    )
+    normal, u, v = normal[found], u[found], v[found]
+    face_axis = _which_faces(dims_2d, config.size_tolerance)
+    first, second = (face_axis + 1) % 3, (face_axis + 2) % 3  # the in-plane body axes
+    longer = np.minimum(first, second)  # the longer body axis of the two
+    shorter = np.maximum(first, second)
+    rows = np.arange(len(found))
+    rotation = np.zeros((len(found), 3, 3))
+    rotation[rows, :, face_axis] = normal
+    rotation[rows, :, longer] = long_2d[:, :1] * u + long_2d[:, 1:] * v
+    rotation[rows, :, shorter] = _cross_rows(
+        rotation[rows, :, (shorter + 1) % 3], rotation[rows, :, (shorter + 2) % 3]
+    )
+    face_offset = _medians([clouds[box][0][faces[box]] for box in found], normal)
+    center = (
+        center_2d[:, :1] * u
+        + center_2d[:, 1:] * v
+        + (face_offset - HALF_SIZE[face_axis])[:, None] * normal
+    )
+    for row, box in enumerate(found):
+        pose = np.eye(4)
+        pose[:3, :3] = rotation[row]
+        pose[:3, 3] = center[row]
+        poses[box] = pose
+    return poses
 
 
 def min_area_rectangle(planar: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre, unit long-side direction and (long, short) sides of the smallest rectangle."""
-    planar = hull_candidates(planar)
-    try:
-        hull = planar[ConvexHull(planar).vertices]
-    except (QhullError, ValueError) as error:
-        raise BoxFitError(f"points are degenerate in the face plane: {error}") from None
-    edges = np.empty_like(hull)
-    edges[:-1] = hull[1:] - hull[:-1]
-    edges[-1] = hull[0] - hull[-1]
-    angles = np.unique(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2))
+    rectangle = min_area_rectangles([planar])[0]
+    if isinstance(rectangle, BoxFitError):
+        raise rectangle
+    return rectangle
+
+
+def min_area_rectangles(
+    planars: list[np.ndarray],
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray] | BoxFitError]:
+    """``min_area_rectangle`` of each 2-D point set, or the error that it raises; rotating
+    edges over each convex hull (Qhull, one call per set), all sets at once."""
+    result: list = [None] * len(planars)
+    hulls = []
+    for index, planar in enumerate(planars):
+        try:
+            hulls.append(planar[ConvexHull(planar).vertices])
+        except (QhullError, ValueError) as error:
+            result[index] = BoxFitError(f"points are degenerate in the face plane: {error}")
+    found = [index for index, rectangle in enumerate(result) if rectangle is None]
+    if not found:
+        return result
+    hull = _padded(hulls)  # padded with each hull's first vertex: no new extremes
+    sizes = np.array([h.shape[0] for h in hulls])
+    edges = np.roll(hull, -1, axis=1) - hull
+    angles = np.mod(np.arctan2(edges[..., 1], edges[..., 0]), np.pi / 2)
+    padding = np.arange(hull.shape[1]) >= sizes[:, None]
+    angles = np.sort(np.where(padding, angles[:, :1], angles), axis=1)  # repeats change no minimum
     cos, sin = np.cos(angles), np.sin(angles)
-    # hull points along each candidate rectangle's sides (rows: angles, columns: points)
-    x, y = hull[:, 0], hull[:, 1]
-    px = cos[:, None] * x + sin[:, None] * y
-    py = cos[:, None] * y - sin[:, None] * x
-    low_x, high_x, low_y, high_y = px.min(axis=1), px.max(axis=1), py.min(axis=1), py.max(axis=1)
+    # hull points along each candidate rectangle's sides (sets x angles x points)
+    x, y = hull[:, None, :, 0], hull[:, None, :, 1]
+    px = cos[..., None] * x + sin[..., None] * y
+    py = cos[..., None] * y - sin[..., None] * x
+    low_x, high_x, low_y, high_y = px.min(axis=2), px.max(axis=2), py.min(axis=2), py.max(axis=2)
     width, height = high_x - low_x, high_y - low_y
-    best = np.argmin(width * height)
-    axis_x, axis_y = np.array([cos[best], sin[best]]), np.array([-sin[best], cos[best]])
-    center = (high_x[best] + low_x[best]) / 2 * axis_x + (high_y[best] + low_y[best]) / 2 * axis_y
-    if width[best] >= height[best]:
-        return center, axis_x, np.array([width[best], height[best]])
-    return center, axis_y, np.array([height[best], width[best]])
+    rows, best = np.arange(len(hulls)), np.argmin(width * height, axis=1)
+    cos, sin, width, height = (
+        cos[rows, best],
+        sin[rows, best],
+        width[rows, best],
+        height[rows, best],
+    )
+    axis_x, axis_y = np.stack([cos, sin], axis=1), np.stack([-sin, cos], axis=1)
+    middle_x = (high_x[rows, best] + low_x[rows, best])[:, None] / 2
+    middle_y = (high_y[rows, best] + low_y[rows, best])[:, None] / 2
+    center = middle_x * axis_x + middle_y * axis_y
+    for row, index in enumerate(found):
+        if width[row] >= height[row]:
+            result[index] = (center[row], axis_x[row], np.array([width[row], height[row]]))
+        else:
+            result[index] = (center[row], axis_y[row], np.array([height[row], width[row]]))
+    return result
 
 
-def hull_candidates(planar: np.ndarray) -> np.ndarray:
-    """The points not strictly inside the polygon of the extreme points along
-    ``HULL_DIRECTIONS``: the same convex hull, and Qhull's time grows with its input
-    (500 points: four times the time of the ~40 left)."""
-    extreme = np.argmax(planar @ HULL_DIRECTIONS.T, axis=0)
-    extreme = extreme[extreme != np.concatenate([extreme[-1:], extreme[:-1]])]  # no repeats
-    if extreme.size < 3:
-        return planar
-    corners = planar[extreme]  # counter-clockwise
-    edges = np.concatenate([corners[1:], corners[:1]]) - corners
-    offsets = planar[:, None, :] - corners[None]
-    cross = edges[:, 0] * offsets[..., 1] - edges[:, 1] * offsets[..., 0]
-    return planar[~np.all(cross > 1e-12, axis=1)]
-
-
-def _which_face(dims_2d: np.ndarray, tolerance: float) -> int:
-    """Body axis normal to the face whose (long, short) sides best explain ``dims_2d``.
+def _which_faces(dims_2d: np.ndarray, tolerance: float) -> np.ndarray:
+    """Body axis normal to the face whose (long, short) sides best explain each row of
+    ``dims_2d``.
 
     Sides longer than the face's cost a lot (they cannot be); shorter ones cost a
     little (that part of the face is hidden).
     """
-    excess = np.maximum(dims_2d - FACE_SIDES - tolerance, 0.0)
-    shortfall = np.maximum(FACE_SIDES - dims_2d, 0.0)
-    return int(np.argmin(100.0 * (excess**2).sum(axis=1) + (shortfall**2).sum(axis=1)))
+    excess = np.maximum(dims_2d[:, None, :] - FACE_SIDES - tolerance, 0.0)
+    shortfall = np.maximum(FACE_SIDES - dims_2d[:, None, :], 0.0)
+    return np.argmin(100.0 * (excess**2).sum(axis=2) + (shortfall**2).sum(axis=2), axis=1)
 
 
-def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = _cross3(normal, helper)
-    u /= np.linalg.norm(u)
-    return u, _cross3(normal, u)
+def _plane_bases(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors spanning the plane normal to each row of ``normal``."""
+    helper = np.where(
+        np.abs(normal[:, :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    )
+    u = _cross_rows(normal, helper)
+    u /= _norms(u)[:, None]
+    return u, _cross_rows(normal, u)
+
+
+def _norms(vectors: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm`` of each row, to the last bit (a stacked product is BLAS's dot, as
+    for one vector; the ICP's pairing of points to faces magnifies a last bit's change)."""
+    return np.sqrt((vectors[:, None, :] @ vectors[:, :, None])[:, 0, 0])
+
+
+def _padded(arrays: list[np.ndarray]) -> np.ndarray:
+    """The (non-empty) arrays stacked, each padded to the longest with its first row."""
+    stacked = np.empty((len(arrays), max(a.shape[0] for a in arrays), *arrays[0].shape[1:]))
+    for index, array in enumerate(arrays):
+        stacked[index, : array.shape[0]] = array
+        stacked[index, array.shape[0] :] = array[0]
+    return stacked
+
+
+def _medians(points: list[np.ndarray], directions: np.ndarray) -> np.ndarray:
+    """``np.median(points[k] @ directions[k])`` of each set k, all at once."""
+    counts = np.array([p.shape[0] for p in points])
+    heights = np.full((len(points), counts.max()), np.inf)  # sorted last
+    for index, (cloud, direction) in enumerate(zip(points, directions, strict=True)):
+        heights[index, : cloud.shape[0]] = cloud @ direction
+    heights.sort(axis=1)
+    rows = np.arange(len(points))
+    return (heights[rows, (counts - 1) // 2] + heights[rows, counts // 2]) / 2
 
 
 def refine_pose(
@@ -293,7 +402,8 @@ def _icp_step(
     """One Gauss-Newton step (rotation vector, translation in the body frame) per box;
     ``offsets`` are the points minus the box centre (boxes x points x 3, padded)."""
     body = offsets @ rotation
-    axis = argmax3(np.abs(body) - HALF_SIZE)
+    excess = np.abs(body) - HALF_SIZE
+    axis = argmax3(excess)
     used = surface
     if beyond is not None:  # outside points inside the box, paired with their nearest face
         outside, entry = beyond
@@ -302,14 +412,19 @@ def _icp_step(
         np.put_along_axis(depth, entry[..., None], np.inf, axis=-1)
         axis = np.where(outside, depth.argmin(axis=-1), axis)
         used = surface | inside
-    signed = np.take_along_axis(body, axis[..., None], axis=-1)[..., 0]
-    residual = np.abs(signed) - HALF_SIZE[axis]
     # the face normal is sign * e_axis: the Jacobian row (e_axis x body, -e_axis) times
-    # the sign, which squares to 1 in the Hessian and goes into the gradient
-    face = IDENTITY_3[axis]
+    # the sign, which squares to 1 in the Hessian and goes into the gradient; e_axis as
+    # three masks (numpy multiplies them as 1.0 and 0.0), cheaper than gathered rows
+    x, y, z = axis == 0, axis == 1, axis == 2
+    b0, b1, b2 = body[..., 0], body[..., 1], body[..., 2]
+    signed = np.where(x, b0, np.where(y, b1, b2))
+    residual = np.where(x, excess[..., 0], np.where(y, excess[..., 1], excess[..., 2]))
     jacobian = np.empty((*body.shape[:2], 6))
-    _cross_into(face, body, jacobian)
-    np.negative(face, out=jacobian[..., 3:])
+    np.subtract(y * b2, z * b1, out=jacobian[..., 0])
+    np.subtract(z * b0, x * b2, out=jacobian[..., 1])
+    np.subtract(x * b1, y * b0, out=jacobian[..., 2])
+    for column, mask in enumerate((x, y, z), start=3):
+        np.multiply(mask, -1.0, out=jacobian[..., column])
     weight = np.minimum(1.0, config.loss_scale / np.maximum(np.abs(residual), 1e-12)) * used
     transposed = jacobian.transpose(0, 2, 1)
     hessian = transposed @ (weight[..., None] * jacobian)
@@ -319,20 +434,10 @@ def _icp_step(
     return np.linalg.solve(hessian, -gradient)[..., 0]
 
 
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two 3-vectors (np.cross costs ten times as much for one pair)."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
-
-
-def _cross_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    """Row-wise a x b into the first three columns of ``out``, column by column (np.cross,
-    or fancy-indexed columns, cost more than the rest of an ICP step here)."""
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of 3-vectors (np.cross costs ten times as much)."""
     a0, a1, a2, b0, b1, b2 = a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]
-    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
-    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
-    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def _rodrigues(rotation_vectors: np.ndarray) -> np.ndarray:

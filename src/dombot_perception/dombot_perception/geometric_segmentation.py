@@ -67,18 +67,55 @@ class GeometricSegmenter:
 
     def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
         """Flat pixel indices of each mask, one per domino candidate."""
+        return self.segment_views([view], [cloud])[0]
+
+    def segment_views(
+        self, views: list[CameraView], clouds: list[OrganisedCloud | None]
+    ) -> list[list[np.ndarray]]:
+        """``segment`` of each view; the oversized regions of all views are split side by
+        side (``run_batched``: the fewer, larger batches of box fits, the faster)."""
+        found = {
+            view.name: self._regions(view, cloud) for view, cloud in zip(views, clouds, strict=True)
+        }
+        current: dict[str, dict[bytes, list[np.ndarray]]] = {}
+        unsplit = []
+        for name, regions in found.items():
+            if regions is None:
+                continue  # nothing to segment: the view's memory stays as it was
+            known = self._previous.get(name, {})
+            current[name] = {key: known[key] for key in regions if key in known}
+            unsplit += [(name, key) for key in regions if key not in known]
+        margin, seed = self.config.oversize_margin, self.config.seed
+        splits = [split_steps(*found[name][key], margin, seed) for name, key in unsplit]
+        for (name, key), parts in zip(unsplit, run_batched(splits), strict=True):
+            current[name][key] = parts
+        self._previous.update(current)
+        minimum = self.config.min_pixels
+        return [
+            [
+                part
+                for key in found[view.name] or {}
+                for part in current[view.name][key]
+                if part.size >= minimum
+            ]
+            for view in views
+        ]
+
+    def _regions(
+        self, view: CameraView, cloud: OrganisedCloud | None
+    ) -> dict[bytes, tuple[np.ndarray, ...]] | None:
+        """The view's linked regions large enough for a mask, by ``_content_key``: each one's
+        image pixels, points, normals and surface areas; None when too little is seen."""
         config = self.config
         if cloud is None or cloud.valid.sum() < config.min_pixels:
-            return []
-        components = _linked_components(cloud, config)
+            return None
         flat_points = cloud.points.reshape(-1, 3)
         flat_normals = cloud.normals.reshape(-1, 3)
         surface_areas = _surface_areas(
             flat_points, flat_normals, cloud.pixel_size.ravel(), view.X_WC[:3, 3]
         )
-        previous, current = self._previous.get(view.name, {}), {}
         regions = {}
-        for pixels in components:
+        for pixels in _linked_components(cloud, config):
             if pixels.size < config.min_pixels:
                 continue  # nor could any of its parts be a mask
             region = (
@@ -88,14 +125,7 @@ class GeometricSegmenter:
                 surface_areas[pixels],
             )
             regions[_content_key(region)] = region
-        unsplit = [key for key in regions if key not in previous]
-        splits = [
-            split_steps(*regions[key], config.oversize_margin, config.seed) for key in unsplit
-        ]
-        current = {key: previous[key] for key in regions if key in previous}
-        current.update(zip(unsplit, run_batched(splits), strict=True))
-        self._previous[view.name] = current
-        return [part for key in regions for part in current[key] if part.size >= config.min_pixels]
+        return regions
 
 
 def _content_key(arrays: tuple[np.ndarray, ...]) -> bytes:
@@ -240,7 +270,10 @@ def _best_split(
     best: tuple[float, np.ndarray, int] | None = None
     distances: dict[bytes, np.ndarray] = {}  # a part found again by another start: same box
     for parts, start in ((count, seed), (count, seed + 1), (count, seed + 2), (count + 1, seed)):
-        _, initial = kmeans2(points - points.mean(axis=0), parts, minit="++", seed=start)
+        # the points are finite (valid pixels): no check of them in each of its 20 steps
+        _, initial = kmeans2(
+            points - points.mean(axis=0), parts, minit="++", seed=start, check_finite=False
+        )
         assignment, on_box = yield from _assign_to_boxes(points, normals, initial, parts, distances)
         if best is None or on_box > best[0]:
             best = (on_box, assignment, parts)
@@ -275,7 +308,7 @@ def _assign_to_boxes(
         }
         if new:
             fits = yield [(points[part], normals[part]) for part in new.values()]
-            fitted.update(zip(new, (_distances(points, fit) for fit in fits), strict=True))
+            fitted.update(zip(new, _distances(points, fits), strict=True))
         distances = np.array([fitted[key] if key else _no_box(points) for key in keys])
         nearest = distances.min(axis=0)
         if not np.all(np.isfinite(nearest)):
@@ -288,11 +321,14 @@ def _assign_to_boxes(
     return assignment, on_box
 
 
-def _distances(points: np.ndarray, fit: BoxFit | BoxFitError) -> np.ndarray:
-    """Distance of every point to the surface of the fitted box; inf when no box fits."""
-    if isinstance(fit, BoxFitError):
-        return _no_box(points)
-    return np.abs(box_signed_distance((points - fit.X_WD[:3, 3]) @ fit.X_WD[:3, :3]))
+def _distances(points: np.ndarray, fits: list[BoxFit | BoxFitError]) -> list[np.ndarray]:
+    """Distance of every point to the surface of each fitted box (inf where no box fits),
+    all boxes at once."""
+    poses = np.array([fit.X_WD for fit in fits if not isinstance(fit, BoxFitError)])
+    poses = poses.reshape(-1, 4, 4)
+    body = (points - poses[:, None, :3, 3]) @ poses[:, :3, :3]
+    distances = iter(np.abs(box_signed_distance(body)))
+    return [_no_box(points) if isinstance(fit, BoxFitError) else next(distances) for fit in fits]
 
 
 def _no_box(points: np.ndarray) -> np.ndarray:

@@ -135,9 +135,8 @@ class PerceptionPipeline:
                 for view in usable
             }
         with _timed(result, "segmentation"):
-            result.masks = {
-                view.name: self.segmenter.segment(view, clouds[view.name]) for view in usable
-            }
+            masks = self.segmenter.segment_views(usable, [clouds[view.name] for view in usable])
+            result.masks = {view.name: found for view, found in zip(usable, masks, strict=True)}
         with _timed(result, "backprojection"):
             self._previous_kept, self._kept = self._kept, {}
             mask_clouds = self._mask_clouds(clouds, result.masks)

@@ -91,6 +91,12 @@ class SamSegmenter:
         self.nms_threshold = nms_threshold
         self.min_pixels = min_pixels
 
+    def segment_views(
+        self, views: list[CameraView], clouds: list[OrganisedCloud | None]
+    ) -> list[list[np.ndarray]]:
+        """Each view on its own: SAM embeds one image at a time."""
+        return [self.segment(view, cloud) for view, cloud in zip(views, clouds, strict=True)]
+
     @torch.inference_mode()
     def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
         height, width = view.depth.shape

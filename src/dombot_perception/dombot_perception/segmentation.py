@@ -1,6 +1,6 @@
 """The one interface every segmentation backend implements (the pipeline picks one).
 
-A backend turns one camera view into masks, each the flat pixel indices of one
+A backend turns each camera view into masks, each the flat pixel indices of one
 domino candidate. Masks may overlap (SAM's do); later stages cope. Backends import
 this module, never the pipeline, so no import runs in a circle.
 """
@@ -24,6 +24,12 @@ class Segmenter(Protocol):
         ``cloud`` is the view back-projected and cropped to the work region (None when
         nothing there is seen); backends that use depth geometry read it, others ignore it.
         """
+
+    def segment_views(
+        self, views: list[CameraView], clouds: list[OrganisedCloud | None]
+    ) -> list[list[np.ndarray]]:
+        """``segment`` of each view (the frames of one instant): a backend may share work
+        between the views."""
 
 
 class SegmenterError(ValueError):
