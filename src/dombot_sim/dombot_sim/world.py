@@ -44,7 +44,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from dombot_description import DOMINO_SIZE
 from dombot_description.cell import add_cell, add_dominoes, build_shadow_plant
 from dombot_description.scenario import Scenario, load_scenario
-from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_lookup, render
+from dombot_sim.cameras import CameraFrame, RenderScene
 from dombot_sim.control import ArmCommand, ArmGains, GripperController, GripperSettings
 from dombot_sim.frames import WORLD, FrameTransform, LinkTree
 from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
@@ -198,11 +198,9 @@ class CellWorld:
         builder.Connect(plant.get_state_output_port(models.gripper), gripper.get_input_port())
         builder.Connect(gripper.get_output_port(), plant.get_actuation_input_port(models.gripper))
 
-        self._sensors = {}
-        if config.cameras:
-            add_renderer(scene_graph)
-            for spec in scenario.cameras:
-                self._sensors[spec.name] = (add_camera(builder, scene_graph, spec), spec)
+        self._cameras = (
+            RenderScene(scenario, capacity, config.domino_size) if config.cameras else None
+        )
         if self.meshcat is not None:
             MeshcatVisualizer.AddToBuilder(
                 builder, scene_graph, self.meshcat, MeshcatVisualizerParams(role=Role.kIllustration)
@@ -218,9 +216,6 @@ class CellWorld:
             [b.floating_positions_start() + 4 + np.arange(3) for b in self._domino_bodies],
             dtype=int,
         ).reshape(-1, 3)
-        self._label_lookup = label_lookup(
-            {int(body.index()): i for i, body in enumerate(self._domino_bodies)}
-        )
         robot_bodies = [
             plant.get_body(b)
             for model in (models.arm, models.gripper)
@@ -632,20 +627,16 @@ class CellWorld:
     # ------------------------------------------------------------------ cameras
     @property
     def camera_names(self) -> tuple[str, ...]:
-        return tuple(self._sensors)
+        return self._cameras.camera_names if self._cameras is not None else ()
 
     def render(
         self, names: Sequence[str] | None = None, labels: bool = True
     ) -> dict[str, CameraFrame]:
         """Colour, depth and (if ``labels``) label images of the named cameras, rendered now."""
-        if not self._sensors:
+        if self._cameras is None:
             raise RuntimeError("this world was built without cameras (WorldConfig.cameras=False)")
-        frames = {}
-        for name in names or self._sensors:
-            sensor, spec = self._sensors[name]
-            context = sensor.GetMyContextFromRoot(self._root)
-            frames[name] = render(sensor, spec, context, self._label_lookup, labels)
-        return frames
+        positions = self._plant.GetPositions(self._plant_context)
+        return self._cameras.render(positions, self.time, names, labels)
 
 
 def _transform(pose: np.ndarray | RigidTransform) -> RigidTransform:
