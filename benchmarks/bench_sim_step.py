@@ -1,5 +1,5 @@
 """Benchmark what a simulated second costs: CPU seconds per simulated second of the cell
-(``CellWorld``, no cameras rendered) in three scripted scenes over a settled 40-domino pile,
+(``CellWorld`` as sim_node builds it, no camera rendered) in three scripted scenes over a settled 40-domino pile,
 
 * ``idle``: the arm holds its home pose for 2 s,
 * ``swing``: the arm follows a 2 s free-space trajectory over the pile and back,
@@ -190,8 +190,9 @@ def cpu_seconds() -> float:
 
 
 def world_scene(script: list[Step]) -> dict:
-    """One scene in a fresh world: CPU s per simulated s of the script alone."""
-    world = CellWorld(WorldConfig(cameras=False, domino_capacity=DOMINOES + 1))
+    """One scene in a fresh world (with cameras, as sim_node's, none rendered): CPU s per
+    simulated s of the script alone."""
+    world = CellWorld(WorldConfig(cameras=True, domino_capacity=DOMINOES + 1))
     prepare(world)
     start, cpu = world.time, cpu_seconds()
     run_script(world, script)
