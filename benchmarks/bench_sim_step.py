@@ -1,5 +1,6 @@
 """Benchmark what a simulated second costs: CPU seconds per simulated second of the cell
-(``CellWorld`` as sim_node builds it, no camera rendered) in three scripted scenes over a settled 40-domino pile,
+(``CellWorld`` as sim_node builds it, no camera rendered) in three scripted scenes over a
+settled 40-domino pile,
 
 * ``idle``: the arm holds its home pose for 2 s,
 * ``swing``: the arm follows a 2 s free-space trajectory over the pile and back,
@@ -224,8 +225,8 @@ def in_subprocess(script: list[Step], env: dict[str, str]) -> dict:
 class NodeDriver:
     """Drives a sim_node over its actions, in simulated time (/clock)."""
 
-    def __init__(self, arm_joints: tuple[str, ...]) -> None:
-        self.node = rclpy.create_node("bench_sim_step")
+    def __init__(self, arm_joints: tuple[str, ...], name: str) -> None:
+        self.node = rclpy.create_node(name)  # one per run: rosout keeps a name registered
         self.arm_joints = list(arm_joints)
         self.now = -1.0
         self.node.create_subscription(Clock, "/clock", self._on_clock, 10)
@@ -291,7 +292,7 @@ def node_scene(script: list[Step], env: dict[str, str]) -> dict:
     process = subprocess.Popen(
         command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
-    driver = NodeDriver(load_scenario().arm_joints)
+    driver = NodeDriver(load_scenario().arm_joints, f"bench_sim_step_{process.pid}")
     try:
         driver.spin_until(lambda: driver.now >= 0.0, NODE_START_TIMEOUT, "/clock")
         driver.arm.wait_for_server(timeout_sec=NODE_WAIT_TIMEOUT)
