@@ -16,6 +16,8 @@ and a position-controlled gripper with a force limit.
 from __future__ import annotations
 
 import copy
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,7 +126,7 @@ class GripperController(LeafSystem):
         self._force_limit = settings.default_force
         self._ramp_start_opening = initial_opening
         self._ramp_start_time = 0.0
-        self.DeclareVectorInputPort("finger_state", 4)
+        self._state_port = self.DeclareVectorInputPort("finger_state", 4)
         self.DeclareVectorOutputPort("finger_force", 2, self._calc_force)
 
     def command(self, opening: float, max_force: float, now: float, current_opening: float) -> None:
@@ -146,20 +148,22 @@ class GripperController(LeafSystem):
         """The opening target at ``time``: a ramp from the command's start at the speed limit."""
         travel = self.settings.speed * max(time - self._ramp_start_time, 0.0)
         delta = self._goal - self._ramp_start_opening
-        return self._ramp_start_opening + np.sign(delta) * min(travel, abs(delta))
+        return self._ramp_start_opening + math.copysign(min(travel, abs(delta)), delta)
 
-    def opening_force(self, time: float, state: np.ndarray) -> float:
+    def opening_force(self, time: float, state: Sequence[float]) -> float:
         """Force per finger along the opening (negative squeezes), clamped to the limit."""
         s = self.settings
-        opening, opening_rate = state[0] + state[1], state[2] + state[3]
+        left, right, left_rate, right_rate = (float(x) for x in state[:4])
+        opening, opening_rate = left + right, left_rate + right_rate
         force = s.opening_stiffness * (self.reference(time) - opening) - s.opening_damping * (
             opening_rate
         )
-        return float(np.clip(force, -self._force_limit, self._force_limit))
+        return min(max(force, -self._force_limit), self._force_limit)
 
     def _calc_force(self, context: Context, output: BasicVector) -> None:
+        """Evaluated at every physics step: plain floats, no numpy scalars."""
         s = self.settings
-        state = self.get_input_port().Eval(context)
+        state = self._state_port.Eval(context).tolist()
         opening_force = self.opening_force(context.get_time(), state)
         asymmetry, asymmetry_rate = state[0] - state[1], state[2] - state[3]
         centering = -s.centering_stiffness * asymmetry - s.centering_damping * asymmetry_rate

@@ -112,7 +112,7 @@ class GripSwing:
     slip: float  # m the domino moved in the TCP frame from grasp to the end of the swing
 
 
-def _ik(shadow, context, pose: RigidTransform, seed: np.ndarray) -> np.ndarray:
+def tcp_ik(shadow, context, pose: RigidTransform, seed: np.ndarray) -> np.ndarray:
     plant = shadow.plant
     ik = InverseKinematics(plant, context)
     tcp = plant.GetFrameByName("wsg_tcp")
@@ -128,7 +128,7 @@ def _ik(shadow, context, pose: RigidTransform, seed: np.ndarray) -> np.ndarray:
     return result.GetSolution(ik.q())
 
 
-def _move(world: CellWorld, start: np.ndarray, goal: np.ndarray, duration: float) -> float:
+def start_move(world: CellWorld, start: np.ndarray, goal: np.ndarray, duration: float) -> float:
     """Start a rest-to-rest move; returns its end time."""
     trajectory = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
         [0.0, duration], np.column_stack([start, goal]), np.zeros(7), np.zeros(7)
@@ -145,19 +145,19 @@ def grip_and_swing(world: CellWorld, force: float = 20.0) -> GripSwing:
     # Gripper pointing down, fingers across the width, pad tips 4.5 mm above the table.
     grip = domino.rotation() @ RotationMatrix.MakeXRotation(np.pi)
     home = world.scenario.home_position
-    above = _ik(shadow, context, RigidTransform(grip, [0.55, 0.0, 0.10]), home)
-    at_grasp = _ik(shadow, context, RigidTransform(grip, [0.55, 0.0, 0.0135]), above)
-    lifted = _ik(shadow, context, RigidTransform(grip, [0.55, 0.0, 0.15]), at_grasp)
+    above = tcp_ik(shadow, context, RigidTransform(grip, [0.55, 0.0, 0.10]), home)
+    at_grasp = tcp_ik(shadow, context, RigidTransform(grip, [0.55, 0.0, 0.0135]), above)
+    lifted = tcp_ik(shadow, context, RigidTransform(grip, [0.55, 0.0, 0.15]), at_grasp)
     far_pose = RigidTransform(grip @ RotationMatrix.MakeZRotation(0.5), [0.40, 0.35, 0.25])
-    far = _ik(shadow, context, far_pose, lifted)
-    world.advance_to(_move(world, home, above, 2.0) + 0.1)
-    world.advance_to(_move(world, above, at_grasp, 1.5) + 0.1)
+    far = tcp_ik(shadow, context, far_pose, lifted)
+    world.advance_to(start_move(world, home, above, 2.0) + 0.1)
+    world.advance_to(start_move(world, above, at_grasp, 1.5) + 0.1)
     world.command_gripper(0.0, max_force=force)
     world.advance(1.2)
     opening = world.gripper_state().opening
     held = world.domino_in_tcp(0)
-    world.advance_to(_move(world, at_grasp, lifted, 1.0) + 0.1)
-    end = _move(world, lifted, far, 0.6)
+    world.advance_to(start_move(world, at_grasp, lifted, 1.0) + 0.1)
+    end = start_move(world, lifted, far, 0.6)
     fastest, slip = 0.0, 0.0
     while world.time < end + 0.2:
         world.advance(0.004)

@@ -122,6 +122,11 @@ class SleepManager:
         self.wake(root, [int(i) for i in np.flatnonzero(self._asleep)])
         self._next_check = -np.inf
 
+    @property
+    def next_check(self) -> float:
+        """Simulated time of the next neighbourhood check (inf: sleeping is off)."""
+        return self._next_check if self.enabled else np.inf
+
     def update(self, root: Context) -> None:
         """After a simulator step: wake sleepers near moving bodies, put resting ones to sleep."""
         now = root.get_time()

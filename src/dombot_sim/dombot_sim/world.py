@@ -36,7 +36,7 @@ from pydrake.multibody.plant import (
     MultibodyPlant,
 )
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import InitializeParams, Simulator
 from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.trajectories import PiecewisePolynomial
@@ -44,7 +44,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from dombot_description import DOMINO_SIZE
 from dombot_description.cell import add_cell, add_dominoes, build_shadow_plant
 from dombot_description.scenario import Scenario, load_scenario
-from dombot_sim.cameras import CameraFrame, add_camera, add_renderer, label_lookup, render
+from dombot_sim.cameras import CameraFrame, RenderScene
 from dombot_sim.control import ArmCommand, ArmGains, GripperController, GripperSettings
 from dombot_sim.frames import WORLD, FrameTransform, LinkTree
 from dombot_sim.pile import PourSettings, parking_pose, pour_wave, wave_sizes
@@ -65,6 +65,7 @@ GRIPPER_OPEN = 0.10  # m, opening after a reset
 UPRIGHT_TOLERANCE = np.radians(10.0)  # body x this close to vertical counts as upright
 WAVE_FALL_TIME = 0.35  # s simulated between pour waves
 DIVERGED_STATE = 1e3  # m, m/s or rad/s: no state of the cell comes near this
+CHUNK_STEPS = 10  # at most this many steps between looks at the state (sleeping off)
 LEFT_CELL_BELOW = -0.2  # m: a domino this far under the table top fell off the table
 LEFT_CELL_BEYOND = 3.0  # m from the robot base: flung out of the cell
 # Meshcat recording: 16 frames a simulated second play smoothly, and keep a whole run's
@@ -198,11 +199,9 @@ class CellWorld:
         builder.Connect(plant.get_state_output_port(models.gripper), gripper.get_input_port())
         builder.Connect(gripper.get_output_port(), plant.get_actuation_input_port(models.gripper))
 
-        self._sensors = {}
-        if config.cameras:
-            add_renderer(scene_graph)
-            for spec in scenario.cameras:
-                self._sensors[spec.name] = (add_camera(builder, scene_graph, spec), spec)
+        self._cameras = (
+            RenderScene(scenario, capacity, config.domino_size) if config.cameras else None
+        )
         if self.meshcat is not None:
             MeshcatVisualizer.AddToBuilder(
                 builder, scene_graph, self.meshcat, MeshcatVisualizerParams(role=Role.kIllustration)
@@ -218,9 +217,6 @@ class CellWorld:
             [b.floating_positions_start() + 4 + np.arange(3) for b in self._domino_bodies],
             dtype=int,
         ).reshape(-1, 3)
-        self._label_lookup = label_lookup(
-            {int(body.index()): i for i, body in enumerate(self._domino_bodies)}
-        )
         robot_bodies = [
             plant.get_body(b)
             for model in (models.arm, models.gripper)
@@ -295,18 +291,51 @@ class CellWorld:
 
     # ------------------------------------------------------------------ stepping
     def advance(self, duration: float) -> None:
-        """Simulate ``duration`` seconds (rounded to whole steps), updating sleepers each step."""
+        """Simulate ``duration`` seconds (rounded to whole steps), updating sleepers between
+        steps."""
         self.advance_to(self.time + duration)
 
     def advance_to(self, target: float) -> None:
-        dt = self.config.time_step
-        steps = round((target - self.time) / dt)
-        for _ in range(max(steps, 0)):
-            self._step(dt)
-            self._sleep.update(self._root)
+        last = self._step_index() + max(round((target - self.time) / self.config.time_step), 0)
+        while self._step_index() < last:
+            self._advance_chunk(last)
 
-    def _step(self, dt: float) -> None:
-        """One physics step; a step that leaves a diverged state is undone.
+    def _step_index(self) -> int:
+        """The time as a number of steps: it is always on the plant's grid k * dt."""
+        return round(self.time / self.config.time_step)
+
+    def _advance_chunk(self, last: int) -> None:
+        """Steps up to the sleepers' next check (or ``last``, or CHUNK_STEPS), in one
+        ``AdvanceTo``, then the checks that look at the state between steps.
+
+        Nothing in Python needs to see the steps in between: the sleep check runs at the
+        same steps as when every step was advanced on its own, and a chunk that diverges
+        is redone step by step from its start, which undoes the very step that diverged
+        (a step is a function of the state and the time). A domino that left the cell is
+        parked up to a chunk later, where it touches nothing.
+        """
+        dt, start = self.config.time_step, self._step_index()
+        due = self._sleep.next_check
+        end = start + 1
+        while end < min(last, start + CHUNK_STEPS) and end * dt < due:
+            end += 1
+        before = self._plant.GetPositionsAndVelocities(self._plant_context)
+        self._simulator.AdvanceTo(end * dt)
+        after = self._plant.GetPositionsAndVelocities(self._plant_context)
+        if not np.all(np.abs(after) < DIVERGED_STATE):  # NaN compares False
+            self._plant.SetPositionsAndVelocities(self._plant_context, before)
+            self._root.SetTime(start * dt)  # a simulator's time goes back by Initialize only
+            self._simulator.Initialize(InitializeParams(suppress_initialization_events=True))
+            for _ in range(end - start):
+                after = self._step(dt)
+        else:
+            self._diverged_last_step = False
+        self._remove_escaped(after)
+        self._sleep.update(self._root)
+
+    def _step(self, dt: float) -> np.ndarray:
+        """One physics step; a step that leaves a diverged state is undone. Returns the
+        state after it.
 
         The contact physics diverged once in 15 benchmark runs (NaN poses; not
         reproducible, paced runs differ in timing). Rather than losing the run, the state
@@ -323,8 +352,7 @@ class CellWorld:
         diverged = ~(np.abs(after) < DIVERGED_STATE)  # NaN compares False
         if not diverged.any():
             self._diverged_last_step = False
-            self._remove_escaped(after)
-            return
+            return after
         owners = sorted(set(self._state_owners[diverged]))
         message = f"physics diverged at t={start:.3f} s (state of {', '.join(owners)})"
         if self._diverged_last_step:
@@ -336,6 +364,7 @@ class CellWorld:
         restart = before.copy()
         restart[velocities][np.isin(self._state_owners[velocities], owners)] = 0.0
         self._plant.SetPositionsAndVelocities(self._plant_context, restart)
+        return restart
 
     def _remove_escaped(self, state: np.ndarray) -> None:
         """Park the dominoes in use that left the cell (off the table, or flung away).
@@ -410,16 +439,21 @@ class CellWorld:
         settings' moving speed for their rest time with it off.
         """
         dt, deadline, rested = self.config.time_step, self.time + max(limit, 0.0), 0.0
-        while self.time < deadline:
+        last = self._step_index()
+        while last * dt < deadline:
+            last += 1
+        while self._step_index() < last:
             if self._sleep.enabled:
+                # dominoes fall asleep (or are parked) only between chunks
                 if self._sleep.all_asleep(self._in_use):
                     return True
-            else:
-                moving = self._sleep.moving(self._root, self._in_use)
-                rested = 0.0 if moving else rested + dt
-                if rested >= self.config.sleep.rest_time:
-                    return True
-            self.advance(dt)
+                self._advance_chunk(last)
+                continue
+            moving = self._sleep.moving(self._root, self._in_use)
+            rested = 0.0 if moving else rested + dt
+            if rested >= self.config.sleep.rest_time:
+                return True
+            self._advance_chunk(self._step_index() + 1)
         return False
 
     def _pile_top(self) -> float:
@@ -632,20 +666,16 @@ class CellWorld:
     # ------------------------------------------------------------------ cameras
     @property
     def camera_names(self) -> tuple[str, ...]:
-        return tuple(self._sensors)
+        return self._cameras.camera_names if self._cameras is not None else ()
 
     def render(
         self, names: Sequence[str] | None = None, labels: bool = True
     ) -> dict[str, CameraFrame]:
         """Colour, depth and (if ``labels``) label images of the named cameras, rendered now."""
-        if not self._sensors:
+        if self._cameras is None:
             raise RuntimeError("this world was built without cameras (WorldConfig.cameras=False)")
-        frames = {}
-        for name in names or self._sensors:
-            sensor, spec = self._sensors[name]
-            context = sensor.GetMyContextFromRoot(self._root)
-            frames[name] = render(sensor, spec, context, self._label_lookup, labels)
-        return frames
+        positions = self._plant.GetPositions(self._plant_context)
+        return self._cameras.render(positions, self.time, names, labels)
 
 
 def _transform(pose: np.ndarray | RigidTransform) -> RigidTransform:
