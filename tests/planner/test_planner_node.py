@@ -337,7 +337,7 @@ def test_an_empty_start_state_is_the_arm_at_rest(client: Client) -> None:
 
 
 def test_an_arm_that_does_not_come_to_rest_is_planned_from_where_it_is(client: Client) -> None:
-    """Waited for REST_WAIT, then planned from the latest joint state."""
+    """Waited for start_rest_wait, then planned from the latest joint state."""
     start = strike_start(client, publish=STOPPING)
     assert start == pytest.approx(STOPPING.position.tolist(), abs=1e-9)
     client.joints.publish(arm_state(0.0, 0.0))  # at rest again for the tests after

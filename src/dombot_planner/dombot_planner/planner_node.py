@@ -4,7 +4,7 @@
 A thin ROS adapter over ``planner`` and ``strike``: parameters are PlannerSettings' fields
 (validated; a rejected update keeps the old values), /joint_states gives the start state
 when a request has none (the latest once it shows the arm at rest, waited for up to
-REST_WAIT), requests are checked and converted before they wait for the planner, and
+``start_rest_wait``), requests are checked and converted before they wait for the planner, and
 every failure is answered with an error code and a message and logged with its stage and
 the time spent. Both services run in a reentrant callback group on a
 multi-threaded executor, so bad requests are answered at once while another request is
@@ -60,9 +60,6 @@ MAX_WAITING = 8  # requests that may wait for the planner at once (docs/PLANNER.
 # executor threads: the waiting requests, the one being planned, /joint_states and one
 # more, so a bad request never waits for a thread
 EXECUTOR_THREADS = MAX_WAITING + 3
-# s a request without start state waits for /joint_states to show the arm at rest: right
-# after a motion the latest one processed may be from before it stopped (tens of ms)
-REST_WAIT = 5.0
 
 GRIPPER_EVENTS = {
     GRIPPER_OPEN: TrajectorySegment.GRIPPER_OPEN,
@@ -231,7 +228,7 @@ class PlannerNode(Node):
 
     def _start_state(self, state: JointState) -> JointState:
         """The request's start state, or the latest /joint_states when it is empty (once
-        it shows the arm at rest, waiting up to REST_WAIT)."""
+        it shows the arm at rest, waiting up to ``start_rest_wait``)."""
         if state.name or state.position:
             return state
         arm = self.scenario.arm_joints
@@ -240,10 +237,11 @@ class PlannerNode(Node):
             latest = self.joint_state
             return latest is None or at_rest(list(latest.name), list(latest.velocity), arm)
 
+        wait = self.planner.settings.start_rest_wait
         with self.joint_state_changed:
-            if not self.joint_state_changed.wait_for(settled, timeout=REST_WAIT):
+            if not self.joint_state_changed.wait_for(settled, timeout=wait):
                 self.get_logger().warning(
-                    f"the arm did not come to rest within {REST_WAIT} s: planning from the "
+                    f"the arm did not come to rest within {wait} s: planning from the "
                     "latest /joint_states"
                 )
             latest = self.joint_state

@@ -61,6 +61,9 @@ class PlannerSettings:
     push_speed: float = 0.1  # m/s of the fingertips during the push (request: 0)
     # Requests.
     default_time_budget: float = 5.0  # s when the request says 0
+    # s an empty start state waits for /joint_states to show the arm at rest: right after a
+    # motion the latest one may be from before it stopped (tens of mrad off); then as it is
+    start_rest_wait: float = 5.0
     workspace_reach: tuple[float, float] = (0.25, 0.85)  # m from the arm base axis
     workspace_height: tuple[float, float] = (-0.005, 0.35)  # m, domino centres
     seed: int = 0  # random IK seeds and KTO restarts
