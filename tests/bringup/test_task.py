@@ -130,8 +130,8 @@ def test_a_fallen_domino_perception_cannot_fit_is_left_where_it_lies() -> None:
     """Perception answers the standing target (tilt 0) when no box fits what lies there:
     picking at that pose would close the fingers on nothing."""
     run_job = job()
-    remember_fallen(run_job, 0, FALLEN, lying(0.45, 0.020), math.radians(80.0))
-    remember_fallen(run_job, 0, FALLEN, run_job.targets[0], 0.0)
+    assert not remember_fallen(run_job, 0, FALLEN, lying(0.45, 0.020), math.radians(80.0))
+    assert remember_fallen(run_job, 0, FALLEN, run_job.targets[0], 0.0)  # left where it lies
     assert 0 not in run_job.state.fallen
 
 

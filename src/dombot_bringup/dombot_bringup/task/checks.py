@@ -82,24 +82,27 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
             state.standing[i] = where  # for the planner to keep clear of
         else:
             state.standing.pop(i, None)
-            remember_fallen(job, i, status, measured, tilt)
+            if remember_fallen(job, i, status, measured, tilt):
+                log(f"domino {i + 1} fell where perception cannot fit it; left where it lies")
             if i != index:
                 job.report.dominoes[i].placed = False  # until it is built again
                 log(f"domino {i + 1} is no longer standing ({check_words(status, error, tilt)})")
     return placed
 
 
-def remember_fallen(job: Job, index: int, status: Seen, measured: Pose, tilt: float) -> None:
+def remember_fallen(job: Job, index: int, status: Seen, measured: Pose, tilt: float) -> bool:
     """A run domino out of place is picked up again from where perception fitted it; one
     that fell where no box fits (perception answers the standing target, tilt 0) is left
-    where it lies, and a domino from the pile takes its place."""
+    where it lies, and a domino from the pile takes its place. True: left where it lies."""
     if status == Seen.STANDING or (
         status == Seen.FALLEN and tilt > job.settings.place_tilt_tolerance
     ):
         job.state.fallen[index] = measured
-    elif status == Seen.FALLEN:
+        return False
+    if status == Seen.FALLEN:
         job.state.fallen.pop(index, None)
-        log(f"domino {index + 1} fell where perception cannot fit it; left where it lies")
+        return True
+    return False
 
 
 def check_words(status: Seen, error: float, tilt: float) -> str:

@@ -44,11 +44,18 @@ def strike(job: Job, standing: Sequence[int]) -> None:
         outcome.toppled_by_perception = sum(fallen[i] for i in section.slots)
     report.toppled_by_perception = answer.success and all(fallen.values())
     log(f"after the strike perception sees {sum(fallen.values())}/{len(built)} dominoes down")
+    unfitted = []  # one line for them all: after a strike most lie in a heap
     for position, i in enumerate(built):  # where they lie, for a next cycle to pick up
         if fallen[i]:
             job.state.standing.pop(i, None)
             status, tilt = answer.status[position], answer.tilt[position]
-            remember_fallen(job, i, status, answer.measured[position], tilt)
+            if remember_fallen(job, i, status, answer.measured[position], tilt):
+                unfitted.append(str(i + 1))
+    if unfitted:
+        log(
+            f"{len(unfitted)} toppled dominoes lie where perception cannot fit them "
+            f"({', '.join(unfitted)}): left where they lie"
+        )
 
 
 def strike_section(job: Job, section: Section, built: Sequence[int]) -> str:
