@@ -347,7 +347,7 @@ class CellWorld:
         before = self._plant.GetPositionsAndVelocities(self._plant_context)
         # on the plant's own grid k * dt: a sum of steps drifts off it, and then a step
         # holds zero or two plant updates depending on the absolute time
-        self._simulator.AdvanceTo((round(start / dt) + 1) * dt)
+        self._simulator.AdvanceTo((self._step_index() + 1) * dt)
         after = self._plant.GetPositionsAndVelocities(self._plant_context)
         diverged = ~(np.abs(after) < DIVERGED_STATE)  # NaN compares False
         if not diverged.any():
