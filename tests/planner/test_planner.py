@@ -17,6 +17,7 @@ from dombot_planner.motion import (
     GRIPPER_CLOSE,
     GRIPPER_NONE,
     GRIPPER_OPEN,
+    UP,
     Deadline,
     RequestMotions,
     elbow_not_up,
@@ -286,6 +287,30 @@ def test_only_the_usual_branch_is_taken(planner, q, up: bool) -> None:
     assert 0.3 < np.hypot(*tcp[:2]) < 0.8 and tcp[0] > 0.0 and tcp[2] < 0.15
     other = faces_away(q, tcp) or elbow_not_up(scene, SCENARIO.arm_joints, q)
     assert other == (not up)
+
+
+def test_the_wrist_shell_holds_every_reachable_pose_and_no_other(planner) -> None:
+    """WristReach refuses poses without IK: it must never refuse one the arm reaches (any
+    configuration within the limits), and does refuse the wrist point too near the
+    shoulder (the elbow's limit: the iiwa's 0.41 m) or beyond the stretched arm."""
+    reach = planner.wrist_reach
+    assert reach.near == pytest.approx(0.410, abs=1e-3) and reach.far == pytest.approx(0.82)
+    scene = Scene(planner.plants.get(DOMINO_SIZE[1]), SCENARIO.tcp_frame)
+    rng = np.random.default_rng(5)
+    for q in rng.uniform(planner.lower, planner.upper, (200, 7)):
+        assert reach.reaches(scene.tcp_pose(q))
+    folded = np.array(SCENARIO.home_position)
+    folded[3] = planner.lower[3]  # the elbow at its limit: the wrist at ``near``
+    tcp = scene.tcp_pose(folded)
+    towards_shoulder = reach.shoulder - tcp @ reach.wrist_in_tcp
+    towards_shoulder /= np.linalg.norm(towards_shoulder)
+    assert reach.reaches(tcp)
+    assert not reach.reaches(
+        RigidTransform(tcp.rotation(), tcp.translation() + 0.001 * towards_shoulder)
+    )
+    assert not reach.reaches(tcp, 0.002 * towards_shoulder)  # a line ending nearer
+    outwards = scene.tcp_pose(np.zeros(7))  # stretched straight up
+    assert not reach.reaches(outwards, 0.001 * UP)
 
 
 def test_a_coarse_move_between_ik_branches_is_refused_for_its_swing(planner) -> None:

@@ -55,6 +55,7 @@ from dombot_planner.ik import PoseIK
 from dombot_planner.motion import (
     GRIPPER_CLOSE,
     GRIPPER_OPEN,
+    LINE_WRIST_OUT,
     UP,
     ArmPlanner,
     Deadline,
@@ -589,8 +590,15 @@ class RequestPlanning(RequestMotions):
         """IK at ``tcp_pose`` and a straight line away from it, keeping ``rules`` in every
         scene.
 
-        ``directions`` are tried in order for the line; ``failures`` counts why seeds failed.
+        ``directions`` are tried in order for the line (those along which the wrist leaves
+        the elbow's reach are not); ``failures`` counts why seeds failed.
         """
+        reach = self.planner.wrist_reach
+        if reach.reaches(tcp_pose):  # else clear_solutions says so
+            directions = [d for d in directions if reach.reaches(tcp_pose, distance * d)]
+            if not directions:
+                failures[LINE_WRIST_OUT] += 1
+                return None
         ik = PoseIK(scenes[0], tcp_pose.rotation())
         target = tcp_pose.translation()
         checks = [(scene, rules) for scene in scenes]
