@@ -19,6 +19,8 @@ import os
 import sys
 import time
 from collections import Counter
+from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 from bench_bringup import CASES
@@ -37,34 +39,68 @@ from dombot_planner.settings import PlannerSettings
 LAYOUTS = ("circle30", "s_curve30", "spiral30")
 
 
-def build_order(placements: list[layouts.DominoPlacement], section: int) -> list[int]:
+@cache
+def placements_of(name: str) -> tuple[layouts.DominoPlacement, ...]:
+    """The slots of bench_bringup's case ``name``, as the bring-up lays them out."""
+    scenario = load_scenario()
+    area = layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
+    return tuple(bringup.make_layout(bringup.parse_args(CASES[name]), area))
+
+
+@dataclass(frozen=True)
+class SlotCase:
+    """A slot of a layout as the bring-up asks for it (also what
+    bench_planner_execution.run_case executes): its release pose, ``place_lead`` ahead,
+    with ``neighbours`` (slot numbers, 1-based as the run report's) standing, and a flat
+    domino at ``domino`` (x, y, yaw) to carry there."""
+
+    index: int
+    layout: str
+    slot: int
+    neighbours: tuple[int, ...]
+    domino: tuple[float, float, float]
+
+    def place_pose(self) -> RigidTransform:
+        placement = placements_of(self.layout)[self.slot - 1]
+        return RigidTransform(placement_pose(placement, ArmJobSettings.place_lead))
+
+    def standing(self) -> tuple[RigidTransform, ...]:
+        run = placements_of(self.layout)
+        return tuple(RigidTransform(placement_pose(run[n - 1])) for n in self.neighbours)
+
+    def request(self, start: np.ndarray) -> PickPlaceRequest:
+        return PickPlaceRequest(
+            flat_pose(*self.domino), self.place_pose(), start, standing=self.standing()
+        )
+
+
+def build_order(placements: tuple[layouts.DominoPlacement, ...], section: int) -> list[int]:
     """The bring-up's queue: every slot but the safety gaps in run order, then the gaps."""
-    gaps = layouts.safety_gaps(placements, section)
+    gaps = layouts.safety_gaps(list(placements), section)
     return [i for i in range(len(placements)) if i not in gaps] + gaps
 
 
 def run(args: argparse.Namespace) -> dict:
     scenario = load_scenario()
-    area = layouts.BuildArea(*scenario.build_x, *scenario.build_y, *scenario.build_reach)
     planner = PickPlacePlanner(scenario, PlannerSettings(default_time_budget=3600.0))
     rng = np.random.default_rng(args.seed)
-    lead = ArmJobSettings.place_lead
     result = {"benchmark": "run_slots", "seed": args.seed, "layouts": {}}
     for name in args.layouts:
-        placements = bringup.make_layout(bringup.parse_args(CASES[name]), area)
-        poses = [RigidTransform(placement_pose(p)) for p in placements]
-        order = build_order(placements, ArmJobSettings.section)
+        order = build_order(placements_of(name), ArmJobSettings.section)
         times, refused, codes = [], {}, Counter()
         for position, index in enumerate(order):
             standing = set(order[:position])
             if args.both_neighbours:
-                standing |= {i for i in (index - 1, index + 1) if 0 <= i < len(poses)}
-            request = PickPlaceRequest(
-                flat_pose(*scenario.pile_center, rng.uniform(-math.pi, math.pi)),
-                RigidTransform(placement_pose(placements[index], lead)),
-                scenario.home_position,
-                standing=tuple(poses[i] for i in sorted(standing)),
+                standing |= {i for i in (index - 1, index + 1) if 0 <= i < len(order)}
+            yaw = rng.uniform(-math.pi, math.pi)
+            case = SlotCase(
+                position,
+                name,
+                index + 1,
+                tuple(i + 1 for i in sorted(standing)),
+                (*scenario.pile_center, yaw),
             )
+            request = case.request(scenario.home_position)
             began = time.perf_counter()
             try:
                 planner.plan(request)
