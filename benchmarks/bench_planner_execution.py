@@ -11,7 +11,9 @@ against the plan's), where it stands once everything has settled (≤ 2 mm, ≤ 
 how far the standing neighbours moved. The simulation runs in simulated time, unpaced,
 and a found plan does not depend on the time it took: the figures repeat bit for bit on
 a machine (the planner's time budget only decides whether a pair is planned). Prints one
-JSON object on stdout (progress on stderr).
+JSON object on stdout (progress on stderr). ``--slots`` executes slots of the bring-up's
+30-domino layouts instead (bench_run_slots.SlotCase: its release pose, the slots given
+standing, a flat domino from the pile's middle).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import time
 
 import numpy as np
 from bench_planner import log, make_cases
+from bench_run_slots import SlotCase
 from pydrake.math import RigidTransform
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -148,18 +151,35 @@ def run_case(world: CellWorld, planner: PickPlacePlanner, case) -> dict:
     }
 
 
+def slot_cases(specs: list[str], scenario, seed: int) -> list[SlotCase]:
+    """``LAYOUT:SLOT:STANDING,STANDING`` (e.g. circle30:20:19,21) as SlotCases, each
+    carrying a flat domino from the pile's middle turned by a seeded yaw."""
+    rng = np.random.default_rng(seed)
+    cases = []
+    for index, spec in enumerate(specs):
+        layout, slot, standing = spec.split(":")
+        yaw = rng.uniform(-math.pi, math.pi)
+        neighbours = tuple(int(n) for n in standing.split(",") if n)
+        cases.append(SlotCase(index, layout, int(slot), neighbours, (*scenario.pile_center, yaw)))
+    return cases
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--count", type=int, default=10, help="pairs to execute")
     parser.add_argument("--seed", type=int, default=2026, help="seed of the pair set")
     parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
+    parser.add_argument(
+        "--slots", nargs="+", metavar="LAYOUT:SLOT:STANDING", help="e.g. circle30:20:19,21"
+    )
     args = parser.parse_args()
     scenario = load_scenario()
     world = CellWorld(WorldConfig(cameras=False, domino_capacity=4), scenario)
     planner = PickPlacePlanner(scenario, PlannerSettings(**json.loads(args.settings or "{}")))
     rows = []
     on_table = [case for case in make_cases(scenario, 4 * args.count, args.seed) if case.on_table]
-    for case in on_table[: args.count]:
+    cases = slot_cases(args.slots, scenario, args.seed) if args.slots else on_table[: args.count]
+    for case in cases:
         row = run_case(world, planner, case)
         rows.append(row)
         log(json.dumps(row))

@@ -17,12 +17,13 @@ from dombot_planner.motion import (
     GRIPPER_CLOSE,
     GRIPPER_NONE,
     GRIPPER_OPEN,
+    UP,
     Deadline,
     RequestMotions,
     elbow_not_up,
     faces_away,
 )
-from dombot_planner.planner import PickPlacePlanner, steeper_grasps
+from dombot_planner.planner import PickPlacePlanner, flatter_grasps, steeper_grasps
 from dombot_planner.request import PickPlaceRequest, box_corners, dominoes_overlap
 from dombot_planner.scene import Scene
 from dombot_planner.settings import PlannerSettings
@@ -288,6 +289,30 @@ def test_only_the_usual_branch_is_taken(planner, q, up: bool) -> None:
     assert other == (not up)
 
 
+def test_the_wrist_shell_holds_every_reachable_pose_and_no_other(planner) -> None:
+    """WristReach refuses poses without IK: it must never refuse one the arm reaches (any
+    configuration within the limits), and does refuse the wrist point too near the
+    shoulder (the elbow's limit: the iiwa's 0.41 m) or beyond the stretched arm."""
+    reach = planner.wrist_reach
+    assert reach.near == pytest.approx(0.410, abs=1e-3) and reach.far == pytest.approx(0.82)
+    scene = Scene(planner.plants.get(DOMINO_SIZE[1]), SCENARIO.tcp_frame)
+    rng = np.random.default_rng(5)
+    for q in rng.uniform(planner.lower, planner.upper, (200, 7)):
+        assert reach.reaches(scene.tcp_pose(q))
+    folded = np.array(SCENARIO.home_position)
+    folded[3] = planner.lower[3]  # the elbow at its limit: the wrist at ``near``
+    tcp = scene.tcp_pose(folded)
+    towards_shoulder = reach.shoulder - tcp @ reach.wrist_in_tcp
+    towards_shoulder /= np.linalg.norm(towards_shoulder)
+    assert reach.reaches(tcp)
+    assert not reach.reaches(
+        RigidTransform(tcp.rotation(), tcp.translation() + 0.001 * towards_shoulder)
+    )
+    assert not reach.reaches(tcp, 0.002 * towards_shoulder)  # a line ending nearer
+    outwards = scene.tcp_pose(np.zeros(7))  # stretched straight up
+    assert not reach.reaches(outwards, 0.001 * UP)
+
+
 def test_a_coarse_move_between_ik_branches_is_refused_for_its_swing(planner) -> None:
     """From a bring-up benchmark: a pick with joint 3 turned over (2.6 rad) and a place in the
     usual branch; the transfer between them took the TCP 0.54 m up at 1.8 m/s and threw
@@ -518,6 +543,11 @@ def test_settings_refuse_bad_values() -> None:
         PlannerSettings(workspace_reach=(0.8, 0.2))
     with pytest.raises(ValueError, match="approach_speed"):
         PlannerSettings(approach_speed=math.nan)
+    with pytest.raises(ValueError, match="flatter_grasp_shift"):
+        PlannerSettings(flatter_grasp_shift=0.006)  # the TCP beyond the domino's end
+    with pytest.raises(ValueError, match="flatter_grasp_turn"):
+        PlannerSettings(flatter_grasp_turn=-0.1)
+    assert PlannerSettings(flatter_grasp_turn=0.0, flatter_grasp_shift=0.0)  # none: allowed
 
 
 def leaning_pose(x: float, y: float, yaw: float, tilt: float) -> RigidTransform:
@@ -544,6 +574,26 @@ def test_steeper_grasps_turn_the_canonical_ones_towards_vertical_about_the_tcp()
             pytest.approx(63.0 - math.degrees(turn), abs=1e-6)
         )
     assert steeper_grasps(domino, 0.0) == []
+
+
+def test_flatter_grasps_lean_further_and_hold_nearer_the_pads_end() -> None:
+    """Half the turn and shift, then all of them: at pick the gripper leans 63° plus the
+    turn from vertical, the closing axis is the domino's width, and the TCP sits the shift
+    nearer the domino's -x end (its top at place) than a canonical grasp's."""
+    domino = flat_pose(0.6, -0.3, 0.7)
+    turn, shift = SETTINGS.flatter_grasp_turn, SETTINGS.flatter_grasp_shift
+    flatter = flatter_grasps(domino, turn, shift)
+    canonical = [g.pose for g in pick_grasps(domino)]
+    assert len(flatter) == 2 * len(canonical)
+    width = domino.rotation().matrix()[:, 1]
+    for part, poses in ((0.5, flatter[:8]), (1.0, flatter[8:])):
+        for pose in poses:
+            in_domino = domino.inverse() @ pose
+            assert abs(pose.rotation().matrix()[:, 1] @ width) == pytest.approx(1.0)
+            assert abs(in_domino.translation()[0]) == pytest.approx(0.019 + part * shift)
+            lean = math.degrees(math.acos(abs(pose.rotation().matrix()[2, 2])))
+            assert lean == pytest.approx(63.0 + math.degrees(part * turn), abs=1e-6)
+    assert flatter_grasps(domino, 0.0, 0.0) == []
 
 
 def test_leaning_domino_out_of_canonical_reach_is_picked_with_a_steeper_grasp(planner) -> None:

@@ -220,12 +220,18 @@ def gripper_geometry() -> GripperGeometry:
     return GripperGeometry(body_center, body_size, pad_center, pad_size, tcp, 2.0 * stroke)
 
 
-def canonical_grasp() -> RigidTransform:
-    """X_DG: the TCP in the domino frame for the canonical tilted grasp."""
-    approach = np.array([math.sin(GRASP_TILT), 0.0, -math.cos(GRASP_TILT)])
+def canonical_grasp(turn: float = 0.0, shift: float = 0.0) -> RigidTransform:
+    """X_DG: the TCP in the domino frame for the canonical tilted grasp.
+
+    ``turn`` [rad] turns it about the closing axis through the TCP, tilting the approach
+    that much further from the domino's thickness axis (at place the gripper stands that
+    much more upright); ``shift`` [m] moves the TCP along the domino's length towards the
+    end the pads hold (at place they ride that much higher)."""
+    tilt = GRASP_TILT + turn
+    approach = np.array([math.sin(tilt), 0.0, -math.cos(tilt)])
     closing = np.array([0.0, 1.0, 0.0])
     rotation = np.column_stack([np.cross(closing, approach), closing, approach])
-    return RigidTransform(RotationMatrix(rotation), TCP_IN_DOMINO)
+    return RigidTransform(RotationMatrix(rotation), TCP_IN_DOMINO - [shift, 0.0, 0.0])
 
 
 def pregrasp_opening(width: float) -> float:

@@ -17,6 +17,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.math import RigidTransform
 
 from dombot_description import DOMINO_SIZE
 from dombot_description.scenario import Scenario
@@ -55,6 +56,9 @@ ELBOW_UP = 0.3  # the elbow's offset from the shoulder–wrist line points at le
 STRAIGHT_ARM = 0.02  # m: an elbow this close to the shoulder–wrist line is left alone
 UP = np.array([0.0, 0.0, 1.0])
 RISE_SAMPLES = 40  # along a coarse move, for the TCP's height
+REACH_TOLERANCE = 1e-4  # m a wrist point may lie outside WristReach's shell and still be tried
+WRIST_OUT = "no IK: the wrist beyond the elbow's reach"
+LINE_WRIST_OUT = "line leaves the reach: the wrist beyond the elbow's reach"
 
 # A clearance check: the scene and the rules it must keep there.
 Check = tuple[Scene, ClearanceRules]
@@ -143,6 +147,67 @@ class Plan:
         return result
 
 
+@dataclass(frozen=True)
+class WristReach:
+    """Where the arm can put its wrist: from ``near`` to ``far`` from its shoulder.
+
+    The LBR iiwa's shoulder and wrist are spherical (axes 1-3 and 5-7 each meet in a
+    point): the distance between the two points depends on the elbow (joint 4) alone, and
+    the wrist point is fixed in the TCP frame. A TCP pose, or straight line, whose wrist
+    point leaves that shell has no IK, which is told without solving: SNOPT takes longest
+    to fail, ~10 times a solve (near the base, where the elbow's limit keeps the wrist
+    0.41 m from the shoulder, most place candidates failed so).
+    """
+
+    shoulder: np.ndarray  # in world
+    wrist_in_tcp: np.ndarray
+    near: float
+    far: float
+
+    @classmethod
+    def of(cls, scene: Scene, arm_joints: Sequence[str], q: np.ndarray) -> WristReach:
+        """The shell of the arm in ``scene`` (joint limits from its plant), measured at
+        ``q`` with the elbow bent to either limit and stretched; no shell (everything
+        reaches) when its shoulder and wrist points are not where the iiwa has them."""
+        plant, context = scene.plant, scene.plant_context
+        joints = [plant.GetJointByName(name) for name in arm_joints]
+        elbow = joints[3].position_start()
+        low, high = plant.GetPositionLowerLimits()[elbow], plant.GetPositionUpperLimits()[elbow]
+
+        def points(bend: float) -> tuple[np.ndarray, np.ndarray, float]:
+            bent = np.array(q, dtype=float)
+            bent[elbow] = bend
+            scene.set_positions(bent)
+            shoulder, wrist = (
+                joints[i].child_body().EvalPoseInWorld(context).translation() for i in (1, 5)
+            )
+            tcp = scene.tcp.CalcPoseInWorld(context)
+            return shoulder, tcp.inverse() @ wrist, float(np.linalg.norm(wrist - shoulder))
+
+        measured = [points(bend) for bend in (low, high, float(np.clip(0.0, low, high)))]
+        shoulder, wrist_in_tcp, _ = measured[0]
+        if any(
+            not (np.allclose(s, shoulder, atol=1e-9) and np.allclose(w, wrist_in_tcp, atol=1e-9))
+            for s, w, _ in measured
+        ):
+            return cls(shoulder, wrist_in_tcp, 0.0, np.inf)
+        return cls(shoulder, wrist_in_tcp, min(measured[0][2], measured[1][2]), measured[2][2])
+
+    def reaches(self, tcp: RigidTransform, offset: np.ndarray | None = None) -> bool:
+        """Whether the wrist point stays in the shell (REACH_TOLERANCE outside passes) with
+        the TCP at ``tcp`` and, given ``offset`` (world), all along a straight line moving
+        it that far with the orientation kept."""
+        start = tcp @ self.wrist_in_tcp - self.shoulder
+        move = np.zeros(3) if offset is None else np.asarray(offset, dtype=float)
+        along = move @ move
+        closest = start + (np.clip(-(start @ move) / along, 0.0, 1.0) if along else 0.0) * move
+        farthest = max(np.linalg.norm(start), np.linalg.norm(start + move))
+        return bool(
+            np.linalg.norm(closest) >= self.near - REACH_TOLERANCE
+            and farthest <= self.far + REACH_TOLERANCE
+        )
+
+
 def reasons(failures: Counter) -> str:
     return ", ".join(f"{reason}: {count}" for reason, count in failures.most_common()) or "none"
 
@@ -179,6 +244,11 @@ class ArmPlanner:
         self.plants = plants or ShadowPlants(scenario)
         plant = self.plants.get(DOMINO_SIZE[1]).plant  # any opening: only the arm's limits
         self.table = table_top(self.plants.get(DOMINO_SIZE[1]))
+        self.wrist_reach = WristReach.of(
+            Scene(self.plants.get(DOMINO_SIZE[1]), scenario.tcp_frame),
+            scenario.arm_joints,
+            scenario.home_position,
+        )
         self.lower = plant.GetPositionLowerLimits()
         self.upper = plant.GetPositionUpperLimits()
         self.velocity_limits = plant.GetVelocityUpperLimits()
@@ -317,10 +387,13 @@ class RequestMotions:
     ) -> Iterator[np.ndarray]:
         """IK solutions for the TCP at ``position`` (one per seed) that pass ``checks``.
 
-        ``failures`` counts why seeds gave none. ``fixed_pairs`` (e.g. "pads–standing"):
-        distances that every configuration reaching the pose shares; one of them too
-        close ends the search.
+        ``failures`` counts why seeds gave none (once: a wrist point beyond the elbow's
+        reach). ``fixed_pairs`` (e.g. "pads–standing"): distances that every configuration
+        reaching the pose shares; one of them too close ends the search.
         """
+        if not self.planner.wrist_reach.reaches(RigidTransform(ik.rotation, position)):
+            failures[WRIST_OUT] += 1
+            return
         for seed in seeds:
             self.deadline.check("ends")
             q = ik.solve(position, seed, seed)

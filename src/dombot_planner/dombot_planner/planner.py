@@ -40,6 +40,7 @@ from dombot_description.grasp import (
     GRASP_TILT,
     Grasp,
     OrientedBox,
+    canonical_grasp,
     comes_from_above,
     domino_in_tcp,
     nearest_distance,
@@ -54,6 +55,7 @@ from dombot_planner.ik import PoseIK
 from dombot_planner.motion import (
     GRIPPER_CLOSE,
     GRIPPER_OPEN,
+    LINE_WRIST_OUT,
     UP,
     ArmPlanner,
     Deadline,
@@ -140,6 +142,32 @@ def steeper_grasps(domino_pose: RigidTransform, limit: float) -> list[RigidTrans
     return sorted(turned, key=lambda pose: -round(score(pose), 9))
 
 
+def flatter_grasps(domino_pose: RigidTransform, turn: float, shift: float) -> list[RigidTransform]:
+    """The canonical grasps turned about their closing axis through the TCP away from the
+    domino's thickness axis and moved along its length towards the end the pads hold
+    (``canonical_grasp(turn, shift)``), by half of ``turn`` and ``shift``, then by all of
+    them, each ranked as pick_grasps ranks; none when both are 0.
+
+    At place the gripper of such a hold stands more upright (27° from vertical less the
+    turn) and its pads ride higher beside the neighbours' tops. Where a run curves, the
+    neighbour on the inner side of the curve comes closer to the pads of the canonical
+    hold leaning over it than fine_obstacle_clearance, and near the inner reach limit the
+    hold leaning the other way needs the elbow beyond its limit (circle30 slot 20, 0.447 m
+    from the base: 0.9 mm, and no IK). At pick the gripper lies flatter, its body and the
+    wrist closer to the table (the planner's checks keep them clear), and the pads press
+    a little less of the side faces (docs/PLANNER.md, grasp strategy).
+    """
+    if turn <= 0.0 and shift <= 0.0:
+        return []
+    return [
+        grasp.pose
+        for part in (0.5, 1.0)
+        for grasp in pick_grasps(
+            domino_pose, tcp_in_domino=canonical_grasp(part * turn, part * shift)
+        )
+    ]
+
+
 def fallback_failed(error: PlanningError, fallback: PlanningError, how: str) -> PlanningError:
     """The error to raise when planning ``how`` after ``error`` failed too: the fallback's
     timeout as it is, else the first error (its code and stage) with both reasons."""
@@ -181,21 +209,22 @@ class EndSearch:
     grasp_candidates: int = 0
     place_candidates: int = 0
     picks_found: int = 0
-    steeper_picks_found: int = 0  # of picks_found, with steeper grasps
+    turned_picks_found: int = 0  # of picks_found, with steeper or flatter grasps
     grasp_failures: Counter = field(default_factory=Counter)
     place_failures: Counter = field(default_factory=Counter)
 
     def error(self) -> PlanningError:
-        """GRASP_UNREACHABLE also when only steeper grasps reached the domino and none of
-        their holds could be placed: the regrasp (canonical grasps) may still work."""
-        if self.picks_found == self.steeper_picks_found:
+        """GRASP_UNREACHABLE also when only turned (steeper or flatter) grasps reached the
+        domino and none of their holds could be placed: the regrasp (canonical grasps) may
+        still work."""
+        if self.picks_found == self.turned_picks_found:
             message = (
                 f"no collision-free IK and approach line for any of {self.grasp_candidates} "
                 f"grasps ({reasons(self.grasp_failures)})"
             )
-            if self.steeper_picks_found:
+            if self.turned_picks_found:
                 message += (
-                    f"; {self.steeper_picks_found} steeper grasps reach it, but no place pose "
+                    f"; {self.turned_picks_found} turned grasps reach it, but no place pose "
                     f"suits their hold ({reasons(self.place_failures)})"
                 )
             return PlanningError(ErrorCode.GRASP_UNREACHABLE, "grasp", message)
@@ -332,11 +361,8 @@ class RequestPlanning(RequestMotions):
         super().__init__(planner, request.start, deadline)
         self.request = request
         self.nudge = nudge
-        steeper = 0
-        if grasps is None:
-            grasps, steeper = self._ranked_grasps()
-        self.grasps = grasps
-        self.first_steeper = len(grasps) - steeper  # grasps from here on are steeper_grasps
+        given = grasps is not None
+        self.grasps, self.turned = (grasps, ([], [])) if given else self._ranked_grasps()
         closed = request.grasp_width or DOMINO_SIZE[1]
         self.openings = {
             "pregrasp": pregrasp_opening(closed),
@@ -362,14 +388,17 @@ class RequestPlanning(RequestMotions):
             **dominoes,
         )
 
-    def _ranked_grasps(self) -> tuple[list[RigidTransform], int]:
+    def _ranked_grasps(
+        self,
+    ) -> tuple[list[RigidTransform], tuple[list[RigidTransform], list[RigidTransform]]]:
         """The request's grasp and its finger-swapped twin (the same gripper placement),
         then dombot_description.grasp's ranked grasps; only those coming from above.
 
         A request's grasp (e.g. perception's, which cleared its point cloud, undetected
         dominoes included) is preferred, not required: the pile the planner knows is only
-        what perception detected. Last the steeper grasps, turned towards a vertical
-        approach; also returned: how many of those end the list.
+        what perception detected. Also returned, for when none of them can be used
+        (``_grasps``): the steeper grasps, turned towards a vertical approach, and the
+        flatter ones, whose holds stand more upright at place.
         """
         domino, given = self.request.domino_pose, self.request.grasp_pose
         first = [] if given is None else [given, given @ FINGER_SWAP]
@@ -381,9 +410,24 @@ class RequestPlanning(RequestMotions):
                 if comes_from_above(g) and not any(g.IsNearlyEqualTo(f, 1e-6) for f in first)
             ]
 
+        settings = self.settings
         canonical = others([g.pose for g in pick_grasps(domino)])
-        steeper = others(steeper_grasps(domino, self.settings.steeper_grasp_turn))
-        return [g for g in first if comes_from_above(g)] + canonical + steeper, len(steeper)
+        steeper = others(steeper_grasps(domino, settings.steeper_grasp_turn))
+        flatter = others(
+            flatter_grasps(domino, settings.flatter_grasp_turn, settings.flatter_grasp_shift)
+        )
+        return [g for g in first if comes_from_above(g)] + canonical, (steeper, flatter)
+
+    def _grasps(self) -> Iterator[tuple[RigidTransform, bool]]:
+        """Each grasp to try and whether it is a turned one: the ranked grasps, then (only
+        once all of them failed, so they cost an ordinary request nothing) the turned ones.
+        When a grasp reached the domino but no place suited its hold, the flatter ones come
+        first: a steeper hold leans further over the neighbours at place. Otherwise the
+        pick is what failed, and the steeper ones (reaching farther) come first."""
+        yield from ((grasp, False) for grasp in self.grasps)
+        steeper, flatter = self.turned
+        turned = flatter + steeper if self.search.picks_found else steeper + flatter
+        yield from ((grasp, True) for grasp in turned)
 
     def plan(self) -> PickPlacePlan:
         self.check_start(self.approach)
@@ -455,11 +499,10 @@ class RequestPlanning(RequestMotions):
     def _ends(self) -> Iterator[tuple[End, End, Scene]]:
         """Pick and place ends that pass their checks, best candidates first."""
         request = self.request
-        grasps = self.grasps
-        self.search.grasp_candidates = len(grasps)
+        self.search.grasp_candidates = len(self.grasps) + sum(map(len, self.turned))
         release = self._release()
         free = self._free_direction()
-        for index, grasp in enumerate(grasps):
+        for grasp, turned in self._grasps():
             self.deadline.check("grasp")
             lifts = [d for d in lift_directions(grasp) if not self._pads_meet_pile_points(grasp, d)]
             if not lifts:
@@ -479,7 +522,7 @@ class RequestPlanning(RequestMotions):
             if pick is None:
                 continue
             self.search.picks_found += 1
-            self.search.steeper_picks_found += index >= self.first_steeper
+            self.search.turned_picks_found += turned
             places = [p for p in place_grasps(release, held, free) if comes_from_above(p)]
             for place in self._place_ends(places, transfer, [pick.line[0], request.start]):
                 yield pick, place, transfer
@@ -547,8 +590,15 @@ class RequestPlanning(RequestMotions):
         """IK at ``tcp_pose`` and a straight line away from it, keeping ``rules`` in every
         scene.
 
-        ``directions`` are tried in order for the line; ``failures`` counts why seeds failed.
+        ``directions`` are tried in order for the line (those along which the wrist leaves
+        the elbow's reach are not); ``failures`` counts why seeds failed.
         """
+        reach = self.planner.wrist_reach
+        if reach.reaches(tcp_pose):  # else clear_solutions says so
+            directions = [d for d in directions if reach.reaches(tcp_pose, distance * d)]
+            if not directions:
+                failures[LINE_WRIST_OUT] += 1
+                return None
         ik = PoseIK(scenes[0], tcp_pose.rotation())
         target = tcp_pose.translation()
         checks = [(scene, rules) for scene in scenes]

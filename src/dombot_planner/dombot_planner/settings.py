@@ -5,6 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+# m: the canonical TCP is this far from the end of the domino the pads hold
+MAX_GRASP_SHIFT = 0.005
+
 
 @dataclass(frozen=True)
 class PlannerSettings:
@@ -71,6 +74,13 @@ class PlannerSettings:
     # When no canonical grasp works, grasps turned about the domino's width towards a
     # vertical approach by half this and this (planner.steeper_grasps); 0: none.
     steeper_grasp_turn: float = math.radians(20.0)  # rad
+    # Grasps turned the other way and moved towards the end the pads hold, by half these
+    # and these (planner.flatter_grasps): at place the gripper stands more upright and its
+    # pads ride higher, for slots of a curved run and near the inner reach limit; 0 and 0:
+    # none. Beyond ~7° the wrist comes within coarse_clearance (5 mm) of the table at pick;
+    # each mm of shift takes ~1.5 mm² off the pads' 40.7 mm² on the side faces.
+    flatter_grasp_turn: float = math.radians(5.0)  # rad
+    flatter_grasp_shift: float = 0.002  # m
 
     def __post_init__(self) -> None:
         for field in fields(self):
@@ -83,7 +93,13 @@ class PlannerSettings:
                 for v in values
             ):
                 raise ValueError(f"{field.name} must be finite numbers, got {value!r}")
-            may_be_zero = ("release_height", "steeper_grasp_turn", "pile_nudge")
+            may_be_zero = (
+                "release_height",
+                "steeper_grasp_turn",
+                "flatter_grasp_turn",
+                "flatter_grasp_shift",
+                "pile_nudge",
+            )
             if not isinstance(value, tuple) and field.name not in may_be_zero and value <= 0:
                 raise ValueError(f"{field.name} must be positive, got {value!r}")
             if isinstance(value, tuple) and not values[0] < values[1]:
@@ -92,9 +108,13 @@ class PlannerSettings:
             raise ValueError(f"pile_nudge must be >= 0, got {self.pile_nudge}")
         if self.release_height < 0:
             raise ValueError(f"release_height must be >= 0, got {self.release_height}")
-        if not 0.0 <= self.steeper_grasp_turn <= math.pi / 2:
+        for name in ("steeper_grasp_turn", "flatter_grasp_turn"):
+            if not 0.0 <= getattr(self, name) <= math.pi / 2:
+                raise ValueError(f"{name} must be 0 to π/2 rad, got {getattr(self, name)}")
+        if not 0.0 <= self.flatter_grasp_shift <= MAX_GRASP_SHIFT:
             raise ValueError(
-                f"steeper_grasp_turn must be 0 to π/2 rad, got {self.steeper_grasp_turn}"
+                f"flatter_grasp_shift must be 0 to {MAX_GRASP_SHIFT} m (the TCP at the "
+                f"domino's end), got {self.flatter_grasp_shift}"
             )
         if self.strike_height > 1.0:
             raise ValueError(f"strike_height is a fraction of the height, got {self.strike_height}")

@@ -124,7 +124,7 @@ def attempt(
 def no_place(job: Job, index: int, refusals: list[Refusal]) -> str:
     """Why no domino can be placed at slot ``index``, or "" while one may: the planner
     refused the place of at least ``give_up_unplaceable`` flat pile dominoes
-    (PLACE_UNREACHABLE; a flat domino's hold is the canonical one, so any other flat one,
+    (PLACE_UNREACHABLE; a flat domino's holds are those of any flat one, so any other,
     after a spread or a push, gets the same refusal), no refusal was one a sweep or a
     deferral may cure (PLACE_IN_COLLISION, TIMEOUT, ...; GRASP_UNREACHABLE says nothing of
     the slot, nor does a leaning domino's hold, which laying it flat may change), and no
