@@ -31,7 +31,7 @@ _held: list[int] = []  # open lock files: each domain is held until the process 
 # Modules whose tests share no costly fixture and take long each: their tests may run on
 # different workers (any other module's tests run on one, its module fixtures set up once).
 SPREAD = {
-    "tests/bringup/test_arm_job.py",  # three end-to-end runs
+    "tests/bringup/test_arm_job.py",  # two end-to-end runs
     "tests/description/test_console.py",  # each test starts and interrupts a process
     "tests/foundation/test_parameter_files.py",  # each test starts a node
     "tests/sim/test_physics.py",  # a Drake world of its own per test, a quarter of the suite
