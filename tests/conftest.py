@@ -5,11 +5,11 @@ ROS domain of its own while it lives and keeps DDS discovery on the loopback int
 so parallel workers, concurrent sessions and a developer's running nodes never see each
 other's topics.
 
-With pytest-xdist (``-n 2 --dist loadscope``, opt-in: README) a module's tests run on one
-worker, so a module-scoped fixture (a node process, a planner) is set up once; the modules
-in ``SPREAD`` let their independent tests run on several workers. The longest modules are
-handed out first (``LONGEST``), then the other modules with slow tests, so that no long one
-starts last.
+``./dombot test`` runs the tests in two pytest-xdist workers (``-n 2 --dist loadscope``;
+``-n 0``: in one process). A module's tests run on one worker, so a module-scoped fixture
+(a node process, a planner) is set up once; the modules in ``SPREAD`` let their
+independent tests run on several workers. The longest modules are handed out first
+(``LONGEST``), then the other modules with slow tests, so that no long one starts last.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ _held: list[int] = []  # open lock files: each domain is held until the process 
 # Modules whose tests share no costly fixture and take long each: their tests may run on
 # different workers (any other module's tests run on one, its module fixtures set up once).
 SPREAD = {
-    "tests/bringup/test_arm_job.py",  # three end-to-end runs
+    "tests/bringup/test_arm_job.py",  # two end-to-end runs
     "tests/description/test_console.py",  # each test starts and interrupts a process
     "tests/foundation/test_parameter_files.py",  # each test starts a node
     "tests/sim/test_physics.py",  # a Drake world of its own per test, a quarter of the suite

@@ -1,11 +1,16 @@
-"""A node stopped by SIGINT ends quietly; an error while it runs is still raised."""
+"""A node stopped by SIGINT ends quietly, its running callbacks drained first; an error
+while it runs is still raised."""
 
 from __future__ import annotations
+
+import gc
+import threading
+import time
 
 import pytest
 import rclpy
 
-from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import spin_until_shutdown, stop_quietly_on_shutdown
 
 
 def test_an_error_after_shutdown_is_a_normal_stop_and_one_before_it_is_raised() -> None:
@@ -19,3 +24,31 @@ def test_an_error_after_shutdown_is_a_normal_stop_and_one_before_it_is_raised() 
         rclpy.shutdown()
     with stop_quietly_on_shutdown():  # as a publish after SIGINT's shutdown fails
         raise RuntimeError("Failed to publish: publisher's context is invalid")
+
+
+def test_a_callback_running_at_shutdown_returns_before_its_node_is_destroyed(capfd) -> None:
+    """As SIGINT does, the context goes down while a callback is still at work: the node
+    stays usable until the callback returns, and what the callback raises because the
+    graph went away is not reported (rclpy printed "The following exception was never
+    retrieved: cannot use Destroyable because destruction was requested")."""
+    rclpy.init()
+    node = rclpy.create_node("draining_node")
+    started, resolved = threading.Event(), []
+
+    def at_work() -> None:
+        timer.cancel()
+        started.set()
+        while node.context.ok():  # the context goes down while this callback runs
+            time.sleep(0.01)
+        time.sleep(0.2)  # time enough for a node destroyed under it to be gone
+        resolved.append(node.resolve_topic_name("chatter"))  # InvalidHandle once destroyed
+        raise RuntimeError("the graph went away")
+
+    timer = node.create_timer(0.01, at_work)
+    stopper = threading.Thread(target=lambda: started.wait(30) and rclpy.shutdown())
+    stopper.start()
+    spin_until_shutdown(node, num_threads=2)
+    stopper.join()
+    gc.collect()  # rclpy reports an unfetched callback error when its task is collected
+    assert resolved == ["/chatter"]
+    assert "never retrieved" not in capfd.readouterr().err

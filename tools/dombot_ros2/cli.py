@@ -179,9 +179,12 @@ def dispatch(args: argparse.Namespace) -> int:
 
     # A call waits for its own server; listings and node look-ups wait for the graph.
     calls = args.verb in ("call", "send_goal")
+    # What the arguments alone decide is checked before the graph is discovered, which
+    # waits out the whole settle limit in an empty graph: a typo fails at once.
+    message = _checked_before_discovery(args, graph)
     try:
         with graph.graph_node(SPIN_TIME, settle_limit=0.0 if calls else 10.0) as node:
-            return _print(_graph(args, graph, node))
+            return _print(_graph(args, graph, node, message))
     except ExternalShutdownException:  # Ctrl-C or SIGTERM while spinning
         return 0
 
@@ -214,7 +217,18 @@ def _interface(args, interfaces) -> list[str]:
     return lines
 
 
-def _graph(args, graph, node) -> list[str]:
+def _checked_before_discovery(args, graph):
+    """Refuse a bad type or message now; return ``topic pub``'s message."""
+    if args.command != "topic":
+        return None
+    if args.verb == "pub":
+        return graph.message_from(args.message_type, args.values)
+    if args.verb in ("echo", "hz") and args.message_type:
+        graph.load_type(args.message_type, kind="msg")
+    return None
+
+
+def _graph(args, graph, node, message) -> list[str]:
     if args.command == "topic":
         if args.verb == "list":
             return graph.topic_list(node, args.show_types, args.include_hidden_topics)
@@ -226,7 +240,7 @@ def _graph(args, graph, node) -> list[str]:
             return graph.topic_info(node, args.topic_name, args.verbose, wait=5.0)
         elif args.verb == "pub":
             times = 1 if args.once else args.times
-            graph.topic_pub(node, args.topic_name, args.message_type, args.values, args.rate, times)
+            graph.topic_pub(node, args.topic_name, message, args.rate, times)
         return []
     if args.command == "service":
         if args.verb == "list":

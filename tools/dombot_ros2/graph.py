@@ -190,11 +190,16 @@ def _endpoint_lines(infos) -> list[str]:
     return lines
 
 
-def topic_pub(node: Node, topic: str, type_name: str, values: str, rate: float, times: int) -> None:
-    message_type = load_type(type_name, kind="msg")
-    message = message_type()
+def message_from(type_name: str, values: str):
+    """The message of ``type_name`` that ``values`` (YAML) describe; raises a clean error
+    on an unknown type, bad YAML or a field the type lacks."""
+    message = load_type(type_name, kind="msg")()
     set_message_fields(message, parse_yaml_values(values))
-    publisher = node.create_publisher(message_type, topic, 10)
+    return message
+
+
+def topic_pub(node: Node, topic: str, message, rate: float, times: int) -> None:
+    publisher = node.create_publisher(type(message), topic, 10)
     print("publisher: beginning loop", flush=True)
     count = 0
     while times <= 0 or count < times:

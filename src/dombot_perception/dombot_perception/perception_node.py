@@ -36,7 +36,6 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterUninitializedException
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
@@ -44,7 +43,7 @@ from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
 
-from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import spin_until_shutdown
 from dombot_adapters.parameters import DataclassParameters, described
 from dombot_adapters.pose_messages import pose_matrix, pose_message
 from dombot_description import tilt_from_vertical
@@ -399,9 +398,13 @@ class PerceptionNode(Node):
         """Wait (FIRST_FRAME_WAIT at most) until each camera has sent colour, depth and
         camera_info: just subscribed, the first frames take discovery and a render."""
         deadline = time.monotonic() + FIRST_FRAME_WAIT
-        while time.monotonic() < deadline and not all(
-            self.inputs[name].colors and self.inputs[name].depths and self.inputs[name].info
-            for name in names
+        while (
+            time.monotonic() < deadline
+            and self.context.ok()  # stopping: the callback returns, the node is drained
+            and not all(
+                self.inputs[name].colors and self.inputs[name].depths and self.inputs[name].info
+                for name in names
+            )
         ):
             time.sleep(0.02)  # the input callbacks run on the executor's other thread
 
@@ -455,7 +458,7 @@ class PerceptionNode(Node):
         tolerance = float(self.settings.sync_tolerance)
         pair = camera.latest_pair(tolerance, not_before)
         deadline = time.monotonic() + (SYNC_WAIT if math.isinf(not_before) else FRESH_WAIT)
-        while pair is None and time.monotonic() < deadline:
+        while pair is None and time.monotonic() < deadline and self.context.ok():
             time.sleep(0.02)  # the input callbacks run on the executor's other thread
             pair = camera.latest_pair(tolerance, not_before)
         if pair is None:
@@ -561,6 +564,8 @@ class PerceptionNode(Node):
             views, warnings = self._views(names, not_before_of(request))
             placements = check_placements(expected, views, self.pipeline, config) if views else []
         except Exception as error:  # one bad frame set must never take the node down
+            if not self.context.ok():
+                raise  # stopping: the graph went away, and the executor drains this quietly
             self.get_logger().error(f"placement check failed: {error!r}\n{traceback.format_exc()}")
             views, warnings, placements = [], [f"placement check failed: {error!r}"], []
         self._warn(warnings)
@@ -621,6 +626,8 @@ class PerceptionNode(Node):
             views, warnings = self._views(names, not_before)
             result = self.pipeline.run(views) if views else None
         except Exception as error:  # one bad frame set must never take the node down
+            if not self.context.ok():
+                raise  # stopping: the graph went away, and the executor drains this quietly
             self.get_logger().error(f"perception failed: {error!r}\n{traceback.format_exc()}")
             views, warnings, result = [], [f"perception failed on this frame set: {error!r}"], None
         if result is not None:
@@ -741,14 +748,7 @@ def main(args: list[str] | None = None) -> None:
         print(f"perception_node: cannot start: {error}", flush=True)
         rclpy.try_shutdown()
         raise SystemExit(2) from None
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
-    try:
-        with stop_quietly_on_shutdown():
-            executor.spin()
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until_shutdown(node, num_threads=2)
 
 
 if __name__ == "__main__":

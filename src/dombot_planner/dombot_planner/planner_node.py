@@ -26,12 +26,11 @@ import rclpy
 from geometry_msgs.msg import Pose, Vector3
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import spin_until_shutdown, stop_quietly_on_shutdown
 from dombot_adapters.parameters import DataclassParameters
 from dombot_adapters.pose_messages import duration_message, pose_message
 from dombot_description.allocator import release_memory, tune_allocator
@@ -341,16 +340,13 @@ class PlannerNode(Node):
 def main(args: list[str] | None = None) -> None:
     tune_allocator()
     rclpy.init(args=args)
-    executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
-    try:
-        with stop_quietly_on_shutdown():
-            node = PlannerNode()
-            executor.add_node(node)
-            executor.spin()
-    finally:
-        executor.shutdown()
-        if rclpy.ok():
-            rclpy.shutdown()
+    node = None
+    with stop_quietly_on_shutdown():  # Ctrl-C while the planner is being built
+        node = PlannerNode()
+    if node is None:
+        rclpy.try_shutdown()
+        return
+    spin_until_shutdown(node, num_threads=EXECUTOR_THREADS)
 
 
 if __name__ == "__main__":
