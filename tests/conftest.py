@@ -38,6 +38,7 @@ SPREAD = {
 }
 # The modules that take longest, longest first (--durations of a whole run, README).
 LONGEST = (
+    "tests/bringup/test_cycles_e2e.py",  # one test, the longest: it must not start last
     "tests/sim/test_physics.py",
     "tests/planner/test_execution.py",
     "tests/bringup/test_partial_build.py",
