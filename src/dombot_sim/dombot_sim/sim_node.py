@@ -776,8 +776,11 @@ def main(args: list[str] | None = None) -> int:
         node.save_meshcat_recording()
         # a logger of its own, not the node's (nor its child, which rclpy registers with
         # rosout): Ctrl-C may have shut the context down, and rosout would refuse the line
-        rclpy.logging.get_logger(f"{node.get_name()}.shutdown").info(
-            f"camera frames rendered: {frames or 'none (no cameras)'}"
+        logger = rclpy.logging.get_logger(f"{node.get_name()}.shutdown")
+        logger.info(f"camera frames rendered: {frames or 'none (no cameras)'}")
+        logger.info(
+            f"simulated {node.world.time:.1f} s, of which the cell was still (no physics "
+            f"steps) {node.world.skipped_time:.1f} s"
         )
         node.destroy_node()
         rclpy.try_shutdown()
