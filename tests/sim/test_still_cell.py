@@ -70,8 +70,17 @@ def test_a_trajectory_arriving_steps_the_arm_along_it_and_then_it_is_still_again
     np.testing.assert_allclose(world.joint_state().position[:7], goal, atol=1e-3)
     world.advance(1.0)  # settles at its goal
     assert world.still()
-    world.hold_arm(home)  # back home for the next test, a hold's step
-    world.advance(1.0)
+
+
+def test_a_hold_elsewhere_pulls_the_arm_there_before_it_is_still(world: CellWorld) -> None:
+    """A hold starts from rest: still, but for the command (the steps show the pull)."""
+    home = world.scenario.home_position
+    world.hold_arm(home)
+    assert not world.still()
+
+    world.advance(1.5)
+
+    np.testing.assert_allclose(world.joint_state().position[:7], home, atol=1e-4)
     assert world.still()
 
 

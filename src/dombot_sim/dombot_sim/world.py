@@ -164,6 +164,7 @@ class CellWorld:
         self.skip_still = self.config.skip_still
         self.skipped_time = 0.0  # s simulated advanced without stepping (``still``)
         self._skipped = False  # the simulator must be re-initialized before its next step
+        self._commanded = False  # a command not yet followed by a step (``still``)
         self._diverged_last_step = False
         # hears what went wrong in the physics and what was done about it (the node logs it)
         self.trouble_listener: Callable[[str], None] | None = None
@@ -317,8 +318,10 @@ class CellWorld:
     def still(self) -> bool:
         """Nothing in the cell moves, nor would in a step: every domino in use asleep, the
         arm holding after its last trajectory and the fingers at their goal, every joint
-        slower than STILL_SPEED (sleeping must be on: it is what says a domino rests)."""
-        if not (self._sleep.enabled and self._sleep.all_asleep(self._in_use)):
+        slower than STILL_SPEED since a step after the last command (a new hold starts
+        from rest: its first step shows the pull), and sleeping on (it is what says a
+        domino rests)."""
+        if self._commanded or not (self._sleep.enabled and self._sleep.all_asleep(self._in_use)):
             return False
         now = self.time
         if now < self._arm_source.end_time or not self._gripper.target_reached(now):
@@ -368,6 +371,7 @@ class CellWorld:
             self._diverged_last_step = False
         self._remove_escaped(after)
         self._sleep.update(self._root)
+        self._commanded = False
 
     def _step(self, dt: float) -> np.ndarray:
         """One physics step; a step that leaves a diverged state is undone. Returns the
@@ -649,6 +653,7 @@ class CellWorld:
         """Change the arm's command; re-setting the time drops outputs cached for the old one."""
         change()
         self._root.SetTime(self._root.get_time())
+        self._commanded = True
 
     def desired_arm_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the arm controller is tracking now: (q, v, a)."""
@@ -677,6 +682,7 @@ class CellWorld:
         if not (np.isfinite(max_force) and max_force >= 0.0):
             raise ValueError(f"gripper max_force must be >= 0, got {max_force}")
         self._gripper.command(opening, max_force, self.time, self.gripper_state().opening)
+        self._commanded = True
 
     @property
     def gripper_stroke(self) -> float:
