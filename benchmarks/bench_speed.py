@@ -33,6 +33,7 @@ RUN_TIMEOUT = 3600.0  # s of wall time
 TRAJECTORY_START = re.compile(r"\[sim_node\].*executing a ([0-9.]+) s trajectory")
 TRAJECTORY_END = re.compile(r"\[sim_node\].*(trajectory done|follow_joint_trajectory \w+:)")
 FRAMES = re.compile(r"\[sim_node\].*camera frames rendered: (.*)")
+STILL = re.compile(r"\[sim_node\].*simulated [0-9.]+ s, of which the cell was still .* ([0-9.]+) s")
 # perception's words for a look that found no usable frame of a camera
 MISSED_FRAMES = re.compile(
     r"\[perception_node\] \[WARN\].*(stopped publishing|no colour and depth images)"
@@ -93,7 +94,7 @@ def run(args: argparse.Namespace) -> dict:
     load_before = os.getloadavg()[0]
     started = time.monotonic()
     moving_cpu = moving_sim = 0.0
-    frames, missed = None, 0
+    frames, missed, still = None, 0, None
     motion_start: tuple[float, float] | None = None  # (sim_node CPU, trajectory seconds)
     with (
         (args.out / "bringup.log").open("w") as log_file,
@@ -109,6 +110,8 @@ def run(args: argparse.Namespace) -> dict:
             missed += bool(MISSED_FRAMES.search(line))
             if rendered := FRAMES.search(line):
                 frames = rendered.group(1)
+            if skipped := STILL.search(line):
+                still = float(skipped.group(1))
             if start := TRAJECTORY_START.search(line):
                 motion_start = (cpu.node("sim_node"), float(start.group(1)))
             elif motion_start and TRAJECTORY_END.search(line):
@@ -129,6 +132,7 @@ def run(args: argparse.Namespace) -> dict:
         "load_average_before_after": [round(load_before, 2), round(os.getloadavg()[0], 2)],
         "cpu_s_by_node": cpu.totals(),
         "camera_frames_rendered": frames,  # sim_node's last line; None: it did not say
+        "sim_node_still_simulated_s": still,  # advanced without physics steps; None: not said
         "perception_missed_frames": missed,
     }
     return summarize(args, result, (moving_cpu, moving_sim))

@@ -150,6 +150,11 @@ class GripperController(LeafSystem):
         delta = self._goal - self._ramp_start_opening
         return self._ramp_start_opening + math.copysign(min(travel, abs(delta)), delta)
 
+    def target_reached(self, time: float) -> bool:
+        """Has the opening target arrived at the goal by ``time`` (it moves no more)?"""
+        travel = self.settings.speed * (time - self._ramp_start_time)
+        return travel >= abs(self._goal - self._ramp_start_opening)
+
     def opening_force(self, time: float, state: Sequence[float]) -> float:
         """Force per finger along the opening (negative squeezes), clamped to the limit."""
         s = self.settings

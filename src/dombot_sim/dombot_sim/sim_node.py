@@ -67,6 +67,7 @@ from dombot_sim.goal_monitor import (
     tracking_summary,
 )
 from dombot_sim.motion_watch import describe_motion, take_snapshot
+from dombot_sim.pacing import Pacer
 from dombot_sim.sleeping import SleepSettings
 from dombot_sim.trajectory import INVALID_JOINTS, TrajectoryError, build_trajectory
 from dombot_sim.world import CONTACT_APPROXIMATIONS, CellWorld, WorldConfig
@@ -160,6 +161,9 @@ class SimParameters:
         "", "with meshcat: record what Meshcat shows, written here as HTML on shutdown"
     )
     sleeping: bool = described(True, "dominoes at rest sleep (docs/SIM.md)")
+    skip_still: bool = described(
+        True, "while nothing moves, advance the clock without physics steps (docs/SIM.md)"
+    )
     log_moved_mm: float = described(
         1.0, "log the dominoes that moved this far [mm] during a goal; 0: no log"
     )
@@ -217,6 +221,7 @@ class SimNode(Node):
             cameras=self.settings.cameras,
             meshcat=self.settings.meshcat,
             domino_capacity=self.settings.domino_count,
+            skip_still=self.settings.skip_still,
             sleep=SleepSettings(enabled=self.settings.sleeping),
         )
         self.world = CellWorld(config)
@@ -297,23 +302,20 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ simulation loop
     def run(self, stop: threading.Event) -> None:
-        """Advance the world tick by tick, publish, and keep pace with the real-time factor."""
+        """Advance the world tick by tick, publish, and keep pace with the real-time factor
+        (``pacing``: at 0, the ticks in which the cell was still at real time)."""
         next_truth = next_tf = next_domino_tf = 0.0
-        wall_start, sim_start = time.monotonic(), self.world.time
-        factor = self.settings.real_time_factor
+        pacer = Pacer(self.settings.real_time_factor)
         while not stop.is_set() and rclpy.ok():
             rates = self.settings
-            if rates.real_time_factor != factor:
-                wall_start, sim_start, factor = (
-                    time.monotonic(),
-                    self.world.time,
-                    rates.real_time_factor,
-                )
+            pacer.factor = rates.real_time_factor
             with self._lock.loop_turn():
                 while not self._loop_tasks.empty():
                     self._loop_tasks.get()()
+                self.world.skip_still = rates.skip_still
+                skipped = self.world.skipped_time
                 self.world.advance(1.0 / rates.joint_state_rate)
-                now = self.world.time
+                now, still = self.world.time, self.world.skipped_time > skipped
                 self._publish_state(now)
                 if rates.camera_rate > 0.0:
                     self._render_watched(now, 1.0 / rates.camera_rate)
@@ -326,13 +328,9 @@ class SimNode(Node):
                 if rates.domino_tf_rate > 0.0 and now >= next_domino_tf:
                     self._publish_tf(now, self.world.domino_frames())
                     next_domino_tf = now + 1.0 / rates.domino_tf_rate
-            if factor > 0.0:
-                ahead = sim_start + (time.monotonic() - wall_start) * factor
-                delay = (now - ahead) / factor
-                if delay > 0.0:
-                    time.sleep(delay)
-                elif delay < -1.0:  # far behind (e.g. after a reset): do not race to catch up
-                    wall_start, sim_start = time.monotonic(), now
+            delay = pacer.delay(now, time.monotonic(), still)
+            if delay > 0.0:
+                time.sleep(delay)
 
     # ------------------------------------------------------------------ publishing
     def _watched_cameras(self) -> list[str]:
@@ -778,8 +776,11 @@ def main(args: list[str] | None = None) -> int:
         node.save_meshcat_recording()
         # a logger of its own, not the node's (nor its child, which rclpy registers with
         # rosout): Ctrl-C may have shut the context down, and rosout would refuse the line
-        rclpy.logging.get_logger(f"{node.get_name()}.shutdown").info(
-            f"camera frames rendered: {frames or 'none (no cameras)'}"
+        logger = rclpy.logging.get_logger(f"{node.get_name()}.shutdown")
+        logger.info(f"camera frames rendered: {frames or 'none (no cameras)'}")
+        logger.info(
+            f"simulated {node.world.time:.1f} s, of which the cell was still (no physics "
+            f"steps) {node.world.skipped_time:.1f} s"
         )
         node.destroy_node()
         rclpy.try_shutdown()

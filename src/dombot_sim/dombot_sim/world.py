@@ -68,6 +68,10 @@ DIVERGED_STATE = 1e3  # m, m/s or rad/s: no state of the cell comes near this
 CHUNK_STEPS = 10  # at most this many steps between looks at the state (sleeping off)
 LEFT_CELL_BELOW = -0.2  # m: a domino this far under the table top fell off the table
 LEFT_CELL_BEYOND = 3.0  # m from the robot base: flung out of the cell
+# m/s, rad/s: every joint of the cell slower than this, and nothing commanded to move,
+# is still (an arm holding after a trajectory is below it ~0.3 s after the end; the
+# fingers at rest jitter at ~1e-7 m/s)
+STILL_SPEED = 1e-5
 # Meshcat recording: 16 frames a simulated second play smoothly, and keep a whole run's
 # scene.html to tens of MB (at Drake's default of 64 it is four times that)
 MESHCAT_RECORDING_FPS = 16.0
@@ -86,6 +90,8 @@ class WorldConfig:
     domino_size: tuple[float, float, float] = DOMINO_SIZE
     settle_limit: float = 10.0  # s simulated: a pile still moving after this is reported
     pour_wave_size: int = 6
+    # while the cell is still (``CellWorld.still``) the clock advances without stepping
+    skip_still: bool = True
     sleep: SleepSettings = field(default_factory=SleepSettings)
     arm_gains: ArmGains = field(default_factory=ArmGains)
     gripper: GripperSettings = field(default_factory=GripperSettings)
@@ -155,6 +161,10 @@ class CellWorld:
         self._in_use: list[int] = []
         self._root = None
         self.divergences = 0  # physics steps undone after diverging
+        self.skip_still = self.config.skip_still
+        self.skipped_time = 0.0  # s simulated advanced without stepping (``still``)
+        self._skipped = False  # the simulator must be re-initialized before its next step
+        self._commanded = False  # a command not yet followed by a step (``still``)
         self._diverged_last_step = False
         # hears what went wrong in the physics and what was done about it (the node logs it)
         self.trouble_listener: Callable[[str], None] | None = None
@@ -235,6 +245,7 @@ class CellWorld:
         self._go_home()
         self._park(range(capacity))
         self._simulator.Initialize()
+        self._skipped = False
 
     # ------------------------------------------------------------------ state
     @property
@@ -296,9 +307,34 @@ class CellWorld:
         self.advance_to(self.time + duration)
 
     def advance_to(self, target: float) -> None:
+        """Simulate up to ``target`` (on the step grid). While the cell is ``still`` (and
+        ``skip_still``) only the clock moves: a step would change nothing."""
         last = self._step_index() + max(round((target - self.time) / self.config.time_step), 0)
+        if self._step_index() < last and self.skip_still and self.still():
+            self._skip_to(last)
         while self._step_index() < last:
             self._advance_chunk(last)
+
+    def still(self) -> bool:
+        """Nothing in the cell moves, nor would in a step: every domino in use asleep, the
+        arm holding after its last trajectory and the fingers at their goal, every joint
+        slower than STILL_SPEED since a step after the last command (a new hold starts
+        from rest: its first step shows the pull), and sleeping on (it is what says a
+        domino rests)."""
+        if self._commanded or not (self._sleep.enabled and self._sleep.all_asleep(self._in_use)):
+            return False
+        now = self.time
+        if now < self._arm_source.end_time or not self._gripper.target_reached(now):
+            return False
+        speeds = self._plant.GetVelocities(self._plant_context)  # sleepers' are zero
+        return bool(np.all(np.abs(speeds) < STILL_SPEED))
+
+    def _skip_to(self, last: int) -> None:
+        """Move the clock to step ``last`` without stepping; the state stays as it is."""
+        target = last * self.config.time_step
+        self.skipped_time += target - self.time
+        self._root.SetTime(target)
+        self._skipped = True
 
     def _step_index(self) -> int:
         """The time as a number of steps: it is always on the plant's grid k * dt."""
@@ -315,6 +351,9 @@ class CellWorld:
         parked up to a chunk later, where it touches nothing.
         """
         dt, start = self.config.time_step, self._step_index()
+        if self._skipped:  # its pending step was for the time before the skip
+            self._simulator.Initialize(InitializeParams(suppress_initialization_events=True))
+            self._skipped = False
         due = self._sleep.next_check
         end = start + 1
         while end < min(last, start + CHUNK_STEPS) and end * dt < due:
@@ -332,6 +371,7 @@ class CellWorld:
             self._diverged_last_step = False
         self._remove_escaped(after)
         self._sleep.update(self._root)
+        self._commanded = False
 
     def _step(self, dt: float) -> np.ndarray:
         """One physics step; a step that leaves a diverged state is undone. Returns the
@@ -613,6 +653,7 @@ class CellWorld:
         """Change the arm's command; re-setting the time drops outputs cached for the old one."""
         change()
         self._root.SetTime(self._root.get_time())
+        self._commanded = True
 
     def desired_arm_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What the arm controller is tracking now: (q, v, a)."""
@@ -641,6 +682,7 @@ class CellWorld:
         if not (np.isfinite(max_force) and max_force >= 0.0):
             raise ValueError(f"gripper max_force must be >= 0, got {max_force}")
         self._gripper.command(opening, max_force, self.time, self.gripper_state().opening)
+        self._commanded = True
 
     @property
     def gripper_stroke(self) -> float:
