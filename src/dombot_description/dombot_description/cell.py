@@ -125,9 +125,10 @@ def add_plant_and_scene_graph(
     builder: DiagramBuilder, time_step: float
 ) -> tuple[MultibodyPlant, SceneGraph]:
     """What AddMultibodyPlantSceneGraph does (names included), wired here: pydrake's
-    binding of it leaks native memory with every diagram built and dropped, ~0.3 MB
-    per shadow plant (Drake issue 24529, fixed after 1.52.1), and the planner builds three
-    for every request with a grasp width it has not kept (docs/RELIABILITY.md, "Memory")."""
+    binding of it leaks native memory with every diagram built and dropped, ~0.3 MB per
+    shadow plant (likely Drake issue 24529, fixed after 1.52.1), and the planner builds
+    three for every request with a grasp width it has not kept (docs/RELIABILITY.md,
+    "Memory")."""
     plant = builder.AddSystem(MultibodyPlant(time_step))
     plant.set_name("plant")
     scene_graph = builder.AddSystem(SceneGraph())
