@@ -5,10 +5,11 @@ sends at least ``--requests`` hostile requests per endpoint in batches of up to 
 once (hypothesis, ``--seed``), a valid request after every batch, and prints one JSON
 object: requests, outcome histogram, worst batch latency per endpoint, wrong outcomes,
 hangs, crashes, each node's RSS after warm-up and at the end, and per endpoint the
-serving node's RSS growth from its first WARM_UP_REQUESTS requests to its last (caches
-and allocator arenas fill first) with its RSS after every 5 batches. Progress on stderr.
+serving node's RSS growth over ``--requests`` hostile requests sent after ``--warm-up``
+others (caches and allocator arenas fill first), the slope of its second half and its
+RSS after every 5 batches. Progress on stderr.
 
-    python benchmarks/bench_fuzz.py --requests 1000
+    python benchmarks/bench_fuzz.py --warm-up 1000 --requests 1000
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 # its own ROS domain, discovery on localhost: other sessions' nodes must not answer
 os.environ.setdefault("ROS_DOMAIN_ID", str(10 + os.getpid() % 90))
@@ -44,7 +47,6 @@ from support.fuzz import (
     service_endpoints,
 )
 
-WARM_UP_REQUESTS = 100  # RSS growth is measured from here (caches fill, arenas grow)
 LAYER_CASES = {
     "/layer/target_radius": radius_cases,
     "/layer/path": path_cases,
@@ -62,24 +64,63 @@ def node_rss(harness: Harness, node: str) -> float:
 
 
 def endpoint_growth(
-    harness: Harness, node: str, start: int, name: str, trace: list[tuple[int, float]]
+    harness: Harness, node: str, warm_up: tuple[int, float], trace: list[tuple[int, float]]
 ) -> dict:
-    """The serving node's RSS after the endpoint's first WARM_UP_REQUESTS requests and
-    after its last, the growth between them, and the RSS after every round of batches
-    (``trace``: requests served, MB) to tell a plateau from a leak."""
-    growth = {"node": node, "requests": harness.report.requests[name] - start}
-    growth["rss_mb_end"] = node_rss(harness, node)
-    settled = next(((n, mb) for n, mb in trace if n >= WARM_UP_REQUESTS), None)
-    if settled is not None:
-        growth["warm_up_requests"], growth["rss_mb_after_warm_up"] = settled
-        growth["growth"] = round(growth["rss_mb_end"] / settled[1] - 1, 4)
+    """The serving node's RSS after the warm-up (``warm_up``: requests, MB) and at the
+    end, the growth between them, the slope over the second half of the measured requests
+    (MB per 1,000: a plateau is flat there, a leak is not) and the RSS after every round
+    of batches (``trace``: requests served since the warm-up began, MB)."""
+    served, baseline = warm_up
+    end = node_rss(harness, node)
+    measured = [(n, mb) for n, mb in trace if n > served]
+    growth = {
+        "node": node,
+        "warm_up_requests": served,
+        "requests": (measured[-1][0] - served) if measured else 0,
+        "rss_mb_after_warm_up": baseline,
+        "rss_mb_end": end,
+        "growth": round(end / baseline - 1, 4),
+    }
+    second_half = [(n, mb) for n, mb in measured if n - served >= growth["requests"] / 2]
+    if len(second_half) >= 3:
+        n, mb = np.array(second_half).T
+        growth["slope_mb_per_1000_second_half"] = round(1000 * np.polyfit(n, mb, 1)[0], 2)
     growth["rss_trace"] = trace
     return growth
 
 
+def fuzz_rounds(harness: Harness, endpoint, cases, args, until: int, began: float) -> list:
+    """Rounds of 5 batches until ``until`` requests to ``endpoint`` were sent (or
+    ``--max-seconds``); returns (requests, serving node's RSS) after each round."""
+    trace = []
+    while harness.report.requests[endpoint.name] < until:
+        if time.monotonic() - began > args.max_seconds:
+            log(f"{endpoint.name}: stopped after --max-seconds")
+            break
+        fuzz(
+            harness,
+            endpoint,
+            cases(),
+            batches=5,
+            random_seed=args.seed,
+            fewest_at_once=args.fewest_at_once,
+        )
+        args.seed += 1
+        trace.append((harness.report.requests[endpoint.name], node_rss(harness, endpoint.node)))
+    return trace
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--requests", type=int, default=1000, help="hostile requests per endpoint")
+    parser.add_argument(
+        "--requests", type=int, default=1000, help="measured hostile requests per endpoint"
+    )
+    parser.add_argument(
+        "--warm-up",
+        type=int,
+        default=1000,
+        help="hostile requests per endpoint sent before RSS growth is measured",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--timeout", type=float, default=300.0, help="s before a reply is a hang")
     parser.add_argument(
@@ -110,25 +151,14 @@ def main() -> None:
         growth = {}
         for name in chosen:
             endpoint, cases = endpoints[name]
-            log(f"{name}: {args.requests} requests ...")
+            log(f"{name}: {args.warm_up} + {args.requests} requests ...")
             start = harness.report.requests[name]
-            trace = []  # (requests served, RSS) after each round of batches
-            while harness.report.requests[name] < start + args.requests:
-                if time.monotonic() - began > args.max_seconds:
-                    log(f"{name}: stopped after --max-seconds")
-                    break
-                fuzz(
-                    harness,
-                    endpoint,
-                    cases(),
-                    batches=5,
-                    random_seed=args.seed,
-                    fewest_at_once=args.fewest_at_once,
-                )
-                args.seed += 1
-                served = harness.report.requests[name] - start
-                trace.append((served, node_rss(harness, endpoint.node)))
-            growth[name] = endpoint_growth(harness, endpoint.node, start, name, trace)
+            trace = fuzz_rounds(harness, endpoint, cases, args, start + args.warm_up, began)
+            warm_up = (harness.report.requests[name], node_rss(harness, endpoint.node))
+            trace += fuzz_rounds(harness, endpoint, cases, args, warm_up[0] + args.requests, began)
+            trace = [(n - start, mb) for n, mb in trace]
+            warm_up = (warm_up[0] - start, warm_up[1])
+            growth[name] = endpoint_growth(harness, endpoint.node, warm_up, trace)
             log(f"{name}: done after {time.monotonic() - began:.0f} s")
         harness.rss("end")
     node.destroy_node()

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -132,6 +135,47 @@ def test_home_pose_points_the_gripper_down_clear_of_the_table() -> None:
 def test_shadow_plant_refuses_an_opening_beyond_the_stroke() -> None:
     with pytest.raises(ValueError, match="stroke"):
         build_shadow_plant(SCENARIO, grasp_opening=0.2)
+
+
+# Builds shadow plants one after another in a fresh interpreter, as the planner does when
+# requests bring new grasp widths, and prints the resident set growth per plant built and
+# dropped after the first few (allocators reach their working size) in KiB.
+CHURN = """
+import gc
+from pathlib import Path
+from dombot_description.allocator import release_memory, tune_allocator
+from dombot_description.cell import build_shadow_plant
+from dombot_description.scenario import load_scenario
+
+def rss_kib():
+    status = Path("/proc/self/status").read_text()
+    return int(next(l for l in status.splitlines() if l.startswith("VmRSS:")).split()[1])
+
+def settle():
+    gc.collect()
+    release_memory()
+    return rss_kib()
+
+tune_allocator()
+scenario = load_scenario()
+for i in range(8):
+    build_shadow_plant(scenario, 0.010 + 0.001 * i)
+before = settle()
+for i in range(24):
+    build_shadow_plant(scenario, 0.020 + 0.001 * i)
+print((settle() - before) / 24)
+"""
+
+
+def test_shadow_plants_built_and_dropped_give_their_memory_back() -> None:
+    """pydrake's AddMultibodyPlantSceneGraph kept ~310 KiB of every diagram built with it
+    (Drake issue 24529); build_shadow_plant wires the two itself and keeps ~40."""
+    env = dict(os.environ, PYTHONMALLOC="malloc")  # as planner_node runs
+    done = subprocess.run(
+        [sys.executable, "-c", CHURN], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, done.stderr
+    assert float(done.stdout) < 120.0  # KiB per plant
 
 
 def test_bad_scenario_names_the_field(tmp_path) -> None:

@@ -15,7 +15,7 @@ import numpy as np
 from pydrake.geometry import Box, SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import LoadModelDirectives, Parser, ProcessModelDirectives
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction, MultibodyPlant
+from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import DiagramBuilder
 
@@ -121,12 +121,33 @@ class ShadowPlant:
     models: CellModels
 
 
+def add_plant_and_scene_graph(
+    builder: DiagramBuilder, time_step: float
+) -> tuple[MultibodyPlant, SceneGraph]:
+    """What AddMultibodyPlantSceneGraph does (names included), wired here: pydrake's
+    binding of it leaks native memory with every diagram built and dropped, ~0.3 MB per
+    shadow plant (likely Drake issue 24529, fixed after 1.52.1), and the planner builds
+    three for every request with a grasp width it has not kept (docs/RELIABILITY.md,
+    "Memory")."""
+    plant = builder.AddSystem(MultibodyPlant(time_step))
+    plant.set_name("plant")
+    scene_graph = builder.AddSystem(SceneGraph())
+    scene_graph.set_name("scene_graph")
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    builder.Connect(
+        plant.get_geometry_pose_output_port(),
+        scene_graph.get_source_pose_port(plant.get_source_id()),
+    )
+    builder.Connect(scene_graph.get_query_output_port(), plant.get_geometry_query_input_port())
+    return plant, scene_graph
+
+
 def build_shadow_plant(
     scenario: Scenario, grasp_opening: float, obstacle_poses: Sequence[RigidTransform] = ()
 ) -> ShadowPlant:
     """The planner's plant: the arm's 7 joints only, fingers welded, obstacles anchored."""
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    plant, scene_graph = add_plant_and_scene_graph(builder, time_step=0.0)
     models = add_cell(plant, scenario)
     weld_fingers(plant, scenario, grasp_opening)
     add_standing_obstacles(plant, obstacle_poses)
