@@ -14,16 +14,20 @@ from support.planning_clock import UNHURRIED
 from support.ros_processes import executable_path
 
 BRINGUP = executable_path("dombot_bringup", "bringup")
-# The spiral's first four, a safety gap at the 3rd (--section 2): filled last, between the
-# standing 2nd and 4th, where the spiral turns 20° a domino; there every place pose has the
-# pads in a standing neighbour (the planner proves it: PLACE_UNREACHABLE), while the 1st,
-# 2nd and 4th, placed with only dominoes behind them standing, plan. (A spiral of 6 has
-# its gap at the 5th: the user's run of issue 23 that ended with nothing toppled.)
+# The spiral's first five at 22 mm spacing, a safety gap at the 3rd and 4th (--section 2;
+# two slots wide at this spacing), filled last: the 4th, between the standing 3rd and 5th,
+# is so close to both that every place pose has the pads in a standing neighbour (the
+# planner proves it: PLACE_UNREACHABLE, "pads–standing"; at the default spacing the
+# flatter grasps now reach such a slot), while the others, placed with a side free, plan.
+# (A spiral of 6 had its gap at the 5th: the user's run of issue 23 that ended with
+# nothing toppled.)
 SPIRAL_WITH_A_GAP_NOTHING_REACHES = [
     "--layout",
     "spiral",
     "--count",
-    "4",
+    "5",
+    "--spacing",
+    "0.022",
     "--section",
     "2",
     "--pile",
@@ -55,27 +59,27 @@ def test_a_slot_no_placement_reaches_is_left_empty_and_what_stands_is_knocked_do
     assert "PARTIAL" in result.stderr and "Traceback" not in result.stderr, output
     report = json.loads((tmp_path / "run_report.json").read_text())
     [empty] = report["empty_slots"]
-    assert empty["slot"] == 3, report["empty_slots"]
+    assert empty["slot"] == 4, report["empty_slots"]
     # the planner said why: no place pose for the slot (refusals about the dominoes offered,
     # GRASP_UNREACHABLE, may come with it)
     assert "PLACE_UNREACHABLE x" in empty["reason"], empty
-    assert report["dominoes"][2]["refusals"]["PLACE_UNREACHABLE"] >= 1, report["dominoes"][2]
-    assert report["message"].startswith("domino 3 could not be placed ("), report["message"]
+    assert report["dominoes"][3]["refusals"]["PLACE_UNREACHABLE"] >= 1, report["dominoes"][3]
+    assert report["message"].startswith("domino 4 could not be placed ("), report["message"]
     assert not report["built"] and report["struck"]
     sections = [
         (s["first_slot"], s["last_slot"], s["struck"], s["toppled_by_perception"])
         for s in report["sections"]
     ]
-    assert sections == [(1, 2, True, 2), (4, 4, True, 1)], report["sections"]
-    # struck from the run's end backwards: the lone 4th first, then the 1st and 2nd
+    assert sections == [(1, 3, True, 3), (5, 5, True, 1)], report["sections"]
+    # struck from the run's end backwards: the lone 5th first, then the 1st to 3rd
     lines = result.stdout.splitlines()
     strikes = [line for line in lines if "[bringup] knocking down" in line]
-    assert [line.split("knocking down ")[1] for line in strikes] == ["domino 4", "dominoes 1-2"]
-    # the simulator's truth: three stood upright before the strikes, every one fell
-    assert report["summary"]["standing_before_strike_by_truth"] == 3
+    assert [line.split("knocking down ")[1] for line in strikes] == ["domino 5", "dominoes 1-3"]
+    # the simulator's truth: four stood upright before the strikes, every one fell
+    assert report["summary"]["standing_before_strike_by_truth"] == 4
     assert report["toppled_by_perception"] and report["toppled_by_truth"]
     for domino in report["dominoes"]:
-        if domino["index"] == 2:
+        if domino["index"] == 3:
             assert not domino["placed"] and domino["truth_after_strike"] is None, domino
             continue
         assert domino["placed"] and domino["truth_built"]["tilt_deg"] < 10.0, domino
