@@ -146,14 +146,16 @@ class GripperController(LeafSystem):
 
     def reference(self, time: float) -> float:
         """The opening target at ``time``: a ramp from the command's start at the speed limit."""
-        travel = self.settings.speed * max(time - self._ramp_start_time, 0.0)
         delta = self._goal - self._ramp_start_opening
-        return self._ramp_start_opening + math.copysign(min(travel, abs(delta)), delta)
+        return self._ramp_start_opening + math.copysign(min(self._travel(time), abs(delta)), delta)
 
     def target_reached(self, time: float) -> bool:
         """Has the opening target arrived at the goal by ``time`` (it moves no more)?"""
-        travel = self.settings.speed * (time - self._ramp_start_time)
-        return travel >= abs(self._goal - self._ramp_start_opening)
+        return self._travel(time) >= abs(self._goal - self._ramp_start_opening)
+
+    def _travel(self, time: float) -> float:
+        """How far the ramp has moved the target by ``time`` if nothing stopped it."""
+        return self.settings.speed * max(time - self._ramp_start_time, 0.0)
 
     def opening_force(self, time: float, state: Sequence[float]) -> float:
         """Force per finger along the opening (negative squeezes), clamped to the limit."""
