@@ -1,6 +1,11 @@
-"""The perpetual cycle end to end over DDS with real node processes: a line of three is
+"""The perpetual cycle end to end over DDS with real node processes: a line of two is
 built from the pile, knocked down, and built again from the toppled dominoes perception
-sees lying in the build area; each cycle reported."""
+sees lying in the build area; each cycle reported.
+
+Two dominoes, not the README's three: the cycle does for two what it does for three (the
+second cycle offers each slot its nearest toppled domino first, the one lying over the
+next slot included; ``test_cycles.py`` checks that order for three without ROS), with a
+third less physics to step (28 s simulated instead of 43). The pile keeps one spare."""
 
 from __future__ import annotations
 
@@ -14,10 +19,9 @@ from support.planning_clock import UNHURRIED
 from support.ros_processes import executable_path
 
 BRINGUP = executable_path("dombot_bringup", "bringup")
-# the paper's test (README), twice
-LINE_OF_THREE_TWICE = [
-    *("--layout", "line", "--start", "0.5", "0.1", "--heading", "90", "--count", "3"),
-    *("--pile", "8", "--seed", "0", "--cycles", "2", "--real-time-factor", "0"),
+LINE_OF_TWO_TWICE = [
+    *("--layout", "line", "--start", "0.5", "0.1", "--heading", "90", "--count", "2"),
+    *("--pile", "3", "--seed", "0", "--cycles", "2", "--real-time-factor", "0"),
     *("--plan-budget", str(UNHURRIED)),  # a refusal is the planner's search, not the clock
 ]
 
@@ -28,7 +32,7 @@ def test_a_toppled_line_is_built_again_from_its_own_dominoes(tmp_path: Path) -> 
     log = tmp_path / "bringup.log"  # the job's and its nodes' lines, as they come
     with log.open("w") as sink:
         result = subprocess.run(
-            [str(BRINGUP), "--out", str(tmp_path), *LINE_OF_THREE_TWICE],
+            [str(BRINGUP), "--out", str(tmp_path), *LINE_OF_TWO_TWICE],
             stdout=sink,
             stderr=subprocess.PIPE,
             text=True,
@@ -42,11 +46,11 @@ def test_a_toppled_line_is_built_again_from_its_own_dominoes(tmp_path: Path) -> 
     one, two = report["cycles"]
     assert result.returncode == report["summary"]["exit_status"], output
     # cycle 1: the line from the pile, knocked down, every domino seen down
-    assert (one["cycle"], one["placed"], one["dominoes"], one["toppled_found"]) == (1, 3, 3, 0)
-    assert one["toppled_by_perception"] == 3 and one["exit_status"] == 0, one
-    # cycle 2: perception found the toppled ones lying and the arm picked them up again
-    assert two["toppled_found"] >= 2 and two["toppled_picked"] >= 2, two
-    assert two["placed"] == 3 and two["toppled_by_perception"] == 3, two
+    assert (one["cycle"], one["placed"], one["dominoes"], one["toppled_found"]) == (1, 2, 2, 0)
+    assert one["toppled_by_perception"] == 2 and one["exit_status"] == 0, one
+    # cycle 2: perception found both toppled ones lying and the arm picked them up again
+    assert two["toppled_found"] == 2 and two["toppled_picked"] == 2, two
+    assert two["placed"] == 2 and two["toppled_by_perception"] == 2, two
     assert result.returncode == 0, output
     # every node's memory at each cycle's end
     for cycle in (one, two):

@@ -37,7 +37,7 @@ from pydrake.math import RigidTransform
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -47,7 +47,7 @@ from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import DrainingExecutor, stop_quietly_on_shutdown
 from dombot_adapters.parameters import DataclassParameters, described
 from dombot_adapters.pose_messages import pose_message, seconds_of, time_message
 from dombot_description.allocator import release_memory, tune_allocator
@@ -107,6 +107,10 @@ TF_QOS = QoSProfile(depth=100)  # tf2_ros TransformBroadcaster
 # tf2_ros StaticTransformBroadcaster and robot_state_publisher's /robot_description: the
 # last message, kept for subscribers that come later
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class SimStoppedError(RuntimeError):
+    """The simulation loop has ended: a request waiting for it is never served."""
 
 
 class WorldLock:
@@ -214,6 +218,9 @@ class SimNode(Node):
         self._loop_tasks: queue.Queue[Callable[[], None]] = queue.Queue()
         self._generation = 0  # bumped by reset and by new trajectory goals (preemption)
         self._resets = 0
+        # set when the simulation loop has ended for good: the world no longer moves, so
+        # callbacks waiting for it return (the executor drains them before the node goes)
+        self.stopped = threading.Event()
         config = WorldConfig(
             scenario_path=self.settings.scenario or None,
             time_step=self.settings.time_step,
@@ -303,7 +310,14 @@ class SimNode(Node):
     # ------------------------------------------------------------------ simulation loop
     def run(self, stop: threading.Event) -> None:
         """Advance the world tick by tick, publish, and keep pace with the real-time factor
-        (``pacing``: at 0, the ticks in which the cell was still at real time)."""
+        (``pacing``: at 0, the ticks in which the cell was still at real time) until
+        ``stop`` or shutdown; ``stopped`` is set once it ends, however it ends."""
+        try:
+            self._run(stop)
+        finally:
+            self.stopped.set()
+
+    def _run(self, stop: threading.Event) -> None:
         next_truth = next_tf = next_domino_tf = 0.0
         pacer = Pacer(self.settings.real_time_factor)
         while not stop.is_set() and rclpy.ok():
@@ -438,6 +452,9 @@ class SimNode(Node):
             return response
         try:
             report = self._in_loop(lambda: self._reset(request.domino_count, request.seed))
+        except SimStoppedError as error:  # the node is going: no log line, rosout may be gone
+            response.success, response.message = False, str(error)
+            return response
         except ValueError as error:  # world.reset's checks, before anything changed
             response.success, response.message = False, str(error)
             self.get_logger().error(f"/sim/reset refused: {error}")
@@ -468,7 +485,9 @@ class SimNode(Node):
             done.set()
 
         self._loop_tasks.put(wrapped)
-        done.wait()
+        while not done.wait(0.1):
+            if self.stopped.is_set() and not done.is_set():
+                raise SimStoppedError("sim_node is stopping: the request was not served")
         if "error" in outcome:
             raise outcome["error"]
         return outcome["value"]
@@ -561,6 +580,9 @@ class SimNode(Node):
         while True:
             time.sleep(0.005)
             with self._lock:
+                if self.stopped.is_set():
+                    self._abort_stopped(goal_handle)
+                    return FollowJointTrajectory.Result(error_string="sim_node stopped")
                 if generation != self._generation:
                     return self._finish(
                         goal_handle, "abort", monitor, None, "preempted by a newer goal or a reset"
@@ -589,6 +611,13 @@ class SimNode(Node):
                 goal_handle.publish_feedback(
                     feedback_message(names, now, (desired, velocity, acceleration), state)
                 )
+
+    @staticmethod
+    def _abort_stopped(goal_handle) -> None:
+        """End a goal the stopped loop would never finish. No log line, and the abort's
+        status message may fail: Ctrl-C may have shut the context down."""
+        with stop_quietly_on_shutdown():
+            goal_handle.abort()
 
     def _finish(self, goal_handle, outcome, monitor, error, message, code=0):
         """End the goal; ``error_string`` carries the tracking figures the control_msgs
@@ -619,6 +648,9 @@ class SimNode(Node):
         while True:
             time.sleep(0.005)
             with self._lock:
+                if self.stopped.is_set():
+                    self._abort_stopped(goal_handle)
+                    return gripper_result(self.world.gripper_state(), reached=False, stalled=False)
                 if goal_handle.is_cancel_requested:
                     state = self.world.gripper_state()
                     self.world.command_gripper(state.opening, state.force_limit)
@@ -740,11 +772,12 @@ def gripper_feedback(state, reached: bool, stalled: bool) -> GripperCommand.Feed
     )
 
 
-def spin_forever(executor: MultiThreadedExecutor, node: Node) -> None:
+def spin_forever(executor: DrainingExecutor, node: Node) -> None:
     """Spin until shutdown; a callback that raises is logged and the node keeps serving."""
     while rclpy.ok():
         try:
             executor.spin()
+            return  # the executor was shut down
         except (KeyboardInterrupt, ExternalShutdownException):
             return
         except Exception as error:  # one bad callback must not stop the node
@@ -760,7 +793,7 @@ def main(args: list[str] | None = None) -> int:
         print(f"sim_node: bad parameters: {error}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    executor = MultiThreadedExecutor(num_threads=4)
+    executor = DrainingExecutor(num_threads=4)
     executor.add_node(node)
     spinner = threading.Thread(target=spin_forever, args=(executor, node), daemon=True)
     spinner.start()
@@ -771,8 +804,10 @@ def main(args: list[str] | None = None) -> int:
     finally:
         stop.set()
         frames = ", ".join(f"{name} {count}" for name, count in node.frames_rendered.items())
-        executor.shutdown(timeout_sec=2.0)
-        spinner.join(timeout=2.0)
+        # the loop has ended (node.stopped): the callbacks still at work see it and return;
+        # the node is destroyed only once they have (rclpy issue 893, node_shutdown)
+        executor.shutdown()
+        spinner.join(timeout=10.0)
         node.save_meshcat_recording()
         # a logger of its own, not the node's (nor its child, which rclpy registers with
         # rosout): Ctrl-C may have shut the context down, and rosout would refuse the line
