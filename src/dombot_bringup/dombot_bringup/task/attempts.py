@@ -19,7 +19,7 @@ from dombot_bringup.offers import (
 from dombot_bringup.run_report import PileDomino
 from dombot_bringup.task.cell import Posture
 from dombot_bringup.task.checks import check
-from dombot_bringup.task.clearing import lay_flat, spread
+from dombot_bringup.task.clearing import isolate, lay_flat, spread
 from dombot_bringup.task.geometry import near, near_any, spot_of
 from dombot_bringup.task.picking import (
     PICKABLE_POSTURES,
@@ -74,9 +74,11 @@ def attempt(
     refusal was about the slot and not ``ignore_pile`` (other slots may be built first;
     refusals about the dominoes would recur at every slot), a pile domino is pushed out of
     its crowd (``clearing.spread``) and the attempt starts again from a fresh look (up to
-    max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught by the
-    grasp check and backed out of, and stirs the pile). A refusal costs a planning call,
-    not an attempt: the arm has not moved (NO_PLAN). When the slot cannot be put off
+    max_spreads a slot); only then the roomiest ignoring the pile: the first that plans so
+    is pushed out of its crowd first and the attempt starts again from a fresh look
+    (``clearing.isolate``, up to max_isolations a slot), and after that picked (a miss is
+    caught by the grasp check and backed out of, and stirs the pile). A refusal costs a
+    planning call, not an attempt: the arm has not moved (NO_PLAN). When the slot cannot be put off
     (``ignore_pile``) and the refusals of its turn (``refusals``, kept over the turn's
     attempts, spreads and pushes until something plans) show no domino can be placed there
     (``no_place``), nothing more is pushed for it: NO_PLACE, and the slot is given up.
@@ -111,6 +113,8 @@ def attempt(
         ignoring = [(c, PILE_IGNORED) for c in roomiest]
         offer, more = first_plan(job, index, ignoring, failed, refusals)
         refused += more
+        if offer is not None and isolate(job, index, offer.candidate):
+            return attempt(job, index, failed, ignore_pile, turned, refusals)
     if offer is None:
         if about_the_pile:
             name_out_of_reach(job, index, [c for c in found if c.from_pile] + stuck)

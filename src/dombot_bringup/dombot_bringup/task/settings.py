@@ -38,6 +38,14 @@ class ArmJobSettings:
     # none of those plans (the pile is jammed), a push through the neighbours
     # (``spread.stir_pushes``), as many times at most.
     max_spreads: int = 2
+    # When only a pick ignoring its pile plans, that domino (a grasp reaches it, the pads
+    # only through a neighbour) is pushed out of its crowd first (or through it, when no
+    # push keeps clear), the pile looked at again and the attempt starts over, at most
+    # max_isolations times a slot (``clearing.isolate``); such pushes cost no attempt.
+    # Ignoring their pile, 7 of 10 picks in two 30-domino runs closed on nothing: the pads
+    # landed on a neighbour (the approach ended short of its grasp) or went through one.
+    # 0: picked ignoring its pile at once, as before.
+    max_isolations: int = 2
     # Before spreading, a pile domino no grasp takes as it lies (on its edge: no grasp of
     # the family holds it; or refused even ignoring its pile) is pushed over, or
     # slid towards the pile's centre (``clearing.lay_flat``), at most max_lay_flat times a
