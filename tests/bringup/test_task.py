@@ -958,6 +958,33 @@ def test_a_leaning_domino_whose_hold_has_no_place_is_pushed_flat_at_the_next_att
     assert run_job.report.dominoes[0].attempts == 2
 
 
+def test_a_leaning_domino_that_plans_is_pushed_over_flat_before_it_is_picked() -> None:
+    """4 of 22 leaning picks in four runs failed (an edge, or nothing between the
+    fingers), none of 35 flat ones planned with their pile or its cores: pushed over
+    along its thickness axis first, looked at again, and picked flat; no attempt spent."""
+    leaning = lying(0.55, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
+
+    def push(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.57)]
+        return planned("push")
+
+    cell.strike, cell.place = push, lambda request: planned()
+    run_job = job(cell)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    (pushed,) = cell.strike_requests
+    assert abs(pushed.sweep[0]) == pytest.approx(1.0)  # along its thickness axis, seen above
+    assert pushed.push_distance == pytest.approx(TIP_DISTANCE)
+    assert len(cell.looks) == 2 and offered(cell)[-1][0] == pytest.approx(0.57)
+    outcome = run_job.report.dominoes[0]
+    assert outcome.attempts == 1 and len(outcome.laid_flat) == 1
+    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
+    cell.strike, cell.place = push, lambda request: planned()
+    assert place_slot(job(cell, lay_leaning_flat=False), 0, may_defer=False) is Turn.PLACED
+    assert cell.strike_requests == [] and offered(cell)[0][0] == pytest.approx(0.55)
+
+
 NO_PLACE_POSE = (
     "PLACE_UNREACHABLE at place: no collision-free IK and approach line for any of 24 place "
     "poses (standing neighbour x24)"

@@ -19,7 +19,7 @@ from dombot_bringup.offers import (
 from dombot_bringup.run_report import PileDomino
 from dombot_bringup.task.cell import Posture
 from dombot_bringup.task.checks import check
-from dombot_bringup.task.clearing import isolate, lay_flat, spread
+from dombot_bringup.task.clearing import isolate, lay_flat, lay_leaning_flat, spread
 from dombot_bringup.task.geometry import near, near_any, spot_of
 from dombot_bringup.task.picking import (
     PICKABLE_POSTURES,
@@ -86,6 +86,9 @@ def attempt(
     offered with it again; refused ignoring it, or the pick blocked or missed: not offered
     at all), until a pick within DISTURBED_RADIUS moves it.
 
+    A leaning pile domino that planned with its pile is pushed over flat first
+    (``clearing.lay_leaning_flat``) and the attempt starts again from a fresh look.
+
     A pile domino the planner turns in place first (no grasp reached it as it lay) is
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
     picked blind where the plan expected it to settle, 3 of 7 such picks missed.
@@ -101,6 +104,8 @@ def attempt(
         *((c, PILE_CORES) for c in roomiest),
     ]
     offer, refused = first_plan(job, index, with_pile, failed, refusals)
+    if offer is not None and lay_leaning_flat(job, index, offer.candidate):
+        return attempt(job, index, failed, ignore_pile, turned, refusals)
     about_the_pile = ignore_pile or not any(r.about_the_slot for r in refusals[earlier:])
     if offer is None and ignore_pile and (why := no_place(job, index, refusals)):
         return Attempt(Outcome.NO_PLACE, why)

@@ -106,6 +106,17 @@ def isolate(job: Job, index: int, candidate: Candidate) -> bool:
     return False
 
 
+def lay_leaning_flat(job: Job, index: int, candidate: Candidate) -> bool:
+    """Before leaning pile ``candidate`` is picked: push it over so that it lies flat
+    (``lay_flat``: not where one was pushed already until something near it moves, at
+    most max_lay_flat a slot); True once the arm moved (the pile is to be looked at
+    again)."""
+    settings, outcome = job.settings, job.report.dominoes[index]
+    if not (settings.lay_leaning_flat and candidate.from_pile and candidate.leaning):
+        return False
+    return len(outcome.laid_flat) < settings.max_lay_flat and lay_flat(job, index, [candidate])
+
+
 def lay_flat(job: Job, index: int, stuck: Sequence[Candidate]) -> bool:
     """Push one of the pile dominoes no grasp takes as they lie (``stuck``: on their edge,
     or refused even ignoring their pile) so that it lies flat within reach
