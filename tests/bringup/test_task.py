@@ -985,6 +985,22 @@ def test_a_leaning_domino_that_plans_is_pushed_over_flat_before_it_is_picked() -
     assert cell.strike_requests == [] and offered(cell)[0][0] == pytest.approx(0.55)
 
 
+def test_a_leaning_domino_no_push_lays_flat_gives_way_to_a_flat_one_that_plans() -> None:
+    """Spiral seed 11: both pushes of a leaning domino were refused (one into the
+    neighbour it leaned on), its pick closed on nothing, and a flat one planned at the
+    next attempt. The flat one offered after it is asked first."""
+    leaning = lying(0.50, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
+    pile = [Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01), unscored]
+    cell = ScriptedCell(pile=pile, place=lambda request: planned())
+    run_job = job(cell)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    assert len(cell.strike_requests) == 2  # both ways over: refused
+    assert [offer[0] for offer in offered(cell)] == pytest.approx([0.50, 0.60])
+    assert run_job.report.dominoes[0].attempts == 1
+
+
 NO_PLACE_POSE = (
     "PLACE_UNREACHABLE at place: no collision-free IK and approach line for any of 24 place "
     "poses (standing neighbour x24)"

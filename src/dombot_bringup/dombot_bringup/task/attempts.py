@@ -3,6 +3,7 @@ check the placement."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -87,7 +88,8 @@ def attempt(
     at all), until a pick within DISTURBED_RADIUS moves it.
 
     A leaning pile domino that planned with its pile is pushed over flat first
-    (``clearing.lay_leaning_flat``) and the attempt starts again from a fresh look.
+    (``clearing.lay_leaning_flat``) and the attempt starts again from a fresh look; when
+    no push plans, a flat one offered after it is picked if it plans (``flat_instead``).
 
     A pile domino the planner turns in place first (no grasp reached it as it lay) is
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
@@ -106,6 +108,9 @@ def attempt(
     offer, refused = first_plan(job, index, with_pile, failed, refusals)
     if offer is not None and lay_leaning_flat(job, index, offer.candidate):
         return attempt(job, index, failed, ignore_pile, turned, refusals)
+    if offer is not None:
+        offer, more = flat_instead(job, index, offer, with_pile, failed, refusals)
+        refused += more
     about_the_pile = ignore_pile or not any(r.about_the_slot for r in refusals[earlier:])
     if offer is None and ignore_pile and (why := no_place(job, index, refusals)):
         return Attempt(Outcome.NO_PLACE, why)
@@ -128,6 +133,27 @@ def attempt(
     job.report.pile_out_of_reach.clear()
     refusals.clear()  # something plans for the slot: what was refused tells nothing of it
     return pick(job, index, offer, failed, ignore_pile, turned)
+
+
+def flat_instead(
+    job: Job,
+    index: int,
+    offer: Offer,
+    offers: Sequence[tuple[Candidate, str]],
+    failed: list[np.ndarray],
+    refusals: list[Refusal],
+) -> tuple[Offer, int]:
+    """``offer``, unless it is a leaning pile domino (no push laid it flat) and a flat one
+    after it in ``offers`` plans: that one then, and how many were refused before it. A
+    leaning domino kept its failed picks (an edge, or nothing between the fingers) when a
+    flat one planned at the next attempt."""
+    candidate = offer.candidate
+    if not (job.settings.lay_leaning_flat and candidate.from_pile and candidate.leaning):
+        return offer, 0
+    after = next(k for k, (c, pile) in enumerate(offers) if c is candidate and pile == offer.pile)
+    flat = [(c, pile) for c, pile in offers[after + 1 :] if not c.leaning]
+    other, refused = first_plan(job, index, flat, failed, refusals)
+    return other or offer, refused
 
 
 def no_place(job: Job, index: int, refusals: list[Refusal]) -> str:

@@ -56,7 +56,8 @@ class ArmJobSettings:
     # A leaning pile domino that plans is pushed over flat first (``clearing.lay_leaning_flat``,
     # within max_lay_flat), the pile looked at again: 4 of 22 leaning picks in four runs
     # failed (the fingers met an edge, or closed on nothing), no pick of a flat one that
-    # planned with its pile or its cores (35). False: picked as it leans.
+    # planned with its pile or its cores (35). When no push plans, a flat domino offered
+    # after it is picked if one plans (``attempts.flat_instead``). False: picked as it leans.
     lay_leaning_flat: bool = True
     # A slot that cannot be put off any more, whose place the planner refused
     # (PLACE_UNREACHABLE) for this many flat pile dominoes in one attempt and nothing else
