@@ -820,6 +820,52 @@ def test_with_no_spreads_allowed_the_crowded_pile_is_ignored_as_before() -> None
     assert offered(cell)[-1][1:] == (0, False)  # planned ignoring the pile
 
 
+def only_ignoring(x: float, isolating_helps: bool = True) -> ScriptedCell:
+    """Three flat dominoes end to end; only the one at ``x`` plans, and only ignoring its
+    pile, until a push moved it (``isolating_helps``: then every pick plans)."""
+    cell = ScriptedCell(pile=[flat(x) for x in (0.50, 0.55, 0.60)])
+
+    def place(request: PlaceRequest) -> Plan:
+        if isolating_helps and cell.strike_requests:
+            return planned()
+        ignoring = not request.pile and x_of(request.domino) == pytest.approx(x)
+        return planned() if ignoring else refused(ErrorCode.GRASP_UNREACHABLE)
+
+    cell.place, cell.strike = place, lambda request: planned()
+    return cell
+
+
+def test_a_domino_that_plans_only_ignoring_its_pile_is_pushed_out_of_it_first() -> None:
+    """Ignoring their pile, 7 of 10 picks in two 30-domino runs closed on nothing. The
+    domino that planned so (not the roomiest: the one a grasp reaches) is pushed out of
+    its crowd instead, the pile looked at again, and the pick planned with its pile; the
+    push costs no attempt."""
+    cell = only_ignoring(0.55)
+    run_job = job(cell, max_spreads=0)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    (push,) = cell.strike_requests
+    assert x_of(push.domino) == pytest.approx(0.55)
+    assert push.push_distance >= 0.02
+    assert len(cell.looks) == 2  # looked at again after the push
+    assert offered(cell)[-1][1] == 2  # the pick that ran kept clear of its pile
+    outcome = run_job.report.dominoes[0]
+    assert outcome.attempts == 1 and len(outcome.isolations) == 1
+    assert "0.55" in outcome.isolations[0]
+    assert run_job.report.summary()["pile_isolated"] == 1
+
+
+def test_isolating_pushes_are_bounded_then_the_pile_is_ignored_as_before() -> None:
+    cell = only_ignoring(0.55, isolating_helps=False)
+    run_job = job(cell, max_spreads=0, max_lay_flat=0, max_isolations=2)
+    attempt(run_job, 0, [], ignore_pile=True)
+    assert [x_of(r.domino) for r in cell.strike_requests] == pytest.approx([0.55, 0.55])
+    assert offered(cell)[-1] == (0.55, 0, False)  # then picked ignoring its pile
+    assert len(run_job.report.dominoes[0].isolations) == 2
+    cell = only_ignoring(0.55)
+    attempt(job(cell, max_spreads=0, max_lay_flat=0, max_isolations=0), 0, [], ignore_pile=True)
+    assert cell.strike_requests == [] and offered(cell)[-1] == (0.55, 0, False)
+
+
 def edge(x: float, y: float = -0.3) -> Detection:
     """A pile domino standing on its long edge (body y up), its thickness axis along -y."""
     pose = np.eye(4)
@@ -910,6 +956,49 @@ def test_a_leaning_domino_whose_hold_has_no_place_is_pushed_flat_at_the_next_att
     (pushed,) = cell.strike_requests
     assert abs(pushed.sweep[0]) == pytest.approx(1.0)  # along its thickness axis, seen above
     assert run_job.report.dominoes[0].attempts == 2
+
+
+def test_a_leaning_domino_that_plans_is_pushed_over_flat_before_it_is_picked() -> None:
+    """4 of 22 leaning picks in four runs failed (an edge, or nothing between the
+    fingers), none of 35 flat ones planned with their pile or its cores: pushed over
+    along its thickness axis first, looked at again, and picked flat; no attempt spent."""
+    leaning = lying(0.55, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
+
+    def push(request: StrikeRequest) -> Plan:
+        cell.pile = [flat(0.57)]
+        return planned("push")
+
+    cell.strike, cell.place = push, lambda request: planned()
+    run_job = job(cell)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    (pushed,) = cell.strike_requests
+    assert abs(pushed.sweep[0]) == pytest.approx(1.0)  # along its thickness axis, seen above
+    assert pushed.push_distance == pytest.approx(TIP_DISTANCE)
+    assert len(cell.looks) == 2 and offered(cell)[-1][0] == pytest.approx(0.57)
+    outcome = run_job.report.dominoes[0]
+    assert outcome.attempts == 1 and len(outcome.laid_flat) == 1
+    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
+    cell.strike, cell.place = push, lambda request: planned()
+    assert place_slot(job(cell, lay_leaning_flat=False), 0, may_defer=False) is Turn.PLACED
+    assert cell.strike_requests == [] and offered(cell)[0][0] == pytest.approx(0.55)
+
+
+def test_a_leaning_domino_no_push_lays_flat_gives_way_to_a_flat_one_that_plans() -> None:
+    """Spiral seed 11: both pushes of a leaning domino were refused (one into the
+    neighbour it leaned on), its pick closed on nothing, and a flat one planned at the
+    next attempt. The flat one offered after it is asked first."""
+    leaning = lying(0.50, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
+    pile = [Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01), unscored]
+    cell = ScriptedCell(pile=pile, place=lambda request: planned())
+    run_job = job(cell)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    assert len(cell.strike_requests) == 2  # both ways over: refused
+    assert [offer[0] for offer in offered(cell)] == pytest.approx([0.50, 0.60])
+    assert run_job.report.dominoes[0].attempts == 1
 
 
 NO_PLACE_POSE = (

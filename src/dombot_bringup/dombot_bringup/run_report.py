@@ -58,6 +58,8 @@ class DominoOutcome:
     sweeps: list[str] = field(default_factory=list)
     # Crowded pile dominoes pushed apart when no pick planned (before ignoring the pile).
     spreads: list[str] = field(default_factory=list)
+    # Pile dominoes that planned only ignoring their pile, pushed out of their crowd first.
+    isolations: list[str] = field(default_factory=list)
     # Pile dominoes no grasp took as they lay (on edge, upright, out of reach) pushed over
     # or slid so that they lie flat within reach.
     laid_flat: list[str] = field(default_factory=list)
@@ -186,6 +188,7 @@ class RunReport:
             "put_back_on_pile": sum(len(d.put_back) for d in self.dominoes),
             "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
             "pile_spread": sum(len(d.spreads) for d in self.dominoes),
+            "pile_isolated": sum(len(d.isolations) for d in self.dominoes),
             "pile_laid_flat": sum(len(d.laid_flat) for d in self.dominoes),
             "pile_out_of_reach": len(self.pile_out_of_reach),
             "empty_slots": [e.slot for e in self.empty_slots],

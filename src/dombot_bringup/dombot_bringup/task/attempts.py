@@ -3,6 +3,7 @@ check the placement."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -19,7 +20,7 @@ from dombot_bringup.offers import (
 from dombot_bringup.run_report import PileDomino
 from dombot_bringup.task.cell import Posture
 from dombot_bringup.task.checks import check
-from dombot_bringup.task.clearing import lay_flat, spread
+from dombot_bringup.task.clearing import isolate, lay_flat, lay_leaning_flat, spread
 from dombot_bringup.task.geometry import near, near_any, spot_of
 from dombot_bringup.task.picking import (
     PICKABLE_POSTURES,
@@ -74,15 +75,21 @@ def attempt(
     refusal was about the slot and not ``ignore_pile`` (other slots may be built first;
     refusals about the dominoes would recur at every slot), a pile domino is pushed out of
     its crowd (``clearing.spread``) and the attempt starts again from a fresh look (up to
-    max_spreads a slot); only then the roomiest ignoring the pile (a miss is caught by the
-    grasp check and backed out of, and stirs the pile). A refusal costs a planning call,
-    not an attempt: the arm has not moved (NO_PLAN). When the slot cannot be put off
+    max_spreads a slot); only then the roomiest ignoring the pile: the first that plans so
+    is pushed out of its crowd first and the attempt starts again from a fresh look
+    (``clearing.isolate``, up to max_isolations a slot), and after that picked (a miss is
+    caught by the grasp check and backed out of, and stirs the pile). A refusal costs a
+    planning call, not an attempt: the arm has not moved (NO_PLAN). When the slot cannot be put off
     (``ignore_pile``) and the refusals of its turn (``refusals``, kept over the turn's
     attempts, spreads and pushes until something plans) show no domino can be placed there
     (``no_place``), nothing more is pushed for it: NO_PLACE, and the slot is given up.
     Refusals and failed picks are remembered for the run (refused with the pile: not
     offered with it again; refused ignoring it, or the pick blocked or missed: not offered
     at all), until a pick within DISTURBED_RADIUS moves it.
+
+    A leaning pile domino that planned with its pile is pushed over flat first
+    (``clearing.lay_leaning_flat``) and the attempt starts again from a fresh look; when
+    no push plans, a flat one offered after it is picked if it plans (``flat_instead``).
 
     A pile domino the planner turns in place first (no grasp reached it as it lay) is
     turned, then looked at again and the attempt goes on from there (once: ``turned``):
@@ -99,6 +106,11 @@ def attempt(
         *((c, PILE_CORES) for c in roomiest),
     ]
     offer, refused = first_plan(job, index, with_pile, failed, refusals)
+    if offer is not None and lay_leaning_flat(job, index, offer.candidate):
+        return attempt(job, index, failed, ignore_pile, turned, refusals)
+    if offer is not None:
+        offer, more = flat_instead(job, index, offer, with_pile, failed, refusals)
+        refused += more
     about_the_pile = ignore_pile or not any(r.about_the_slot for r in refusals[earlier:])
     if offer is None and ignore_pile and (why := no_place(job, index, refusals)):
         return Attempt(Outcome.NO_PLACE, why)
@@ -111,6 +123,8 @@ def attempt(
         ignoring = [(c, PILE_IGNORED) for c in roomiest]
         offer, more = first_plan(job, index, ignoring, failed, refusals)
         refused += more
+        if offer is not None and isolate(job, index, offer.candidate):
+            return attempt(job, index, failed, ignore_pile, turned, refusals)
     if offer is None:
         if about_the_pile:
             name_out_of_reach(job, index, [c for c in found if c.from_pile] + stuck)
@@ -119,6 +133,27 @@ def attempt(
     job.report.pile_out_of_reach.clear()
     refusals.clear()  # something plans for the slot: what was refused tells nothing of it
     return pick(job, index, offer, failed, ignore_pile, turned)
+
+
+def flat_instead(
+    job: Job,
+    index: int,
+    offer: Offer,
+    offers: Sequence[tuple[Candidate, str]],
+    failed: list[np.ndarray],
+    refusals: list[Refusal],
+) -> tuple[Offer, int]:
+    """``offer``, unless it is a leaning pile domino (no push laid it flat) and a flat one
+    after it in ``offers`` plans: that one then, and how many were refused before it. A
+    leaning domino kept its failed picks (an edge, or nothing between the fingers) when a
+    flat one planned at the next attempt."""
+    candidate = offer.candidate
+    if not (job.settings.lay_leaning_flat and candidate.from_pile and candidate.leaning):
+        return offer, 0
+    after = next(k for k, (c, pile) in enumerate(offers) if c is candidate and pile == offer.pile)
+    flat = [(c, pile) for c, pile in offers[after + 1 :] if not c.leaning]
+    other, refused = first_plan(job, index, flat, failed, refusals)
+    return other or offer, refused
 
 
 def no_place(job: Job, index: int, refusals: list[Refusal]) -> str:

@@ -84,6 +84,39 @@ def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:
     return False
 
 
+def isolate(job: Job, index: int, candidate: Candidate) -> bool:
+    """Before pile ``candidate`` is picked ignoring its pile (a grasp reaches it, the pads
+    only through a neighbour): push it out of its crowd (``spread.spread_pushes``, the
+    planner keeping it clear of its neighbours), or when no such push plans, through them
+    (``spread.stir_pushes``), at most max_isolations times a slot; True once the arm
+    moved (the pile is to be looked at again). Not for a run domino: its neighbours are
+    fallen dominoes, obstacles of the carry."""
+    outcome = job.report.dominoes[index]
+    if not candidate.from_pile or len(outcome.isolations) >= job.settings.max_isolations:
+        return False
+    what = f"pile domino at {candidate.spot().round(3).tolist()}"
+    for jammed in (False, True):
+        choices, obstacles, how = pushes(job, candidate, jammed)
+        for direction, distance in choices[:SPREAD_TRIES]:
+            isolated = sweep(job, candidate.pose, obstacles, direction, distance, what, how)
+            if isolated is not None:
+                outcome.isolations.append(isolated)
+                log(f"{job.domino(index)}: isolated before a pick ignoring its pile: {isolated}")
+                return True
+    return False
+
+
+def lay_leaning_flat(job: Job, index: int, candidate: Candidate) -> bool:
+    """Before leaning pile ``candidate`` is picked: push it over so that it lies flat
+    (``lay_flat``: not where one was pushed already until something near it moves, at
+    most max_lay_flat a slot); True once the arm moved (the pile is to be looked at
+    again)."""
+    settings, outcome = job.settings, job.report.dominoes[index]
+    if not (settings.lay_leaning_flat and candidate.from_pile and candidate.leaning):
+        return False
+    return len(outcome.laid_flat) < settings.max_lay_flat and lay_flat(job, index, [candidate])
+
+
 def lay_flat(job: Job, index: int, stuck: Sequence[Candidate]) -> bool:
     """Push one of the pile dominoes no grasp takes as they lie (``stuck``: on their edge,
     or refused even ignoring their pile) so that it lies flat within reach
