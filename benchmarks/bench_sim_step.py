@@ -14,7 +14,8 @@ runs of the same code print the same digests, and so must a change that leaves t
 physics alone. ``--baseline DIR`` runs the scenes also with the ``dombot_sim`` package
 found in DIR (e.g. ``git archive main src/dombot_sim/dombot_sim | tar -x -C DIR
 --strip-components=2``), alternating with this tree's, and reports the ratios measured
-side by side. Prints one JSON object on stdout (progress on stderr).
+side by side. ``--node-allocator`` sets glibc's allocator in the world scenes as sim_node
+sets it (docs/SIM.md, *Memory allocator*). Prints one JSON object on stdout (progress on stderr).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from rosgraph_msgs.msg import Clock
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_description import DOMINO_SIZE
+from dombot_description.allocator import set_mmap_threshold, tune_allocator
 from dombot_description.cell import build_shadow_plant
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_sim.sim_node import GRIPPER_ACTION, TRAJECTORY_ACTION
@@ -56,6 +58,7 @@ GRIP_FORCE = 20.0  # N
 NODE_START_TIMEOUT = 600.0  # s wall for sim_node to pour the pile and publish /clock
 NODE_WAIT_TIMEOUT = 300.0  # s wall for a goal or a span of simulated time
 SAMPLE_PERIOD = 0.05  # s between a trajectory goal's points
+NODE_ALLOCATOR = "BENCH_SIM_STEP_NODE_ALLOCATOR"  # environment: the world as sim_node allocates
 NODE_DOMAIN = "88"  # ROS_DOMAIN_ID of the sim_node runs, unless one is set
 SWING = np.array([-0.5, 0.15, 0.0, 0.25, 0.0, -0.1, 0.0])  # rad: over the pile, TCP high
 
@@ -192,8 +195,13 @@ def cpu_seconds() -> float:
 
 def world_scene(script: list[Step]) -> dict:
     """One scene in a fresh world (with cameras, as sim_node's, none rendered): CPU s per
-    simulated s of the script alone."""
+    simulated s of the script alone. With NODE_ALLOCATOR set, glibc's allocator is set as
+    that tree's sim_node sets it (a tree without ``step_block_size`` keeps 128 KiB)."""
+    if os.environ.get(NODE_ALLOCATOR):
+        tune_allocator()
     world = CellWorld(WorldConfig(cameras=True, domino_capacity=DOMINOES + 1))
+    if os.environ.get(NODE_ALLOCATOR) and hasattr(world, "step_block_size"):
+        set_mmap_threshold(world.step_block_size)
     prepare(world)
     start, cpu = world.time, cpu_seconds()
     run_script(world, script)
@@ -364,8 +372,13 @@ def main() -> None:
     parser.add_argument("--baseline", help="directory holding the dombot_sim to compare with")
     parser.add_argument("--repeats", type=int, default=1, help="runs per scene and tree")
     parser.add_argument("--node", action="store_true", help="also through sim_node processes")
+    parser.add_argument(
+        "--node-allocator", action="store_true", help="CellWorld with sim_node's malloc settings"
+    )
     parser.add_argument("--one", action="store_true", help=argparse.SUPPRESS)  # script on stdin
     args = parser.parse_args()
+    if args.node_allocator:
+        os.environ[NODE_ALLOCATOR] = "1"  # the --one subprocesses inherit it
     if args.one:
         print(json.dumps(world_scene(from_json(sys.stdin.read()))))
         return
@@ -373,6 +386,7 @@ def main() -> None:
         "benchmark": "sim_step",
         "seed": SEED,
         "dominoes": DOMINOES,
+        "node_allocator": args.node_allocator,
         "cpu_count": os.cpu_count(),
         "load_average_at_start": os.getloadavg(),
         "world": compare(args.scenes, args.baseline, args.repeats, in_subprocess),

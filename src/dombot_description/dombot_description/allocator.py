@@ -13,7 +13,7 @@ from __future__ import annotations
 import ctypes
 
 LIBC = ctypes.CDLL("libc.so.6")
-M_MMAP_THRESHOLD, M_ARENA_MAX = -3, -8  # mallopt parameters (malloc.h)
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8  # mallopt parameters (malloc.h)
 MMAP_THRESHOLD = 128 * 1024  # bytes: glibc's initial value, kept fixed
 
 
@@ -22,6 +22,19 @@ def tune_allocator() -> None:
     mapped and unmapped on their own). Call before the node starts threads."""
     LIBC.mallopt(M_ARENA_MAX, 2)
     LIBC.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+
+
+def set_mmap_threshold(size: int) -> None:
+    """Map blocks of ``size`` bytes and more on their own, and keep up to twice that free at
+    the heap's top (glibc's own ratio when it moves the threshold itself).
+
+    For a process that allocates and frees a few blocks above 128 KiB many times a second
+    (a Drake plant's dense matrices every physics step): mapped on their own, each costs a
+    ``mmap``, page faults that zero it and a ``munmap``; carved from the heap with the top
+    trimmed at 128 KiB (glibc's default once the threshold is fixed), each trim and regrowth
+    faults the pages in again."""
+    LIBC.mallopt(M_MMAP_THRESHOLD, size)
+    LIBC.mallopt(M_TRIM_THRESHOLD, 2 * size)
 
 
 def release_memory() -> None:

@@ -50,7 +50,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from dombot_adapters.node_shutdown import DrainingExecutor, stop_quietly_on_shutdown
 from dombot_adapters.parameters import DataclassParameters, described
 from dombot_adapters.pose_messages import pose_message, seconds_of, time_message
-from dombot_description.allocator import release_memory, tune_allocator
+from dombot_description.allocator import release_memory, set_mmap_threshold, tune_allocator
 from dombot_description.robot_description import robot_urdf
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
@@ -497,7 +497,9 @@ class SimNode(Node):
         with self._lock:
             self._generation += 1
             self._resets += 1
+            set_mmap_threshold(self.world.step_block_size)  # for the pour
             report = self.world.reset(count, seed)
+            set_mmap_threshold(self.world.step_block_size)  # a bigger pile rebuilt the plant
         summary = (
             f"pile of {count} (seed {seed}) %s after {report.settle_time:.2f} s simulated, "
             f"{report.wall_time:.1f} s wall"

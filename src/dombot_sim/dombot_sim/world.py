@@ -72,6 +72,8 @@ LEFT_CELL_BEYOND = 3.0  # m from the robot base: flung out of the cell
 # is still (an arm holding after a trajectory is below it ~0.3 s after the end; the
 # fingers at rest jitter at ~1e-7 m/s)
 STILL_SPEED = 1e-5
+# bytes: the least a process stepping the cell should keep off mmap (``step_block_size``)
+STEP_BLOCK_MIN = 1 << 20
 # Meshcat recording: 16 frames a simulated second play smoothly, and keep a whole run's
 # scene.html to tens of MB (at Drake's default of 64 it is four times that)
 MESHCAT_RECORDING_FPS = 16.0
@@ -256,6 +258,15 @@ class CellWorld:
     def domino_count(self) -> int:
         """Dominoes in the cell (the rest are parked)."""
         return len(self._in_use)
+
+    @property
+    def step_block_size(self) -> int:
+        """Bytes under which the heap, not ``mmap``, should serve this plant's blocks: a
+        physics step allocates and frees dense matrices of the plant's velocities (nv x nv
+        doubles, 280 KiB with 30 dominoes) every step. Twice that, at least 1 MiB: at
+        glibc's fixed 128 KiB each step mapped and faulted them in anew (docs/SIM.md)."""
+        velocities = self._plant.num_velocities()
+        return max(STEP_BLOCK_MIN, 2 * 8 * velocities * velocities)
 
     @property
     def arm_joint_names(self) -> tuple[str, ...]:
