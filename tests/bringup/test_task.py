@@ -935,19 +935,25 @@ def test_a_pile_domino_no_grasp_or_push_reaches_is_named_with_why(capsys) -> Non
     assert "flat at [0.450, -0.300] (domino_7): no push lays it flat" in out
 
 
-def test_a_leaning_domino_whose_hold_has_no_place_is_pushed_flat_at_the_next_attempt() -> None:
-    """A hold leaning with the domino may have no place pose (PLACE_UNREACHABLE, about
-    the slot): with nothing else to pick, the leaning domino is pushed along its
-    thickness axis, and picked flat."""
+def leaning_cell(lies_flat_at: float) -> ScriptedCell:
+    """A pile of one domino leaning 30° at x 0.55; a push lays it flat at ``lies_flat_at``."""
     leaning = lying(0.55, -0.3)
     leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
     cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
 
     def push(request: StrikeRequest) -> Plan:
-        cell.pile = [flat(0.56)]
+        cell.pile = [flat(lies_flat_at)]
         return planned("push")
 
     cell.strike = push
+    return cell
+
+
+def test_a_leaning_domino_whose_hold_has_no_place_is_pushed_flat_at_the_next_attempt() -> None:
+    """A hold leaning with the domino may have no place pose (PLACE_UNREACHABLE, about
+    the slot): with nothing else to pick, the leaning domino is pushed along its
+    thickness axis, and picked flat."""
+    cell = leaning_cell(lies_flat_at=0.56)
     cell.place = lambda request: (
         planned() if cell.strike_requests else refused(ErrorCode.PLACE_UNREACHABLE)
     )
@@ -962,15 +968,8 @@ def test_a_leaning_domino_that_plans_is_pushed_over_flat_before_it_is_picked() -
     """4 of 22 leaning picks in four runs failed (an edge, or nothing between the
     fingers), none of 35 flat ones planned with their pile or its cores: pushed over
     along its thickness axis first, looked at again, and picked flat; no attempt spent."""
-    leaning = lying(0.55, -0.3)
-    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
-    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
-
-    def push(request: StrikeRequest) -> Plan:
-        cell.pile = [flat(0.57)]
-        return planned("push")
-
-    cell.strike, cell.place = push, lambda request: planned()
+    cell = leaning_cell(lies_flat_at=0.57)
+    cell.place = lambda request: planned()
     run_job = job(cell)
     assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
     (pushed,) = cell.strike_requests
@@ -979,8 +978,8 @@ def test_a_leaning_domino_that_plans_is_pushed_over_flat_before_it_is_picked() -
     assert len(cell.looks) == 2 and offered(cell)[-1][0] == pytest.approx(0.57)
     outcome = run_job.report.dominoes[0]
     assert outcome.attempts == 1 and len(outcome.laid_flat) == 1
-    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
-    cell.strike, cell.place = push, lambda request: planned()
+    cell = leaning_cell(lies_flat_at=0.57)
+    cell.place = lambda request: planned()
     assert place_slot(job(cell, lay_leaning_flat=False), 0, may_defer=False) is Turn.PLACED
     assert cell.strike_requests == [] and offered(cell)[0][0] == pytest.approx(0.55)
 
