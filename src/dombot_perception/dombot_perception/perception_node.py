@@ -331,8 +331,10 @@ class PerceptionNode(Node):
         qos = IMAGE_QOS.get(self.settings.image_reliability, IMAGE_QOS["reliable"])
 
         def on_color(message: Image) -> None:
-            camera.colors.append(message)
+            # the time first: a request on another thread that sees the image must not
+            # read the -inf of a camera that never sent one ("the camera stopped publishing")
             camera.received = self._seconds_now()
+            camera.colors.append(message)
 
         def on_depth(message: Image) -> None:
             camera.depths.append(message)
