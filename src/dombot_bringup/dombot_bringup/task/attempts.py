@@ -20,7 +20,7 @@ from dombot_bringup.offers import (
 from dombot_bringup.run_report import PileDomino
 from dombot_bringup.task.cell import Posture
 from dombot_bringup.task.checks import check
-from dombot_bringup.task.clearing import isolate, lay_flat, lay_leaning_flat, spread
+from dombot_bringup.task.clearing import isolate, lay_flat, lay_leaning_flat, spread, to_lay_flat
 from dombot_bringup.task.geometry import near, near_any, spot_of
 from dombot_bringup.task.picking import (
     PICKABLE_POSTURES,
@@ -148,7 +148,7 @@ def flat_instead(
     leaning domino kept its failed picks (an edge, or nothing between the fingers) when a
     flat one planned at the next attempt."""
     candidate = offer.candidate
-    if not (job.settings.lay_leaning_flat and candidate.from_pile and candidate.leaning):
+    if not to_lay_flat(job, candidate):
         return offer, 0
     after = next(k for k, (c, pile) in enumerate(offers) if c is candidate and pile == offer.pile)
     flat = [(c, pile) for c, pile in offers[after + 1 :] if not c.leaning]

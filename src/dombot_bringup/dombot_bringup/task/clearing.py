@@ -68,17 +68,13 @@ def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:
         for candidate in pile:
             if asked[jammed] == settings.spread_plans:
                 break
-            choices, obstacles, how = pushes(job, candidate, jammed)
-            what = f"pile domino at {candidate.spot().round(3).tolist()}"
-            for direction, distance in choices[:SPREAD_TRIES]:
-                if asked[jammed] == settings.spread_plans:
-                    break
-                asked[jammed] += 1
-                spread = sweep(job, candidate.pose, obstacles, direction, distance, what, how)
-                if spread is not None:
-                    job.report.dominoes[index].spreads.append(spread)
-                    log(f"{job.domino(index)}: spreading the pile: {spread}")
-                    return True
+            limit = settings.spread_plans - asked[jammed]
+            spread, tried = push_out_of_crowd(job, candidate, jammed, limit)
+            asked[jammed] += tried
+            if spread is not None:
+                job.report.dominoes[index].spreads.append(spread)
+                log(f"{job.domino(index)}: spreading the pile: {spread}")
+                return True
     if not any(asked):
         log(f"{job.domino(index)}: no push would spread the pile")
     return False
@@ -94,16 +90,32 @@ def isolate(job: Job, index: int, candidate: Candidate) -> bool:
     outcome = job.report.dominoes[index]
     if not candidate.from_pile or len(outcome.isolations) >= job.settings.max_isolations:
         return False
-    what = f"pile domino at {candidate.spot().round(3).tolist()}"
     for jammed in (False, True):
-        choices, obstacles, how = pushes(job, candidate, jammed)
-        for direction, distance in choices[:SPREAD_TRIES]:
-            isolated = sweep(job, candidate.pose, obstacles, direction, distance, what, how)
-            if isolated is not None:
-                outcome.isolations.append(isolated)
-                log(f"{job.domino(index)}: isolated before a pick ignoring its pile: {isolated}")
-                return True
+        isolated, _ = push_out_of_crowd(job, candidate, jammed)
+        if isolated is not None:
+            outcome.isolations.append(isolated)
+            log(f"{job.domino(index)}: isolated before a pick ignoring its pile: {isolated}")
+            return True
     return False
+
+
+def push_out_of_crowd(
+    job: Job, candidate: Candidate, jammed: bool, limit: int | None = None
+) -> tuple[str | None, int]:
+    """Push pile ``candidate`` out of its crowd (``jammed``: through it), its SPREAD_TRIES
+    shortest pushes asked of the planner in turn, ``limit`` at most: what was done (None
+    if every one was refused) and how many were asked."""
+    choices, obstacles, how = pushes(job, candidate, jammed)
+    what = f"pile domino at {candidate.spot().round(3).tolist()}"
+    asked = 0
+    for direction, distance in choices[:SPREAD_TRIES]:
+        if asked == limit:
+            break
+        asked += 1
+        pushed = sweep(job, candidate.pose, obstacles, direction, distance, what, how)
+        if pushed is not None:
+            return pushed, asked
+    return None, asked
 
 
 def lay_leaning_flat(job: Job, index: int, candidate: Candidate) -> bool:
@@ -111,10 +123,15 @@ def lay_leaning_flat(job: Job, index: int, candidate: Candidate) -> bool:
     (``lay_flat``: not where one was pushed already until something near it moves, at
     most max_lay_flat a slot); True once the arm moved (the pile is to be looked at
     again)."""
-    settings, outcome = job.settings, job.report.dominoes[index]
-    if not (settings.lay_leaning_flat and candidate.from_pile and candidate.leaning):
+    if not to_lay_flat(job, candidate):
         return False
-    return len(outcome.laid_flat) < settings.max_lay_flat and lay_flat(job, index, [candidate])
+    laid = job.report.dominoes[index].laid_flat
+    return len(laid) < job.settings.max_lay_flat and lay_flat(job, index, [candidate])
+
+
+def to_lay_flat(job: Job, candidate: Candidate) -> bool:
+    """A leaning pile domino, pushed over flat before it is picked (``lay_leaning_flat``)."""
+    return job.settings.lay_leaning_flat and candidate.from_pile and candidate.leaning
 
 
 def lay_flat(job: Job, index: int, stuck: Sequence[Candidate]) -> bool:
