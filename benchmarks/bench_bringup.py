@@ -9,6 +9,12 @@ retries), runs completed, full topples, simulated and wall seconds per domino; f
 the last. Reports and pictures of every run go to
 ``--out`` (default out/bench_bringup); with ``--record-picks`` every pick's record too
 (``<out>/<case>_seed<N>/picks/``, for benchmarks/replay_pick.py).
+
+With ``--ledger FILE`` every finished run is appended to FILE (one JSON object a line,
+with the commit it ran at) and a case and seed already in it with the same options is
+not run again: a benchmark of many 30-domino runs (20-45 min each here) accumulates over
+several sittings, and the figures aggregate all of them. ``--table`` prints the cases as
+a Markdown table instead of JSON.
 """
 
 from __future__ import annotations
@@ -92,6 +98,23 @@ def run_logged(command: list[str], log_path: Path, name: str) -> tuple[int, str]
 def run_case(
     name: str, arguments: list[str], seed: int, out: Path, record: bool, factor: float
 ) -> dict:
+    """One bring-up of case ``name`` (``arguments``) with ``seed``: its figures, with
+    what identifies it in a ledger (``ledger_key``) and the commit it ran at."""
+    return {
+        "case": name,
+        "seed": seed,
+        "arguments": arguments,
+        "real_time_factor": factor,
+        "commit": commit(),
+        "date": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+        "load_average_at_start": os.getloadavg()[0],
+        **bring_up(name, arguments, seed, out, record, factor),
+    }
+
+
+def bring_up(
+    name: str, arguments: list[str], seed: int, out: Path, record: bool, factor: float
+) -> dict:
     folder = out / f"{name}_seed{seed}"
     bringup = Path(get_package_prefix("dombot_bringup")) / "lib" / "dombot_bringup" / "bringup"
     command = [
@@ -112,8 +135,6 @@ def run_case(
     if not report_path.exists():
         log(f"{name} seed {seed}: no report (exit {exit_code})")
         return {
-            "case": name,
-            "seed": seed,
             "exit": exit_code,
             "completed": False,
             "wall_s": wall,
@@ -124,8 +145,6 @@ def run_case(
     log(f"{name} seed {seed}: {summary}")
     return {
         **cycles_of(report),
-        "case": name,
-        "seed": seed,
         "exit": exit_code,
         "completed": summary["placed"] == summary["dominoes"],
         "toppled": bool(summary["toppled_by_truth"]),
@@ -143,6 +162,58 @@ def run_case(
         "wall_s_per_domino": summary["wall_s_per_domino_mean"],
         "wall_s": wall,
     }
+
+
+def commit() -> str:
+    """The workspace's commit (``-dirty`` with uncommitted changes), for the ledger."""
+    described = subprocess.run(
+        ["git", "-C", str(Path(__file__).resolve().parent), "describe", "--always", "--dirty"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    return described.stdout.strip() or "unknown"
+
+
+def ledger_key(run: dict) -> tuple:
+    """What makes two runs the same measurement: case, seed, options, pacing."""
+    return run["case"], run["seed"], tuple(run["arguments"]), run["real_time_factor"]
+
+
+def read_ledger(path: Path | None) -> dict[tuple, dict]:
+    """The ledger's runs by ``ledger_key`` (the latest of a key wins); none without one."""
+    if path is None or not path.exists():
+        return {}
+    runs = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    return {ledger_key(run): run for run in runs}
+
+
+def markdown(report: dict) -> str:
+    """The cases as a Markdown table: a row per run, then each case's summary."""
+    rows = [
+        "| case | seed | commit | placed | first attempt | toppled | exit | sim s / domino "
+        "| wall s |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for name, case in report["cases"].items():
+        for run in case["per_seed"]:
+            placed = f"{run.get('placed', 0)} / {run.get('dominoes', '?')}"
+            per_domino = run.get("simulated_s_per_domino")
+            toppled = "yes" if run.get("toppled") else "no"
+            rows.append(
+                f"| {name} | {run['seed']} | {run['commit']} | {placed} "
+                f"| {run.get('placed_first_attempt', '—')} | {toppled} "
+                f"| {run['exit']} | {f'{per_domino:.1f}' if per_domino else '—'} "
+                f"| {run['wall_s']:.0f} |"
+            )
+        first = case["placements_first_attempt_rate"]
+        rows.append(
+            f"| **{name}** | {case['runs']} runs | | fewest {case['placed_fewest']}; "
+            f"all placed in {case['runs_completed_rate']:.0%} | "
+            f"{f'{first:.1%}' if first is not None else '—'} "
+            f"| {case['runs_toppled_rate']:.0%} | | | |"
+        )
+    return "\n".join(rows)
 
 
 def cycles_of(report: dict) -> dict:
@@ -234,6 +305,11 @@ def main() -> None:
         help="bringup options after each case's, which they override: e.g. a short cycles run, "
         "'--cycles 2 --count 4'",
     )
+    parser.add_argument(
+        "--ledger", type=Path, help="JSON lines: runs kept here, and not run again if in it"
+    )
+    parser.add_argument("--again", action="store_true", help="run cases in the ledger again")
+    parser.add_argument("--table", action="store_true", help="print a Markdown table, not JSON")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     extra = shlex.split(args.options)
@@ -243,15 +319,32 @@ def main() -> None:
         "real_time_factor": args.real_time_factor,
         "cases": {},
     }
+    ledger = read_ledger(args.ledger)
     for name in args.cases:
         arguments = [*CASES[name], *extra]
-        runs = [
-            run_case(name, arguments, seed, args.out, args.record_picks, args.real_time_factor)
-            for seed in args.seeds
-        ]
-        report["cases"][name] = {"arguments": arguments, **aggregate(runs), "per_seed": runs}
+        runs = []
+        for seed in args.seeds:
+            key = (name, seed, tuple(arguments), args.real_time_factor)
+            if key in ledger and not args.again:
+                at = ledger[key]["commit"]
+                log(f"{name} seed {seed}: in the ledger (at {at}), not run again")
+                runs.append(ledger[key])
+                continue
+            runs.append(
+                run_case(name, arguments, seed, args.out, args.record_picks, args.real_time_factor)
+            )
+            if args.ledger is not None:
+                with args.ledger.open("a") as ledger_file:
+                    ledger_file.write(json.dumps(runs[-1]) + "\n")
+        commits = sorted({run["commit"] for run in runs})
+        report["cases"][name] = {
+            "arguments": arguments,
+            "commits": commits,
+            **aggregate(runs),
+            "per_seed": runs,
+        }
     report["load_average_at_end"] = os.getloadavg()
-    print(json.dumps(report, indent=2))
+    print(markdown(report) if args.table else json.dumps(report, indent=2))
 
 
 if __name__ == "__main__":
