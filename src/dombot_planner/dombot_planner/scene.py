@@ -119,6 +119,7 @@ class Scene:
         self.plant_context = self.plant.GetMyMutableContextFromRoot(self.root_context)
         self.graph_context = self.scene_graph.GetMyMutableContextFromRoot(self.root_context)
         self.tcp = self.plant.GetFrameByName(tcp_frame)
+        self._clearances: dict[bytes, dict[tuple[str, str], float]] = {}
         self.classes = self._robot_and_table_classes()
         world = self.scene_graph.world_frame_id()
         added = [self._register(pose, world, STANDING) for pose in standing]
@@ -182,8 +183,16 @@ class Scene:
     def clearance(self, q: np.ndarray) -> dict[tuple[str, str], float]:
         """Smallest signed distance per (moving class, obstacle class or SELF) at ``q``.
 
-        Pairs farther apart than QUERY_DISTANCE are reported as QUERY_DISTANCE.
+        Pairs farther apart than QUERY_DISTANCE are reported as QUERY_DISTANCE. Kept per
+        ``q``: the planning tiers of a request share their scenes (planner.SharedWork) and
+        ask again for the configurations the tier before them checked.
         """
+        key = np.asarray(q, dtype=float).tobytes()
+        if key not in self._clearances:
+            self._clearances[key] = self._clearance(q)
+        return dict(self._clearances[key])
+
+    def _clearance(self, q: np.ndarray) -> dict[tuple[str, str], float]:
         self.set_positions(q)
         query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
         result = {}
