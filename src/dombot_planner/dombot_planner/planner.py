@@ -596,7 +596,8 @@ class RequestPlanning(RequestMotions):
         paths = Grasp(grasp, openings["closed"], openings["pregrasp"]).pad_paths(
             self.settings.pick_approach_distance, lift
         )
-        return nearest_distance(paths, self.pile_points) < self.settings.pile_point_clearance
+        clearance = self.settings.pile_point_clearance
+        return nearest_distance(paths, self.pile_points, cap=clearance) < clearance
 
     def _place_ends(
         self, places: list[RigidTransform], transfer: Scene, seeds: list[np.ndarray]

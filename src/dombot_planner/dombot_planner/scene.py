@@ -27,6 +27,7 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.tree import BodyIndex
+from pydrake.systems.framework import Context
 
 from dombot_description import DOMINO_SIZE
 from dombot_description.cell import ShadowPlant, build_shadow_plant
@@ -115,11 +116,36 @@ class Scene:
         self.shadow = shadow
         self.plant = shadow.plant
         self.scene_graph = shadow.scene_graph
-        self.root_context = shadow.builder_diagram.CreateDefaultContext()
-        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.root_context)
-        self.graph_context = self.scene_graph.GetMyMutableContextFromRoot(self.root_context)
         self.tcp = self.plant.GetFrameByName(tcp_frame)
+        self._dominoes = (tuple(standing), target, held_in_tcp, tuple(pile))
+        self._contexts: tuple[Context, Context, Context] | None = None
         self._clearances: dict[bytes, dict[tuple[str, str], float]] = {}
+
+    @property
+    def root_context(self) -> Context:
+        return self._built()[0]
+
+    @property
+    def plant_context(self) -> Context:
+        return self._built()[1]
+
+    @property
+    def graph_context(self) -> Context:
+        return self._built()[2]
+
+    def _built(self) -> tuple[Context, Context, Context]:
+        """The contexts (root, plant, scene graph), the dominoes registered on first use: a
+        grasp's scene holding the domino is needed only once a configuration clears the
+        approach scene, which most grasps of a refused request never do."""
+        if self._contexts is not None:
+            return self._contexts
+        root = self.shadow.builder_diagram.CreateDefaultContext()
+        self._contexts = (
+            root,
+            self.plant.GetMyMutableContextFromRoot(root),
+            self.scene_graph.GetMyMutableContextFromRoot(root),
+        )
+        standing, target, held_in_tcp, pile = self._dominoes
         self.classes = self._robot_and_table_classes()
         world = self.scene_graph.world_frame_id()
         added = [self._register(pose, world, STANDING) for pose in standing]
@@ -135,6 +161,7 @@ class Scene:
             frame = self.plant.GetBodyFrameIdOrThrow(gripper.index())
             held = self._register(body_in_tcp.inverse() @ held_in_tcp, frame, HELD)
             self._filter_against_welded([held], gripper)
+        return self._contexts
 
     def _robot_and_table_classes(self) -> dict[GeometryId, str]:
         classes = {}
