@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -182,16 +182,18 @@ class SharedWork:
 
     A refused request runs the grasp search up to three times; the tiers differ in a
     clearance rule or in a pose, not in the scenes they build or the IK they solve. A
-    scene keeps its clearances per configuration and an IK program its solutions per
-    (position, seed), both pure functions of their inputs, so a later tier repeats what
-    an earlier one computed (the same answers, the same random seeds) without the work:
-    only what its changed rule or pose makes new is computed.
+    scene keeps its clearances per configuration, an IK program its solutions per
+    (position, seed), and ``remember`` what else no tier changes (the pads' path against
+    the pile points): pure functions of their inputs, so a later tier repeats what an
+    earlier one computed (the same answers, the same random seeds) without the work: only
+    what its changed rule or pose makes new is computed.
     """
 
     def __init__(self, planner: PickPlacePlanner) -> None:
         self.planner = planner
         self._scenes: dict[tuple, Scene] = {}
         self._iks: dict[tuple[int, bytes], PoseIK] = {}
+        self._kept: dict[tuple, bool] = {}
 
     def scene(
         self,
@@ -225,6 +227,12 @@ class SharedWork:
         if key not in self._iks:
             self._iks[key] = PoseIK(scene, rotation)
         return self._iks[key]
+
+    def remember(self, key: tuple, compute: Callable[[], bool]) -> bool:
+        """``compute()``, kept under ``key`` for the request's later tiers."""
+        if key not in self._kept:
+            self._kept[key] = compute()
+        return self._kept[key]
 
 
 def poses_key(poses) -> bytes:
@@ -589,9 +597,14 @@ class RequestPlanning(RequestMotions):
         """Whether the pads' path to ``grasp`` (down the approach line along ``lift``, then
         closing on the domino) comes within pile_point_clearance of a pile point: a domino
         seen but not detected, for which the scenes have no box (arc seed 6: one standing on
-        its edge beside the picked one's long face stopped the fingers at 31 mm, twice)."""
+        its edge beside the picked one's long face stopped the fingers at 31 mm, twice).
+        Kept for the request's later tiers (the same points, grasps and lifts)."""
         if not len(self.pile_points):
             return False
+        key = ("pads' path", poses_key([self.request.domino_pose, grasp]), lift.tobytes())
+        return self.shared.remember(key, lambda: self._pads_path_near_points(grasp, lift))
+
+    def _pads_path_near_points(self, grasp: RigidTransform, lift: np.ndarray) -> bool:
         openings = self.openings
         paths = Grasp(grasp, openings["closed"], openings["pregrasp"]).pad_paths(
             self.settings.pick_approach_distance, lift

@@ -120,6 +120,7 @@ class Scene:
         self._dominoes = (tuple(standing), target, held_in_tcp, tuple(pile))
         self._contexts: tuple[Context, Context, Context] | None = None
         self._clearances: dict[bytes, dict[tuple[str, str], float]] = {}
+        self._pair_keys: dict[tuple[GeometryId, GeometryId], tuple[str, str]] = {}
 
     @property
     def root_context(self) -> Context:
@@ -223,8 +224,12 @@ class Scene:
         self.set_positions(q)
         query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
         result = {}
+        keys = self._pair_keys
         for pair in query.ComputeSignedDistancePairwiseClosestPoints(QUERY_DISTANCE):
-            key = self._pair_key(self.classes[pair.id_A], self.classes[pair.id_B])
+            ids = (pair.id_A, pair.id_B)
+            key = keys.get(ids)
+            if key is None:
+                key = keys[ids] = self._pair_key(self.classes[ids[0]], self.classes[ids[1]])
             result[key] = min(result.get(key, QUERY_DISTANCE), pair.distance)
         return result
 
