@@ -46,8 +46,8 @@ SCALAR_FIELDS = ("grasp_width", "pads_into_pile", "time_budget", "holding")
 
 
 class RecordingPlanner(PickPlacePlanner):
-    """A PickPlacePlanner that keeps every request it is asked to plan, saved to ``path``
-    (when given) after each one, so a cut-short run keeps what it recorded."""
+    """A PickPlacePlanner that keeps every request it is asked to plan when given a
+    ``path``, saved there after each one, so a cut-short run keeps what it recorded."""
 
     def __init__(self, *args, path: Path | None = None, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -55,8 +55,8 @@ class RecordingPlanner(PickPlacePlanner):
         self.requests: list[PickPlaceRequest] = []
 
     def plan(self, request: PickPlaceRequest) -> PickPlacePlan:
-        self.requests.append(request)
         if self.path:
+            self.requests.append(request)
             save_requests(self.path, self.requests)
         return super().plan(request)
 
