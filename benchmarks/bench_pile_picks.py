@@ -29,6 +29,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
+from bench_plan_replay import RecordingPlanner
 from bench_planner import log
 
 from dombot_bringup import layouts
@@ -41,7 +42,6 @@ from dombot_bringup.task.state import Job
 from dombot_description.scenario import load_scenario
 from dombot_perception.pipeline import build_pipeline
 from dombot_planner.errors import ErrorCode
-from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.settings import PlannerSettings
 from dombot_sim.world import CellWorld, WorldConfig
 
@@ -144,11 +144,17 @@ def main() -> None:
         type=Path,
         help="folder for each executed pick's record (benchmarks/replay_pick.py replays it)",
     )
+    parser.add_argument(
+        "--record-requests",
+        type=Path,
+        help=".npz file for every /plan_place request (benchmarks/bench_plan_replay.py)",
+    )
     args = parser.parse_args()
     load_before = os.getloadavg()
     scenario = load_scenario()
     world = CellWorld(WorldConfig(cameras=True, domino_capacity=args.pile_size), scenario)
-    planner = PickPlacePlanner(scenario, PlannerSettings(**json.loads(args.settings or "{}")))
+    settings = PlannerSettings(**json.loads(args.settings or "{}"))
+    planner = RecordingPlanner(scenario, settings, path=args.record_requests)
     cell = SimCell(world, build_pipeline(scenario), planner)
     reports = []
     for seed in range(args.seed, args.seed + args.piles):

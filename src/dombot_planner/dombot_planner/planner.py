@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -176,6 +176,70 @@ def fallback_failed(error: PlanningError, fallback: PlanningError, how: str) -> 
     return PlanningError(error.code, error.stage, f"{error.message}; {how} failed too ({fallback})")
 
 
+class SharedWork:
+    """The scenes and IK programs of one /plan_place request, shared by its planning
+    tiers (pads clear of the pile, pads nudging it, the regrasp's two picks).
+
+    A refused request runs the grasp search up to three times; the tiers differ in a
+    clearance rule or in a pose, not in the scenes they build or the IK they solve. A
+    scene keeps its clearances per configuration, an IK program its solutions per
+    (position, seed), and ``remember`` what else no tier changes (the pads' path against
+    the pile points): pure functions of their inputs, so a later tier repeats what an
+    earlier one computed (the same answers, the same random seeds) without the work: only
+    what its changed rule or pose makes new is computed.
+    """
+
+    def __init__(self, planner: PickPlacePlanner) -> None:
+        self.planner = planner
+        self._scenes: dict[tuple, Scene] = {}
+        self._iks: dict[tuple[int, bytes], PoseIK] = {}
+        self._kept: dict[tuple, bool] = {}
+
+    def scene(
+        self,
+        opening: float,
+        request: PickPlaceRequest,
+        target: RigidTransform | None = None,
+        held_in_tcp: RigidTransform | None = None,
+    ) -> Scene:
+        """The scene of ``request``'s standing and pile dominoes at finger ``opening``."""
+        key = (
+            opening,
+            poses_key(request.standing),
+            poses_key(request.pile),
+            poses_key([] if target is None else [target]),
+            poses_key([] if held_in_tcp is None else [held_in_tcp]),
+        )
+        if key not in self._scenes:
+            self._scenes[key] = Scene(
+                self.planner.plants.get(opening),
+                self.planner.scenario.tcp_frame,
+                request.standing,
+                pile=request.pile,
+                target=target,
+                held_in_tcp=held_in_tcp,
+            )
+        return self._scenes[key]
+
+    def ik(self, scene: Scene, rotation: RotationMatrix) -> PoseIK:
+        """The IK program for TCP poses of ``rotation`` in ``scene`` (one of ``scene()``'s)."""
+        key = (id(scene), rotation.matrix().tobytes())
+        if key not in self._iks:
+            self._iks[key] = PoseIK(scene, rotation)
+        return self._iks[key]
+
+    def remember(self, key: tuple, compute: Callable[[], bool]) -> bool:
+        """``compute()``, kept under ``key`` for the request's later tiers."""
+        if key not in self._kept:
+            self._kept[key] = compute()
+        return self._kept[key]
+
+
+def poses_key(poses) -> bytes:
+    """Poses as bytes, to recognise the same list of them."""
+    return b"".join(pose.GetAsMatrix4().tobytes() for pose in poses)
+
+
 @dataclass
 class End:
     """One end of the transfer: IK at the pose and the vertical line above it."""
@@ -270,19 +334,22 @@ class PickPlacePlanner(ArmPlanner):
         self.check(request)
         request = near_pick(request)
         deadline = Deadline(request.time_budget or self.settings.default_time_budget)
+        shared = SharedWork(self)
         if request.holding:
-            plan = RequestPlanning(self, request, deadline).plan_held()
+            plan = RequestPlanning(self, request, deadline, shared).plan_held()
         else:
             try:
-                plan = self._plan_around_pile(request, deadline)
+                plan = self._plan_around_pile(request, deadline, shared)
             except PlanningError as error:
                 if not (error.code == ErrorCode.GRASP_UNREACHABLE and self.settings.allow_regrasp):
                     raise
-                plan = self._plan_with_regrasp(request, deadline, error)
+                plan = self._plan_with_regrasp(request, deadline, shared, error)
         plan.planning_time = deadline.elapsed()
         return plan
 
-    def _plan_around_pile(self, request: PickPlaceRequest, deadline: Deadline) -> PickPlacePlan:
+    def _plan_around_pile(
+        self, request: PickPlaceRequest, deadline: Deadline, shared: SharedWork
+    ) -> PickPlacePlan:
         """Pads clear of the pile when a grasp allows it, else nudging it.
 
         In a heap few dominoes leave a pad's width free beside them; a pad that reaches a
@@ -291,13 +358,13 @@ class PickPlacePlanner(ArmPlanner):
         the grasp, so those keep their clearance either way.
         """
         try:
-            return RequestPlanning(self, request, deadline).plan()
+            return RequestPlanning(self, request, deadline, shared).plan()
         except PlanningError as error:
             nudge = self.settings.pile_nudge > 0.0 and request.pile and not request.pads_into_pile
             if error.code != ErrorCode.GRASP_UNREACHABLE or not nudge:
                 raise
             try:
-                plan = RequestPlanning(self, request, deadline, nudge=True).plan()
+                plan = RequestPlanning(self, request, deadline, shared, nudge=True).plan()
             except PlanningError as nudge_error:
                 nudging = "planning with the pads nudging the pile"
                 raise fallback_failed(error, nudge_error, nudging) from None
@@ -305,7 +372,11 @@ class PickPlacePlanner(ArmPlanner):
             return plan
 
     def _plan_with_regrasp(
-        self, request: PickPlaceRequest, deadline: Deadline, error: PlanningError
+        self,
+        request: PickPlaceRequest,
+        deadline: Deadline,
+        shared: SharedWork,
+        error: PlanningError,
     ) -> PickPlacePlan:
         """Turn the domino a quarter turn in place with the top grasp, then pick it again.
 
@@ -321,11 +392,11 @@ class PickPlacePlanner(ArmPlanner):
         top = pick_grasps(domino, tcp_in_domino=top_grasp())[0].pose
         try:
             turn = replace(request, place_pose=turned)
-            first = RequestPlanning(self, turn, deadline, grasps=[top]).plan()
+            first = RequestPlanning(self, turn, deadline, shared, grasps=[top]).plan()
             pick_again = replace(
                 request, domino_pose=turned, grasp_pose=None, start=first.final_positions()
             )
-            second = RequestPlanning(self, pick_again, deadline).plan()
+            second = RequestPlanning(self, pick_again, deadline, shared).plan()
         except PlanningError as regrasp_error:
             raise fallback_failed(error, regrasp_error, "turning it first") from None
         for segment in first.segments:
@@ -352,14 +423,16 @@ class RequestPlanning(RequestMotions):
         planner: PickPlacePlanner,
         request: PickPlaceRequest,
         deadline: Deadline,
+        shared: SharedWork,
         grasps: list[RigidTransform] | None = None,
         nudge: bool = False,
     ) -> None:
-        """``grasps``: exactly these TCP poses to grasp with (the regrasp's top grasp);
+        """``shared``: the scenes and IK programs of the request's earlier tiers.
+        ``grasps``: exactly these TCP poses to grasp with (the regrasp's top grasp);
         default: the request's grasp first, then the ranked canonical grasps. ``nudge``:
         the pads may reach pile_nudge into pile dominoes."""
         super().__init__(planner, request.start, deadline)
-        self.request = request
+        self.request, self.shared = request, shared
         self.nudge = nudge
         given = grasps is not None
         self.grasps, self.turned = (grasps, ([], [])) if given else self._ranked_grasps()
@@ -379,14 +452,7 @@ class RequestPlanning(RequestMotions):
         self.escape_line: np.ndarray | None = None  # out of a start close to something
 
     def _scene(self, opening: str, **dominoes) -> Scene:
-        shadow = self.planner.plants.get(self.openings[opening])
-        return Scene(
-            shadow,
-            self.planner.scenario.tcp_frame,
-            self.request.standing,
-            pile=self.request.pile,
-            **dominoes,
-        )
+        return self.shared.scene(self.openings[opening], self.request, **dominoes)
 
     def _ranked_grasps(
         self,
@@ -531,14 +597,20 @@ class RequestPlanning(RequestMotions):
         """Whether the pads' path to ``grasp`` (down the approach line along ``lift``, then
         closing on the domino) comes within pile_point_clearance of a pile point: a domino
         seen but not detected, for which the scenes have no box (arc seed 6: one standing on
-        its edge beside the picked one's long face stopped the fingers at 31 mm, twice)."""
+        its edge beside the picked one's long face stopped the fingers at 31 mm, twice).
+        Kept for the request's later tiers (the same points, grasps and lifts)."""
         if not len(self.pile_points):
             return False
+        key = ("pads' path", poses_key([self.request.domino_pose, grasp]), lift.tobytes())
+        return self.shared.remember(key, lambda: self._pads_path_near_points(grasp, lift))
+
+    def _pads_path_near_points(self, grasp: RigidTransform, lift: np.ndarray) -> bool:
         openings = self.openings
         paths = Grasp(grasp, openings["closed"], openings["pregrasp"]).pad_paths(
             self.settings.pick_approach_distance, lift
         )
-        return nearest_distance(paths, self.pile_points) < self.settings.pile_point_clearance
+        clearance = self.settings.pile_point_clearance
+        return nearest_distance(paths, self.pile_points, cap=clearance) < clearance
 
     def _place_ends(
         self, places: list[RigidTransform], transfer: Scene, seeds: list[np.ndarray]
@@ -599,7 +671,7 @@ class RequestPlanning(RequestMotions):
             if not directions:
                 failures[LINE_WRIST_OUT] += 1
                 return None
-        ik = PoseIK(scenes[0], tcp_pose.rotation())
+        ik = self.shared.ik(scenes[0], tcp_pose.rotation())
         target = tcp_pose.translation()
         checks = [(scene, rules) for scene in scenes]
         top_rules = self.planner.line_end_rules()

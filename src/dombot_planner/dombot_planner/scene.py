@@ -27,6 +27,7 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.tree import BodyIndex
+from pydrake.systems.framework import Context
 
 from dombot_description import DOMINO_SIZE
 from dombot_description.cell import ShadowPlant, build_shadow_plant
@@ -115,10 +116,37 @@ class Scene:
         self.shadow = shadow
         self.plant = shadow.plant
         self.scene_graph = shadow.scene_graph
-        self.root_context = shadow.builder_diagram.CreateDefaultContext()
-        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.root_context)
-        self.graph_context = self.scene_graph.GetMyMutableContextFromRoot(self.root_context)
         self.tcp = self.plant.GetFrameByName(tcp_frame)
+        self._dominoes = (tuple(standing), target, held_in_tcp, tuple(pile))
+        self._contexts: tuple[Context, Context, Context] | None = None
+        self._clearances: dict[bytes, dict[tuple[str, str], float]] = {}
+        self._pair_keys: dict[tuple[GeometryId, GeometryId], tuple[str, str]] = {}
+
+    @property
+    def root_context(self) -> Context:
+        return self._built()[0]
+
+    @property
+    def plant_context(self) -> Context:
+        return self._built()[1]
+
+    @property
+    def graph_context(self) -> Context:
+        return self._built()[2]
+
+    def _built(self) -> tuple[Context, Context, Context]:
+        """The contexts (root, plant, scene graph), the dominoes registered on first use: a
+        grasp's scene holding the domino is needed only once a configuration clears the
+        approach scene, which most grasps of a refused request never do."""
+        if self._contexts is not None:
+            return self._contexts
+        root = self.shadow.builder_diagram.CreateDefaultContext()
+        self._contexts = (
+            root,
+            self.plant.GetMyMutableContextFromRoot(root),
+            self.scene_graph.GetMyMutableContextFromRoot(root),
+        )
+        standing, target, held_in_tcp, pile = self._dominoes
         self.classes = self._robot_and_table_classes()
         world = self.scene_graph.world_frame_id()
         added = [self._register(pose, world, STANDING) for pose in standing]
@@ -134,6 +162,7 @@ class Scene:
             frame = self.plant.GetBodyFrameIdOrThrow(gripper.index())
             held = self._register(body_in_tcp.inverse() @ held_in_tcp, frame, HELD)
             self._filter_against_welded([held], gripper)
+        return self._contexts
 
     def _robot_and_table_classes(self) -> dict[GeometryId, str]:
         classes = {}
@@ -182,13 +211,25 @@ class Scene:
     def clearance(self, q: np.ndarray) -> dict[tuple[str, str], float]:
         """Smallest signed distance per (moving class, obstacle class or SELF) at ``q``.
 
-        Pairs farther apart than QUERY_DISTANCE are reported as QUERY_DISTANCE.
+        Pairs farther apart than QUERY_DISTANCE are reported as QUERY_DISTANCE. Kept per
+        ``q``: the planning tiers of a request share their scenes (planner.SharedWork) and
+        ask again for the configurations the tier before them checked.
         """
+        key = np.asarray(q, dtype=float).tobytes()
+        if key not in self._clearances:
+            self._clearances[key] = self._clearance(q)
+        return dict(self._clearances[key])
+
+    def _clearance(self, q: np.ndarray) -> dict[tuple[str, str], float]:
         self.set_positions(q)
         query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
         result = {}
+        keys = self._pair_keys
         for pair in query.ComputeSignedDistancePairwiseClosestPoints(QUERY_DISTANCE):
-            key = self._pair_key(self.classes[pair.id_A], self.classes[pair.id_B])
+            ids = (pair.id_A, pair.id_B)
+            key = keys.get(ids)
+            if key is None:
+                key = keys[ids] = self._pair_key(self.classes[ids[0]], self.classes[ids[1]])
             result[key] = min(result.get(key, QUERY_DISTANCE), pair.distance)
         return result
 
