@@ -460,15 +460,16 @@ class CellWorld:
         )
         pour_start = self.time
         next_index = 0
-        for size in wave_sizes(domino_count, settings.wave_size):
-            poses = pour_wave(rng, size, settings, self._pile_top())
-            wave = list(range(next_index, next_index + size))
-            self._sleep.wake(self._root, wave)
-            for index, pose in zip(wave, poses, strict=True):
-                self._set_pose(index, pose)
-            next_index += size
-            self.advance(WAVE_FALL_TIME)
-        settled = self.settle(self.config.settle_limit - (self.time - pour_start))
+        with self._sleep.waking_by_distance():
+            for size in wave_sizes(domino_count, settings.wave_size):
+                poses = pour_wave(rng, size, settings, self._pile_top())
+                wave = list(range(next_index, next_index + size))
+                self._sleep.wake(self._root, wave)
+                for index, pose in zip(wave, poses, strict=True):
+                    self._set_pose(index, pose)
+                next_index += size
+                self.advance(WAVE_FALL_TIME)
+            settled = self.settle(self.config.settle_limit - (self.time - pour_start))
         return ResetReport(
             domino_count=domino_count,
             seed=seed,
