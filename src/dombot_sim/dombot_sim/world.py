@@ -745,8 +745,8 @@ def _filter_arm_self_collisions(
 ) -> None:
     """No contact between the arm's links and the gripper body: the planner keeps the arm
     clear of itself (its shadow plant checks these pairs), so the simulator need not look
-    for them at every step (their point-contact queries were ~7 % of a free-space swing).
-    The fingers still meet the arm, and everything meets the table and the dominoes."""
+    for them at every step. The fingers still meet the arm, and everything meets the
+    table and the dominoes."""
     finger_bodies = {plant.GetJointByName(name).child_body().index() for name in fingers}
     chain = [
         plant.get_body(b)
