@@ -4,9 +4,11 @@ settled 40-domino pile,
 
 * ``idle``: the arm holds its home pose for 2 s,
 * ``swing``: the arm follows a 2 s free-space trajectory over the pile and back,
-* ``pick_place``: it grasps a flat domino next to the pile, carries and places it,
+* ``pick_place``: it grasps a flat domino next to the pile, carries and places it (also
+  per step of its script: down beside the pile, grip, lift, carry, place, release),
+* ``pour``: the pile itself poured and settled in a fresh world (``world.reset``),
 
-and, with ``--node``, the same scenes driven through a ``sim_node`` process at
+and, with ``--node`` (not ``pour``), the same scenes driven through a ``sim_node`` process at
 ``real_time_factor`` 0 over its actions (that process's CPU time, psutil).
 
 Each scene also gives a digest of every domino's final pose and the arm's joints: two
@@ -52,7 +54,7 @@ from dombot_sim.world import CellWorld, WorldConfig
 SEED = 2026
 DOMINOES = 40
 PICKED = DOMINOES  # the extra domino, lying flat next to the pile
-SCENES = ("idle", "swing", "pick_place")
+SCENES = ("idle", "swing", "pick_place", "pour")
 SETTLE = 0.1  # s held after each move
 GRIP_FORCE = 20.0  # N
 NODE_START_TIMEOUT = 600.0  # s wall for sim_node to pour the pile and publish /clock
@@ -90,8 +92,16 @@ class Hold:
     duration: float
 
 
-Step = Move | Grip | Hold
-STEP_KINDS = {"move": Move, "grip": Grip, "hold": Hold}
+@dataclass(frozen=True)
+class Pour:
+    """Pour and settle a pile in a fresh world (``world.reset``)."""
+
+    count: int
+    seed: int
+
+
+Step = Move | Grip | Hold | Pour
+STEP_KINDS = {"move": Move, "grip": Grip, "hold": Hold, "pour": Pour}
 
 
 def to_json(script: list[Step]) -> str:
@@ -133,6 +143,8 @@ def scene_script(scenario: Scenario, scene: str) -> list[Step]:
     home = scenario.home_position
     if scene == "idle":
         return [Hold(2.0)]
+    if scene == "pour":
+        return [Pour(DOMINOES, SEED)]
     if scene == "swing":
         return [Move(home, home + SWING, 1.0), Move(home + SWING, home, 1.0)]
     shadow = build_shadow_plant(scenario, grasp_opening=DOMINO_SIZE[1])
@@ -171,15 +183,26 @@ def prepare(world: CellWorld) -> None:
         raise RuntimeError("the pile did not fall asleep again")
 
 
-def run_script(world: CellWorld, script: list[Step]) -> None:
+def run_script(world: CellWorld, script: list[Step]) -> list[float]:
+    """Run the steps; CPU s per simulated s of each."""
+    ratios = []
     for step in script:
-        if isinstance(step, Move):
-            world.advance_to(world.follow_trajectory(rest_to_rest(step)) + SETTLE)
-        elif isinstance(step, Grip):
-            world.command_gripper(step.opening, step.force)
-            world.advance(step.wait)
-        else:
-            world.advance(step.duration)
+        start, cpu = world.time, cpu_seconds()
+        run_step(world, step)
+        ratios.append((cpu_seconds() - cpu) / (world.time - start))
+    return ratios
+
+
+def run_step(world: CellWorld, step: Step) -> None:
+    if isinstance(step, Pour):
+        world.reset(step.count, step.seed)
+    elif isinstance(step, Move):
+        world.advance_to(world.follow_trajectory(rest_to_rest(step)) + SETTLE)
+    elif isinstance(step, Grip):
+        world.command_gripper(step.opening, step.force)
+        world.advance(step.wait)
+    else:
+        world.advance(step.duration)
 
 
 def digest(world: CellWorld) -> str:
@@ -202,15 +225,17 @@ def world_scene(script: list[Step]) -> dict:
     world = CellWorld(WorldConfig(cameras=True, domino_capacity=DOMINOES + 1))
     if os.environ.get(NODE_ALLOCATOR) and hasattr(world, "step_block_size"):
         set_mmap_threshold(world.step_block_size)
-    prepare(world)
+    if not any(isinstance(step, Pour) for step in script):
+        prepare(world)
     start, cpu = world.time, cpu_seconds()
-    run_script(world, script)
+    steps = run_script(world, script)
     simulated, cpu = world.time - start, cpu_seconds() - cpu
     truth = world.domino_truth()
     return {
         "simulated_s": simulated,
         "cpu_s": cpu,
         "cpu_per_simulated_s": cpu / simulated,
+        "steps_cpu_per_simulated_s": steps,
         "awake_at_end": int(sum(not d.asleep for d in truth if d.in_use)),
         "picked_domino_xyz": truth[PICKED].X_WD[:3, 3].round(4).tolist(),
         "digest": digest(world),
@@ -361,6 +386,17 @@ def summary(rows: list[dict]) -> dict:
         "cpu_per_simulated_s_median": float(np.median([r["cpu_per_simulated_s"] for r in rows])),
         "cpu_per_simulated_s": [round(r["cpu_per_simulated_s"], 4) for r in rows],
         "simulated_s": rows[0]["simulated_s"],
+        **(
+            {
+                "steps_cpu_per_simulated_s_median": np.median(
+                    [r["steps_cpu_per_simulated_s"] for r in rows], axis=0
+                )
+                .round(3)
+                .tolist()
+            }
+            if "steps_cpu_per_simulated_s" in rows[0]
+            else {}
+        ),
         **{k: rows[0][k] for k in ("awake_at_end", "picked_domino_xyz") if k in rows[0]},
         "digests": sorted({r["digest"] for r in rows if "digest" in r}),
     }
@@ -391,11 +427,12 @@ def main() -> None:
         "load_average_at_start": os.getloadavg(),
         "world": compare(args.scenes, args.baseline, args.repeats, in_subprocess),
     }
-    if args.node:
+    node_scenes = [scene for scene in args.scenes if scene != "pour"]
+    if args.node and node_scenes:
         os.environ.setdefault("ROS_DOMAIN_ID", NODE_DOMAIN)
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         rclpy.init()
-        report["node"] = compare(args.scenes, args.baseline, args.repeats, node_scene)
+        report["node"] = compare(node_scenes, args.baseline, args.repeats, node_scene)
         rclpy.shutdown()
     report["load_average_at_end"] = os.getloadavg()
     print(json.dumps(report, indent=2))

@@ -12,16 +12,25 @@ this module adds it with two Drake mechanisms:
   not computed at all.
 
 A domino falls asleep once it has stayed within ``rest_motion`` metres (any point of it)
-of where it was for ``rest_time`` seconds while nothing moving is within ``wake_distance``
-of it and no robot part is that close. A displacement window, not an instantaneous speed,
-decides: a slowly tipping domino keeps moving away from its anchor and stays awake, while
-sub-millimetre contact jitter does not keep a whole pile awake. A body *moves* when some
-point of it is faster than ``moving_speed``; a sleeper wakes as soon as a moving body (an
-awake domino, the arm or the gripper) comes within ``wake_distance``, checked every
-``check_period`` of simulated time (the distance query is the expensive part; at 1 m/s
-a body moves 4 mm in 4 ms, well inside the 10 mm wake distance). Contacts between an
-awake body and a sleeping one are always computed, so a sleeper is a solid support
-until it wakes.
+of where it was for ``rest_time`` seconds while no moving body would wake it (below) and
+no robot part touches it (within ``wake_margin``). A displacement window, not an
+instantaneous speed, decides: a slowly tipping domino keeps moving away from its anchor
+and stays awake, while sub-millimetre contact jitter does not keep a whole pile awake.
+
+A body *moves* when some point of it is faster than ``moving_speed``. A sleeper wakes when
+a moving body (an awake domino, the arm or the gripper) could reach it by the next check:
+when it is within ``wake_margin`` plus ``wake_lead`` times the speed of the body's point
+nearest to it (at most ``wake_distance``; for a domino the bound of ``point_speed``). The
+check runs every ``check_period`` of simulated time (the distance query is the expensive
+part); the lead is three periods, so a body closing in at up to three times its speed at
+this check still finds the sleeper awake at the next, and the margin covers a body
+starting from rest. A finger creeping past the pile at 0.1 m/s wakes only
+what it comes within 3.2 mm of, a domino sliding at 2 cm/s what it comes within 2.2 mm
+of: each awake pile domino costs contact patches with its neighbours at every step, and
+with a fixed 10 mm one slow domino kept re-waking every neighbour 10 mm around it
+(``waking_by_distance`` keeps that rule for pours, so a seed's pile stays the same).
+Contacts between an awake body and a sleeping one are always computed, so a sleeper is a
+solid support until it wakes.
 """
 
 from __future__ import annotations
@@ -30,6 +39,7 @@ import itertools
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from pydrake.geometry import (
@@ -50,14 +60,34 @@ from dombot_sim.pile import BOUNDING_RADIUS
 CORNERS = 0.5 * np.array(list(itertools.product((-1.0, 1.0), repeat=3))) * DOMINO_SIZE  # body
 
 
+class ClosePair(NamedTuple):
+    """Two geometries within the wake distance: their signed distance and closest points,
+    each in its own geometry's frame."""
+
+    id_a: GeometryId
+    id_b: GeometryId
+    distance: float
+    point_a: np.ndarray
+    point_b: np.ndarray
+
+
 @dataclass(frozen=True)
 class SleepSettings:
     enabled: bool = True
     rest_motion: float = 5e-4  # m any point may move during the rest window
     rest_time: float = 0.25  # s
     moving_speed: float = 0.005  # m/s of a body's fastest point (bounding radius)
-    wake_distance: float = 0.010  # m
+    wake_distance: float = 0.010  # m: the farthest a moving body wakes a sleeper
+    wake_margin: float = 0.002  # m: a moving body this close wakes it whatever its speed
+    wake_lead: float = 0.012  # s of the nearest point's travel added to the margin
     check_period: float = 0.004  # s simulated between neighbourhood checks
+
+    def wake_reach(self, speed: float) -> float:
+        """How near a body whose nearest point moves at ``speed`` [m/s] wakes a sleeper
+        (-inf: it does not move)."""
+        if speed <= self.moving_speed:
+            return -np.inf
+        return min(self.wake_margin + speed * self.wake_lead, self.wake_distance)
 
 
 class SleepManager:
@@ -95,6 +125,7 @@ class SleepManager:
         self._filter_id = None
         self._next_check = -np.inf
         self.distance_fallbacks = 0  # checks answered pair by pair after an FCL error
+        self._by_distance = False  # ``waking_by_distance``
 
     @property
     def asleep(self) -> np.ndarray:
@@ -134,8 +165,8 @@ class SleepManager:
             return
         self._next_check = now + self._settings.check_period - 1e-9
         plant_context = self._plant.GetMyMutableContextFromRoot(root)
-        domino_moving = self._domino_moving(plant_context)
-        near_moving, near_robot = self._neighbourhood(root, plant_context, domino_moving)
+        speeds = self._domino_speeds(plant_context)
+        near_moving, near_robot = self._neighbourhood(root, plant_context, speeds)
         changed = False
         for index in np.flatnonzero(self._asleep & near_moving):
             self._set_asleep(plant_context, int(index), False)
@@ -167,18 +198,20 @@ class SleepManager:
             + np.linalg.norm(velocity.rotational()) * BOUNDING_RADIUS
         )
 
-    def _domino_moving(self, plant_context: Context) -> np.ndarray:
-        return np.array(
-            [
-                not asleep and self.point_speed(plant_context, body) > self._settings.moving_speed
-                for body, asleep in zip(self._dominoes, self._asleep, strict=True)
-            ],
-            dtype=bool,
-        )
+    def _domino_speeds(self, plant_context: Context) -> np.ndarray:
+        """Per domino: the speed bound of ``point_speed`` (zero asleep)."""
+        speeds = np.zeros(len(self._dominoes))
+        for index in np.flatnonzero(~self._asleep):
+            speeds[index] = self.point_speed(plant_context, self._dominoes[index])
+        return speeds
 
-    def _robot_moving(self, plant_context: Context, index: int) -> bool:
-        velocity = self._robot[index].EvalSpatialVelocityInWorld(plant_context)
-        return bool(np.linalg.norm(velocity.translational()) > self._settings.moving_speed)
+    def _robot_point_speed(self, plant_context: Context, index: int, point: np.ndarray) -> float:
+        """Speed [m/s] of the robot body's point at ``point`` (world)."""
+        body = self._robot[index]
+        velocity = body.EvalSpatialVelocityInWorld(plant_context)
+        lever = point - body.EvalPoseInWorld(plant_context).translation()
+        moved = velocity.translational() + np.cross(velocity.rotational(), lever)
+        return float(np.linalg.norm(moved))
 
     def _resting(self, plant_context: Context, now: float) -> np.ndarray:
         """Per awake domino: has it stayed near its anchor pose for the rest time?
@@ -196,43 +229,69 @@ class SleepManager:
         return resting
 
     def _neighbourhood(
-        self, root: Context, plant_context: Context, domino_moving: np.ndarray
+        self, root: Context, plant_context: Context, domino_speeds: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Per domino: is a moving body within the wake distance? is any robot body?
+        """Per domino: could a moving body reach it by the next check
+        (``SleepSettings.wake_reach``)? does a robot body touch it (within the margin)?
 
-        Robot speeds are evaluated only for robot bodies that are that close to a domino.
+        A robot body's speed is that of its point nearest to the domino, evaluated only
+        for robot bodies within the wake distance of a domino.
         """
+        settings = self._settings
         near_moving = np.zeros(len(self._dominoes), dtype=bool)
         near_robot = np.zeros(len(self._dominoes), dtype=bool)
         query = self._scene_graph.get_query_output_port().Eval(
             self._scene_graph.GetMyContextFromRoot(root)
         )
-        for id_a, id_b in self._close_pairs(query):
-            a, b = self._owner.get(id_a), self._owner.get(id_b)
-            for this, other in ((a, b), (b, a)):
+        for pair in self._close_pairs(query):
+            for this_id, other_id, point in (
+                (pair.id_a, pair.id_b, pair.point_b),
+                (pair.id_b, pair.id_a, pair.point_a),
+            ):
+                this, other = self._owner.get(this_id), self._owner.get(other_id)
                 if this is None or this[0] != "domino" or other is None:
                     continue
                 kind, index = other
                 if kind == "robot":
-                    near_robot[this[1]] = True
-                    near_moving[this[1]] |= self._robot_moving(plant_context, index)
+                    near_robot[this[1]] |= pair.distance <= settings.wake_margin
+                    at = query.GetPoseInWorld(other_id) @ point
+                    speed = self._robot_point_speed(plant_context, index, at)
                 else:
-                    near_moving[this[1]] |= domino_moving[index]
+                    speed = domino_speeds[index]
+                near_moving[this[1]] |= pair.distance <= self._wake_reach(speed)
         return near_moving, near_robot
 
-    def _close_pairs(self, query: QueryObject) -> list[tuple[GeometryId, GeometryId]]:
+    def _wake_reach(self, speed: float) -> float:
+        if self._by_distance:
+            moving = speed > self._settings.moving_speed
+            return self._settings.wake_distance if moving else -np.inf
+        return self._settings.wake_reach(speed)
+
+    @contextmanager
+    def waking_by_distance(self) -> Iterator[None]:
+        """Inside this block a moving body wakes every sleeper within ``wake_distance``,
+        whatever its speed: pours settle into the piles seeded before the speed rule
+        (which the perception and bring-up benchmarks know)."""
+        self._by_distance = True
+        try:
+            yield
+        finally:
+            self._by_distance = False
+
+    def _close_pairs(self, query: QueryObject) -> list[ClosePair]:
         """Unfiltered geometry pairs within the wake distance.
 
         FCL's box-box signed distance throws for some nearly touching boxes
         (fcl#390, drake#18704: "origin is outside of the polytope"); one such pair must
         not end the simulation, so then every pair is asked on its own and one that
-        throws counts as touching (it only happens within ~1e-14 m of contact).
+        throws counts as touching at the geometries' origins (it only happens within
+        ~1e-14 m of contact).
         """
         limit = self._settings.wake_distance
         try:
             return [
-                (pair.id_A, pair.id_B)
-                for pair in query.ComputeSignedDistancePairwiseClosestPoints(limit)
+                ClosePair(p.id_A, p.id_B, p.distance, p.p_ACa, p.p_BCb)
+                for p in query.ComputeSignedDistancePairwiseClosestPoints(limit)
             ]
         except RuntimeError:
             self.distance_fallbacks += 1
@@ -245,11 +304,12 @@ class SleepManager:
                 if "domino" not in kinds or inspector.CollisionFiltered(id_a, id_b):
                     continue
                 try:
-                    distance = query.ComputeSignedDistancePairClosestPoints(id_a, id_b).distance
+                    p = query.ComputeSignedDistancePairClosestPoints(id_a, id_b)
+                    pair = ClosePair(id_a, id_b, p.distance, p.p_ACa, p.p_BCb)
                 except RuntimeError:
-                    distance = 0.0
-                if distance <= limit:
-                    close.append((id_a, id_b))
+                    pair = ClosePair(id_a, id_b, 0.0, np.zeros(3), np.zeros(3))
+                if pair.distance <= limit:
+                    close.append(pair)
         return close
 
     def _set_asleep(self, plant_context: Context, index: int, asleep: bool) -> None:

@@ -26,7 +26,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.geometry import (
+    CollisionFilterDeclaration,
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Role,
+    SceneGraph,
+)
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import (
@@ -42,7 +49,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.trajectories import PiecewisePolynomial
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.cell import add_cell, add_dominoes, build_shadow_plant
+from dombot_description.cell import CellModels, add_cell, add_dominoes, build_shadow_plant
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_sim.cameras import CameraFrame, RenderScene
 from dombot_sim.control import ArmCommand, ArmGains, GripperController, GripperSettings
@@ -197,6 +204,7 @@ class CellWorld:
                 )
             )
         plant.Finalize()
+        _filter_arm_self_collisions(plant, scene_graph, models, scenario.gripper_joints)
 
         self._control_model = build_shadow_plant(scenario, grasp_opening=GRIPPER_OPEN)
         arm_source = ArmCommand(builder, scenario.home_position)
@@ -460,15 +468,16 @@ class CellWorld:
         )
         pour_start = self.time
         next_index = 0
-        for size in wave_sizes(domino_count, settings.wave_size):
-            poses = pour_wave(rng, size, settings, self._pile_top())
-            wave = list(range(next_index, next_index + size))
-            self._sleep.wake(self._root, wave)
-            for index, pose in zip(wave, poses, strict=True):
-                self._set_pose(index, pose)
-            next_index += size
-            self.advance(WAVE_FALL_TIME)
-        settled = self.settle(self.config.settle_limit - (self.time - pour_start))
+        with self._sleep.waking_by_distance():
+            for size in wave_sizes(domino_count, settings.wave_size):
+                poses = pour_wave(rng, size, settings, self._pile_top())
+                wave = list(range(next_index, next_index + size))
+                self._sleep.wake(self._root, wave)
+                for index, pose in zip(wave, poses, strict=True):
+                    self._set_pose(index, pose)
+                next_index += size
+                self.advance(WAVE_FALL_TIME)
+            settled = self.settle(self.config.settle_limit - (self.time - pour_start))
         return ResetReport(
             domino_count=domino_count,
             seed=seed,
@@ -729,6 +738,25 @@ class CellWorld:
             raise RuntimeError("this world was built without cameras (WorldConfig.cameras=False)")
         positions = self._plant.GetPositions(self._plant_context)
         return self._cameras.render(positions, self.time, names, labels)
+
+
+def _filter_arm_self_collisions(
+    plant: MultibodyPlant, scene_graph: SceneGraph, models: CellModels, fingers: Sequence[str]
+) -> None:
+    """No contact between the arm's links and the gripper body: the planner keeps the arm
+    clear of itself (its shadow plant checks these pairs), so the simulator need not look
+    for them at every step. The fingers still meet the arm, and everything meets the
+    table and the dominoes."""
+    finger_bodies = {plant.GetJointByName(name).child_body().index() for name in fingers}
+    chain = [
+        plant.get_body(b)
+        for model in (models.arm, models.gripper)
+        for b in plant.GetBodyIndices(model)
+        if b not in finger_bodies
+    ]
+    scene_graph.collision_filter_manager().Apply(
+        CollisionFilterDeclaration().ExcludeWithin(plant.CollectRegisteredGeometries(chain))
+    )
 
 
 def _transform(pose: np.ndarray | RigidTransform) -> RigidTransform:
