@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.trajectories import PiecewisePolynomial
 
+from dombot_description import DOMINO_SIZE
+from dombot_description.cell import build_shadow_plant
+from dombot_sim.physics_checks import tcp_ik
 from dombot_sim.world import CellWorld, WorldConfig
 
 PILE = 5  # dominoes: a small settled pile, every one asleep
@@ -115,3 +119,46 @@ def test_a_woken_domino_is_simulated_until_it_sleeps_again(world: CellWorld) -> 
     assert world.settle(5.0)
     world.advance(1.0)
     assert world.still()
+
+
+def test_a_domino_held_in_a_still_hand_is_still_and_carried_on_once_the_arm_moves() -> None:
+    """The in-hand check's wait: the arm holds a domino above the table. Once it has
+    rested in the fingers, only the clock moves (the grip's creep is not simulated);
+    moved again, the arm carries it on in the same grip."""
+    world = CellWorld(WorldConfig(cameras=False, domino_capacity=1))
+    scenario = world.scenario
+    pick = RigidTransform(RotationMatrix.MakeZRotation(0.3), [0.55, -0.12, DOMINO_SIZE[2] / 2])
+    world.set_domino_poses({0: pick})
+    assert world.settle(2.0)
+    shadow = build_shadow_plant(scenario, grasp_opening=DOMINO_SIZE[1])
+    context = shadow.plant.CreateDefaultContext()
+    grip = pick.rotation() @ RotationMatrix.MakeXRotation(np.pi)
+    x, y = pick.translation()[:2]
+
+    def to(z: float, seed: np.ndarray, duration: float = 1.0) -> np.ndarray:
+        goal = tcp_ik(shadow, context, RigidTransform(grip, [x, y, z]), seed)
+        start = world.joint_state().position[:7]
+        trajectory = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+            [0.0, duration], np.column_stack([start, goal]), np.zeros(7), np.zeros(7)
+        )
+        world.advance_to(world.follow_trajectory(trajectory) + 0.1)
+        return goal
+
+    above = to(0.10, scenario.home_position, 1.5)
+    down = to(0.0135, above)
+    world.command_gripper(0.0, 20.0)
+    world.advance(1.0)
+    lifted = to(0.12, down)
+    held_at = world.domino_truth()[0].X_WD[2, 3]
+    assert held_at > 0.09  # in the hand
+
+    world.advance(0.5)  # the hold settles, the domino rests in the fingers
+    assert world.still()
+    before, skipped = state(world), world.skipped_time
+    world.advance(2.0)
+    assert world.skipped_time - skipped == pytest.approx(2.0)
+    np.testing.assert_array_equal(state(world), before)
+    assert not world.domino_truth()[0].asleep  # awake: held, not locked
+
+    to(0.16, lifted)
+    assert world.domino_truth()[0].X_WD[2, 3] == pytest.approx(held_at + 0.04, abs=1e-3)

@@ -120,12 +120,19 @@ class SleepManager:
             for geometry in plant.GetCollisionGeometriesForBody(body):
                 self._owner[geometry] = ("robot", index)
         self._asleep = np.zeros(len(self._dominoes), dtype=bool)
+        # awake ones that rested at the last check with nothing moving near: held in the
+        # fingers of a still hand (no robot part may be near a sleeper)
+        self._resting_awake = np.zeros(len(self._dominoes), dtype=bool)
         self._anchor: list[RigidTransform | None] = [None] * len(self._dominoes)
         self._anchor_time = np.zeros(len(self._dominoes))
         self._filter_id = None
         self._next_check = -np.inf
         self.distance_fallbacks = 0  # checks answered pair by pair after an FCL error
         self._by_distance = False  # ``waking_by_distance``
+
+    @property
+    def settings(self) -> SleepSettings:
+        return self._settings
 
     @property
     def asleep(self) -> np.ndarray:
@@ -171,16 +178,26 @@ class SleepManager:
         for index in np.flatnonzero(self._asleep & near_moving):
             self._set_asleep(plant_context, int(index), False)
             changed = True
-        resting = self._resting(plant_context, now)
-        ready = resting & ~self._asleep & ~near_moving & ~near_robot
-        for index in np.flatnonzero(ready):
+        resting = self._resting(plant_context, now) & ~self._asleep & ~near_moving
+        for index in np.flatnonzero(resting & ~near_robot):
             self._set_asleep(plant_context, int(index), True)
             changed = True
+        self._resting_awake = resting & near_robot
         if changed:
             self._refresh_filter(root)
 
     def all_asleep(self, indices: Sequence[int]) -> bool:
         return bool(np.all(self._asleep[list(indices)]))
+
+    def all_at_rest(self, indices: Sequence[int]) -> bool:
+        """Is each of these asleep, or awake only for a robot part near it and rested
+        (``rest_motion`` over ``rest_time``) at the last check with nothing moving near?"""
+        chosen = list(indices)
+        return bool(np.all(self._asleep[chosen] | self._resting_awake[chosen]))
+
+    def resting_awake(self) -> list[int]:
+        """The awake dominoes at rest at the last check (``all_at_rest``)."""
+        return [int(i) for i in np.flatnonzero(self._resting_awake & ~self._asleep)]
 
     def moving(self, root: Context, indices: Sequence[int]) -> bool:
         """Is any of these dominoes moving (see ``moving_speed``)?"""
@@ -321,6 +338,7 @@ class SleepManager:
         else:
             joint.Unlock(plant_context)
         self._asleep[index] = asleep
+        self._resting_awake[index] = False
         self._anchor[index] = None
 
     @contextmanager

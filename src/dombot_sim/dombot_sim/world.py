@@ -335,18 +335,28 @@ class CellWorld:
             self._advance_chunk(last)
 
     def still(self) -> bool:
-        """Nothing in the cell moves, nor would in a step: every domino in use asleep, the
-        arm holding after its last trajectory and the fingers at their goal, every joint
-        slower than STILL_SPEED since a step after the last command (a new hold starts
-        from rest: its first step shows the pull), and sleeping on (it is what says a
-        domino rests)."""
-        if self._commanded or not (self._sleep.enabled and self._sleep.all_asleep(self._in_use)):
+        """Nothing in the cell moves, nor would in a step: every domino in use at rest —
+        asleep, or held still in the fingers (``SleepManager.all_at_rest``: rested at the
+        last check, no faster than a resting body now; its grip's creep, a step-size
+        artefact of regularized friction, is not simulated meanwhile) — the arm holding
+        after its last trajectory and the fingers at their goal, every arm joint (and
+        finger joint, unless closed on a resting domino) slower than STILL_SPEED since a
+        step after the last command (a new hold starts from rest: its first step shows
+        the pull), and sleeping on (it is what says a domino rests)."""
+        sleep = self._sleep
+        if self._commanded or not (sleep.enabled and sleep.all_at_rest(self._in_use)):
             return False
         now = self.time
         if now < self._arm_source.end_time or not self._gripper.target_reached(now):
             return False
-        speeds = self._plant.GetVelocities(self._plant_context)  # sleepers' are zero
-        return bool(np.all(np.abs(speeds) < STILL_SPEED))
+        held = sleep.resting_awake()
+        if held and sleep.moving(self._root, held):
+            return False
+        # fingers closed on a resting domino creep with it (~2e-5 m/s)
+        finger_limit = sleep.settings.moving_speed if held else STILL_SPEED
+        arm = self._plant.GetVelocities(self._plant_context, self._models.arm)
+        fingers = self._plant.GetVelocities(self._plant_context, self._models.gripper)
+        return bool(np.all(np.abs(arm) < STILL_SPEED) and np.all(np.abs(fingers) < finger_limit))
 
     def _skip_to(self, last: int) -> None:
         """Move the clock to step ``last`` without stepping; the state stays as it is."""
