@@ -143,6 +143,10 @@ class ScriptedCell:
         self.place_requests.append(request)
         return self.place(request)
 
+    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
+        answer = self.plan_place(request)
+        return lambda: answer
+
     def plan_strike(self, request: StrikeRequest) -> Plan:
         self.strike_requests.append(request)
         return self.strike(request)

@@ -204,6 +204,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "job offers another domino (5; up to 3600: never on a slow or loaded machine)",
     )
     cell.add_argument(
+        "--no-plan-ahead",
+        dest="plan_ahead",
+        action="store_false",
+        help="ask for each pick only once the last placement is checked (default: the "
+        "planner plans it while perception checks)",
+    )
+    cell.add_argument(
         "--visual",
         action="store_true",
         help="show the cell in Meshcat (URL in the log); on a terminal the page stays up "
@@ -331,6 +338,7 @@ def run_arm(args: argparse.Namespace) -> int:
         pile_center=tuple(scenario.pile_center),
         real_time_factor=args.real_time_factor,
         plan_budget=args.plan_budget,
+        plan_ahead=args.plan_ahead,
         meshcat=args.visual,
         record=args.record,
         record_image_rate=args.record_image_rate,

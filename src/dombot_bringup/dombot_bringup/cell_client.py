@@ -12,6 +12,7 @@ import time
 from collections import defaultdict
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Duration
@@ -286,21 +287,7 @@ class CellClient:
         """``request``'s answer; sent again (up to the restarts allowed) when its server
         was restarted before it answered: every server here answers from the request and
         the scene as it is now, so nothing else needs restoring."""
-        client = self._clients[name]
-        with self._spending(name):
-            while True:
-                started = self._server_restarts(name)
-                self._await_server(name, timeout)
-                future = client.call_async(request)
-
-                def answer_or_restart(future=future, started=started):
-                    if future.done():
-                        return future.result()
-                    return _RESTARTED if self._server_restarts(name) != started else None
-
-                answer = self._wait(answer_or_restart, timeout, name)
-                if answer is not _RESTARTED:
-                    return answer
+        return self.call_later(name, request, timeout)()
 
     def _server_restarts(self, name: str) -> int:
         return self._restarts().get(SERVERS[name], 0)
@@ -342,20 +329,27 @@ class CellClient:
         """``detect(not_before)`` sent now; the returned function waits for its answer
         (only that wait counts as perception's time), or asks again when perception was
         restarted meanwhile."""
-        self._await_server(DETECT_SERVICE, DETECT_TIMEOUT)
-        started = self._server_restarts(DETECT_SERVICE)
         request = DetectDominoes.Request(not_before=time_message(not_before))
-        future = self._clients[DETECT_SERVICE].call_async(request)
+        answer = self.call_later(DETECT_SERVICE, request, DETECT_TIMEOUT)
+        return lambda: detections_of(answer())
+
+    def call_later(self, name: str, request, timeout: float) -> Callable[[], Any]:
+        """``request`` sent to ``name`` now; the returned function waits for its answer
+        (only that wait counts as the service's activity), or sends it again, waiting,
+        when the server was restarted meanwhile."""
+        self._await_server(name, timeout)
+        started = self._server_restarts(name)
+        future = self._clients[name].call_async(request)
 
         def answer_or_restart():
             if future.done():
                 return future.result()
-            return _RESTARTED if self._server_restarts(DETECT_SERVICE) != started else None
+            return _RESTARTED if self._server_restarts(name) != started else None
 
-        def answer() -> Detections:
-            with self._spending(DETECT_SERVICE):
-                response = self._wait(answer_or_restart, DETECT_TIMEOUT, DETECT_SERVICE)
-            return self.detect(not_before) if response is _RESTARTED else detections_of(response)
+        def answer():
+            with self._spending(name):
+                response = self._wait(answer_or_restart, timeout, name)
+            return self.call(name, request, timeout) if response is _RESTARTED else response
 
         return answer
 
@@ -378,6 +372,9 @@ class CellClient:
         )
 
     def plan_place(self, request: PlaceRequest) -> Plan:
+        return self.plan_place_later(request)()
+
+    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
         message = PlanPlace.Request(
             domino_pose=pose_message(request.domino),
             grasp_pose=geometry_pose(request.grasp),
@@ -390,8 +387,13 @@ class CellClient:
             time_budget=request.time_budget,
             holding=request.holding,
         )
-        answer = self.call("/plan_place", message, request.time_budget + 30.0)
-        return plan_of(answer, pose_or_none(answer.held_above_place))
+        answer = self.call_later("/plan_place", message, request.time_budget + 30.0)
+
+        def plan() -> Plan:
+            response = answer()
+            return plan_of(response, pose_or_none(response.held_above_place))
+
+        return plan
 
     def plan_strike(self, request: StrikeRequest) -> Plan:
         sweep = np.zeros(2) if request.sweep is None else request.sweep

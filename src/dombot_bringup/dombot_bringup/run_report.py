@@ -145,6 +145,9 @@ class RunReport:
     simulated_s: float = 0.0
     wall_s: float = 0.0
     node_restarts: dict[str, int] = field(default_factory=dict)  # nodes started again
+    # first requests of a turn asked for while the last placement was checked (``ahead``):
+    # how many answers served their turn, how many were dropped (another request came)
+    planned_ahead: dict[str, int] = field(default_factory=lambda: {"used": 0, "dropped": 0})
     # the pile dominoes out of every grasp's and push's reach when a slot last found
     # nothing to pick (empty once a later pick planned)
     pile_out_of_reach: list[PileDomino] = field(default_factory=list)
@@ -191,6 +194,8 @@ class RunReport:
             "pile_isolated": sum(len(d.isolations) for d in self.dominoes),
             "pile_laid_flat": sum(len(d.laid_flat) for d in self.dominoes),
             "pile_out_of_reach": len(self.pile_out_of_reach),
+            "planned_ahead_used": self.planned_ahead["used"],
+            "planned_ahead_dropped": self.planned_ahead["dropped"],
             "empty_slots": [e.slot for e in self.empty_slots],
             "sections_struck": sum(s.struck for s in self.sections),
             "sections": len(self.sections),

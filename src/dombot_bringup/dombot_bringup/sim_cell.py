@@ -206,6 +206,10 @@ class SimCell:
 
         return self._plan("place", planned)
 
+    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
+        """Plans when the answer is asked for (one process: nothing to overlap)."""
+        return lambda: self.plan_place(request)
+
     def plan_strike(self, request: StrikeRequest) -> Plan:
         def planned() -> PlannerPlan:
             start, opening = self._start()

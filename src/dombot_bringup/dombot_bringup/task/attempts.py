@@ -18,7 +18,8 @@ from dombot_bringup.offers import (
     with_pile_first,
 )
 from dombot_bringup.run_report import PileDomino
-from dombot_bringup.task.cell import Posture
+from dombot_bringup.task import ahead
+from dombot_bringup.task.cell import CellError, Detections, PlaceRequest, Posture
 from dombot_bringup.task.checks import check
 from dombot_bringup.task.clearing import isolate, lay_flat, lay_leaning_flat, spread, to_lay_flat
 from dombot_bringup.task.geometry import near, near_any, spot_of
@@ -30,6 +31,7 @@ from dombot_bringup.task.picking import (
     Refusal,
     candidates,
     first_plan,
+    place_request,
 )
 from dombot_bringup.task.placing import REGRASP_PREFIX, Hold, Ran, execute
 from dombot_bringup.task.records import nearest_truth, pick_record, truth, write_pick_record
@@ -97,14 +99,10 @@ def attempt(
     """
     found, stuck = candidates(job, failed, index)
     settings = job.settings
-    ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
     roomiest = roomiest_first(found)[: settings.last_resort_candidates]
     refusals = [] if refusals is None else refusals
     earlier = len(refusals)  # this attempt's refusals follow
-    with_pile = [
-        *((c, PILE_BOXES) for c in ranked[: settings.max_candidates]),
-        *((c, PILE_CORES) for c in roomiest),
-    ]
+    with_pile = offers_with_pile(job, found)
     offer, refused = first_plan(job, index, with_pile, failed, refusals)
     if offer is not None and lay_leaning_flat(job, index, offer.candidate):
         return attempt(job, index, failed, ignore_pile, turned, refusals)
@@ -133,6 +131,36 @@ def attempt(
     job.report.pile_out_of_reach.clear()
     refusals.clear()  # something plans for the slot: what was refused tells nothing of it
     return pick(job, index, offer, failed, ignore_pile, turned)
+
+
+def offers_with_pile(job: Job, found: Sequence[Candidate]) -> list[tuple[Candidate, str]]:
+    """The offers planned with their pile, in order: the best ranked with their pile's
+    boxes (none refused so already), then the roomiest with their pile's cores."""
+    settings = job.settings
+    ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
+    return [
+        *((c, PILE_BOXES) for c in ranked[: settings.max_candidates]),
+        *((c, PILE_CORES) for c in roomiest_first(found)[: settings.last_resort_candidates]),
+    ]
+
+
+def first_request(job: Job, index: int) -> PlaceRequest | None:
+    """The request a new turn at slot ``index`` makes first, from the look at the pile
+    made while the arm placed (``job.pile_look``, kept for that turn); None without one."""
+    early = job.pile_look
+    if early is None:
+        return None
+    try:
+        seen = early()
+    except CellError:
+        seen = Detections(False)
+    job.pile_look = lambda: seen
+    if not (seen.success and seen.dominoes):
+        return None
+    found, _ = candidates(job, [], index)
+    job.pile_look = lambda: seen
+    offers = offers_with_pile(job, found)
+    return place_request(job, index, *offers[0]) if offers else None
 
 
 def flat_instead(
@@ -261,6 +289,7 @@ def pick(
     if look_again:
         log(f"{job.domino(index)}: turned it in place; looking again")
         return attempt(job, index, failed, ignore_pile, turned=True)
+    ahead.ask(job, index, first_request)
     placed = Outcome.PLACED if check(job, index) else Outcome.NOT_PLACED
     return Attempt(placed, job.report.dominoes[index].check)
 

@@ -201,6 +201,12 @@ class Cell(Protocol):
 
     def plan_place(self, request: PlaceRequest) -> Plan: ...
 
+    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
+        """Ask for ``plan_place(request)`` now and take the answer later (calling the
+        returned function, which raises ``CellError`` when none comes): the planner plans
+        while perception checks a placement."""
+        ...
+
     def plan_strike(self, request: StrikeRequest) -> Plan: ...
 
     def execute(self, trajectory: Trajectory, goal_tolerance: float = 0.0) -> Motion:

@@ -11,7 +11,7 @@ empty and the run is built around it; what stands is then struck section by sect
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from enum import Enum
 
 import numpy as np
@@ -78,6 +78,8 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
         # Only slots still to build count: a standing one left behind in the queue kept two
         # slots nothing planned for putting each other off for ever (S-curve seed 2).
         settled = deferred | set(standing)  # no turn to wait for
+        if_placed = {*standing, index}
+        job.upcoming = next((i for i in requeue(job, queue, if_placed) if i not in if_placed), None)
         ended[index] = turn(job, index, any(i not in settled for i in queue))
         if ended[index] is Turn.DEFERRED:
             deferred.add(index)
@@ -96,12 +98,17 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
             log(empty_message(index, reason))
         else:
             deferred.clear()
-        # Slots built earlier that no longer stand (knocked over, or their fallen domino
-        # was picked up for another slot) are built again first; given-up ones are not.
-        given_up = {e.slot - 1 for e in job.report.empty_slots}
-        empty = [i for i in range(len(job.layout)) if i not in standing]
-        queue = [i for i in empty if i not in queue and i not in given_up] + queue
+        queue = requeue(job, queue, standing)
     return ended
+
+
+def requeue(job: Job, queue: list[int], standing: Collection[int]) -> list[int]:
+    """The slots to build, in order, after a turn: those built earlier that no longer
+    stand (knocked over, or their fallen domino picked up for another slot) first,
+    given-up ones not, then ``queue``."""
+    given_up = {e.slot - 1 for e in job.report.empty_slots}
+    empty = [i for i in range(len(job.layout)) if i not in standing]
+    return [i for i in empty if i not in queue and i not in given_up] + queue
 
 
 def place_slot(job: Job, index: int, may_defer: bool) -> Turn:

@@ -12,6 +12,7 @@ import numpy as np
 from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED, pile_cores
 from dombot_bringup.sections import count_refusal
+from dombot_bringup.task import ahead
 from dombot_bringup.task.cell import (
     CellError,
     Detection,
@@ -214,7 +215,8 @@ def first_plan(
         spot = candidate.spot()
         if near_any(spot, failed):
             continue  # refused for this slot already
-        plan = job.cell.plan_place(place_request(job, index, candidate, pile))
+        request = place_request(job, index, candidate, pile)
+        plan = ahead.answer(job, request) or job.cell.plan_place(request)
         if plan.success:
             return Offer(candidate, pile, plan), refused
         refused += 1

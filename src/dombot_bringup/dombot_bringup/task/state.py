@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,6 +14,9 @@ from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
 from dombot_bringup.task.cell import Cell, Detections, Pose
 from dombot_bringup.task.geometry import SAME_SPOT, near, placement_pose
 from dombot_bringup.task.settings import ArmJobSettings
+
+if TYPE_CHECKING:
+    from dombot_bringup.task.ahead import PlanAhead
 
 DISTURBED_RADIUS = 0.05  # m: a pick moves the dominoes whose centres are this close to it
 
@@ -81,6 +85,10 @@ class Job:
     # next pick: nothing touches the pile between (any other motion drops it).
     pile_look: Callable[[], Detections] | None = None
     pile_seen_at: float = 0.0  # simulated time of the last look's frames (not_before)
+    # The slot whose turn comes next if the one being built stands (``loop.build``), and
+    # its first request sent while the placement is checked (``ahead``).
+    upcoming: int | None = None
+    ahead: PlanAhead | None = None
     pictures: dict[str, np.ndarray] = field(default_factory=dict)  # for the report
     picks_recorded: int = 0  # files in settings.record_picks
 
