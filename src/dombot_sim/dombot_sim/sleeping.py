@@ -121,7 +121,7 @@ class SleepManager:
                 self._owner[geometry] = ("robot", index)
         self._asleep = np.zeros(len(self._dominoes), dtype=bool)
         # awake ones that rested at the last check with nothing moving near: held in the
-        # fingers of a still hand (no robot part may be near a sleeper)
+        # fingers of a still hand (no robot part may touch a sleeper: ``wake_margin``)
         self._resting_awake = np.zeros(len(self._dominoes), dtype=bool)
         self._anchor: list[RigidTransform | None] = [None] * len(self._dominoes)
         self._anchor_time = np.zeros(len(self._dominoes))
@@ -190,7 +190,7 @@ class SleepManager:
         return bool(np.all(self._asleep[list(indices)]))
 
     def all_at_rest(self, indices: Sequence[int]) -> bool:
-        """Is each of these asleep, or awake only for a robot part near it and rested
+        """Is each of these asleep, or awake only for a robot part touching it and rested
         (``rest_motion`` over ``rest_time``) at the last check with nothing moving near?"""
         chosen = list(indices)
         return bool(np.all(self._asleep[chosen] | self._resting_awake[chosen]))

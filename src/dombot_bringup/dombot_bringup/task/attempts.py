@@ -99,7 +99,7 @@ def attempt(
     """
     found, stuck = candidates(job, failed, index)
     settings = job.settings
-    roomiest = roomiest_first(found)[: settings.last_resort_candidates]
+    roomiest = last_resort(job, found)
     refusals = [] if refusals is None else refusals
     earlier = len(refusals)  # this attempt's refusals follow
     with_pile = offers_with_pile(job, found)
@@ -136,12 +136,16 @@ def attempt(
 def offers_with_pile(job: Job, found: Sequence[Candidate]) -> list[tuple[Candidate, str]]:
     """The offers planned with their pile, in order: the best ranked with their pile's
     boxes (none refused so already), then the roomiest with their pile's cores."""
-    settings = job.settings
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
     return [
-        *((c, PILE_BOXES) for c in ranked[: settings.max_candidates]),
-        *((c, PILE_CORES) for c in roomiest_first(found)[: settings.last_resort_candidates]),
+        *((c, PILE_BOXES) for c in ranked[: job.settings.max_candidates]),
+        *((c, PILE_CORES) for c in last_resort(job, found)),
     ]
+
+
+def last_resort(job: Job, found: Sequence[Candidate]) -> list[Candidate]:
+    """The roomiest candidates: offered with their pile's cores, then ignoring it."""
+    return roomiest_first(found)[: job.settings.last_resort_candidates]
 
 
 def first_request(job: Job, index: int) -> PlaceRequest | None:
