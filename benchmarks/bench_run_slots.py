@@ -75,8 +75,9 @@ class SlotCase:
 
 
 def build_order(placements: tuple[layouts.DominoPlacement, ...], section: int) -> list[int]:
-    """The bring-up's queue: every slot but the safety gaps in run order, then the gaps."""
-    gaps = layouts.safety_gaps(list(placements), section)
+    """The bring-up's queue: every slot but the safety gaps (as laid out, before the planner
+    is asked about them: ``task.gaps``) in run order, then the gaps."""
+    gaps = [i for gap in layouts.safety_gaps(list(placements), section) for i in gap]
     return [i for i in range(len(placements)) if i not in gaps] + gaps
 
 

@@ -91,3 +91,17 @@ def test_a_directory_as_csv_is_a_usage_error_without_a_traceback(tmp_path, capsy
     error = capsys.readouterr().err
     assert error.startswith("bringup: layout rejected: cannot read --csv")
     assert "it is a directory" in error
+
+
+@pytest.mark.parametrize(
+    ("options", "asked"), [([], ArmJobSettings.gap_probe_dominoes), (["--gaps-as-laid-out"], 0)]
+)
+def test_the_safety_gaps_are_asked_of_the_planner_unless_kept_as_laid_out(
+    monkeypatch, options: list[str], asked: int
+) -> None:
+    settings = []
+    monkeypatch.setattr(
+        "dombot_bringup.bringup.run_arm_job", lambda out, chosen, s, command: settings.append(s)
+    )
+    run_arm(parse_args(options))
+    assert settings[0].gap_probe_dominoes == asked

@@ -144,6 +144,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="dominoes between safety gaps, filled once the rest stands (4; 0: none)",
     )
     run.add_argument(
+        "--gaps-as-laid-out",
+        action="store_true",
+        help="keep every safety gap where --section puts it (default: the planner is asked "
+        "first whether each can be filled between its neighbours; moved or dropped if not)",
+    )
+    run.add_argument(
         "--keep-off-target",
         type=float,
         default=6.0,
@@ -329,6 +335,7 @@ def run_arm(args: argparse.Namespace) -> int:
         pile=args.pile,
         seed=args.seed,
         section=args.section,
+        gap_probe_dominoes=0 if args.gaps_as_laid_out else ArmJobSettings.gap_probe_dominoes,
         keep_off_target=args.keep_off_target * 1e-3,
         keep_when_stuck=args.keep_when_stuck * 1e-3,
         place_lead=args.place_lead * 1e-3,

@@ -307,26 +307,29 @@ def validate(placements: list[DominoPlacement], area: BuildArea) -> None:
     _check_overlaps(placements)
 
 
-def safety_gaps(placements: list[DominoPlacement], section: int) -> list[int]:
-    """Layout indices to leave empty until the rest of the run stands: after every
-    ``section`` dominoes, a builder's safety gap as many slots wide as it takes for the
-    dominoes either side to stand more than a domino's height plus thickness apart, so
-    a domino that falls by accident takes down at most its own section. ``section`` 0:
-    none."""
+def safety_gaps(placements: list[DominoPlacement], section: int) -> list[range]:
+    """Slots to leave empty until the rest of the run stands, one range a gap: after every
+    ``section`` dominoes, a builder's safety gap (``gap_at``), so a domino that falls by
+    accident takes down at most its own section. ``section`` 0: none."""
     count = len(placements)
+    gaps: list[range] = []
+    first = section if section > 0 else count
+    while first < count - 1 and (gap := gap_at(placements, first)) is not None:
+        gaps.append(gap)
+        first = gap.stop + section
+    return gaps
+
+
+def gap_at(placements: list[DominoPlacement], first: int) -> range | None:
+    """The safety gap from slot ``first`` on: as many slots as it takes for the dominoes
+    either side to stand more than a domino's height plus thickness apart; None when it
+    would reach the run's end (nothing behind it to protect)."""
     centres = np.array([[p.x, p.y] for p in placements])
     reach = DOMINO_LENGTH + DOMINO_THICKNESS  # a toppling domino's top lands this far out
-    gaps: list[int] = []
-    first = section if section > 0 else count
-    while first < count - 1:
-        after = first + 1  # the first domino beyond the gap
-        while after < count and np.linalg.norm(centres[after] - centres[first - 1]) <= reach:
-            after += 1
-        if after >= count:
-            break  # the gap would reach the run's end: nothing to protect
-        gaps += range(first, after)
-        first = after + section
-    return gaps
+    after = first + 1  # the first domino beyond the gap
+    while after < len(centres) and np.linalg.norm(centres[after] - centres[first - 1]) <= reach:
+        after += 1
+    return range(first, after) if first > 0 and after < len(centres) else None
 
 
 def _footprint_corners(placement: DominoPlacement) -> np.ndarray:

@@ -84,6 +84,17 @@ class EmptySlot:
 
 
 @dataclass
+class GapDecision:
+    """A safety gap as laid out, and where the build left it (``task.gaps``)."""
+
+    slots: list[int]  # counted from 1, as laid out
+    verdict: str  # "kept", "moved" or "dropped" (its stretch built in run order)
+    now: list[int]  # where it is built last; empty: dropped
+    why: str  # the planner's refusal of its last slot between its neighbours, or ""
+    plans: int  # planning calls asked to decide
+
+
+@dataclass
 class PileDomino:
     """A pile domino no grasp or push reached when the last slot found nothing to pick."""
 
@@ -136,6 +147,8 @@ class RunReport:
     seed: int
     built: bool = False  # every slot filled
     empty_slots: list[EmptySlot] = field(default_factory=list)  # given up, built around
+    # the safety gaps the planner was asked about before the build: kept, moved, dropped
+    safety_gaps: list[GapDecision] = field(default_factory=list)
     sections: list[SectionOutcome] = field(default_factory=list)  # in run order
     struck: bool = False  # every section
     toppled_by_perception: bool = False
@@ -197,6 +210,11 @@ class RunReport:
             "planned_ahead_used": self.planned_ahead["used"],
             "planned_ahead_dropped": self.planned_ahead["dropped"],
             "empty_slots": [e.slot for e in self.empty_slots],
+            **{
+                f"gaps_{verdict}": sum(g.verdict == verdict for g in self.safety_gaps)
+                for verdict in ("kept", "moved", "dropped")
+            },
+            "gap_plans": sum(g.plans for g in self.safety_gaps),
             "sections_struck": sum(s.struck for s in self.sections),
             "sections": len(self.sections),
             "standing_before_strike_by_truth": self.standing_by_truth,

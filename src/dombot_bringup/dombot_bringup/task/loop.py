@@ -16,12 +16,12 @@ from enum import Enum
 
 import numpy as np
 
-from dombot_bringup.layouts import safety_gaps
 from dombot_bringup.run_report import EmptySlot, RunReport
 from dombot_bringup.sections import empty_message, empty_reason
 from dombot_bringup.task.attempts import Attempt, Outcome, attempt
 from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.clearing import sweep_debris
+from dombot_bringup.task.gaps import gap_slots
 from dombot_bringup.task.picking import Refusal
 from dombot_bringup.task.records import add_spent, record_truth, take_picture
 from dombot_bringup.task.state import Job, log
@@ -61,10 +61,11 @@ def run(
 
 
 def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
-    """Give slots turns, safety gaps (``settings.section``) last, until every slot stands
-    or was given up (FAILED: recorded in ``report.empty_slots``, not queued again); how
-    each slot's last turn ended."""
-    gaps = safety_gaps(job.layout, job.settings.section)
+    """Give slots turns, safety gaps (``settings.section``, where the planner can fill
+    them: ``gaps.gap_slots``) last, until every slot stands or was given up (FAILED:
+    recorded in ``report.empty_slots``, not queued again); how each slot's last turn
+    ended."""
+    gaps = gap_slots(job)
     queue = [i for i in range(len(job.layout)) if i not in gaps] + gaps
     if gaps:
         numbers = ", ".join(str(i + 1) for i in gaps)

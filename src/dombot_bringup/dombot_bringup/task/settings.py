@@ -81,6 +81,14 @@ class ArmJobSettings:
     # the planner then plans on the other core. False: asked once the check has answered.
     plan_ahead: bool = True
     section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
+    # Before the build, the planner is asked to place a flat pile domino at each safety
+    # gap's last slot between its standing neighbours (``task.gaps``), with at most this
+    # many dominoes when their grasps are refused (0: not asked, the gaps as laid out).
+    # Refused its place, the gap moves up to gap_moves slots either way to where it plans,
+    # else it is dropped: s_curve30 at 22 mm refused every gap's last slot (each planned
+    # with one neighbour) and left all four empty.
+    gap_probe_dominoes: int = 3
+    gap_moves: int = 1
     plan_budget: float = 5.0  # s of planning per request
     settle_after_place: float = 0.5  # s simulated from letting go to checking a placement
     topple_wait: float = 3.0  # s simulated after the strike
