@@ -159,30 +159,16 @@ def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: floa
     """Smallest distance [m] from the pads' path (``Grasp.pad_paths``: straight down to the
     grasp, the planner's first approach line, then closing onto the domino) to any
     obstacle point; ``FREE_SPACE`` when nothing is nearer."""
-    paths = grasp.pad_paths(approach_distance, VERTICAL)
+    paths = grasp.pad_path_array(approach_distance, VERTICAL)
     return nearest_distance(paths, obstacles, cap=FREE_SPACE)
 
 
 def _pad_space(grasp: Grasp) -> tuple:
-    """The open and the closed pads as unordered sets of boxes (centre, axes up to sign),
-    rounded to 1 nm: grasps with the same key have the same ``pad_paths``."""
-
-    def boxes(opening: float) -> tuple:
-        return tuple(
-            sorted(
-                tuple(
-                    np.round(
-                        np.concatenate(
-                            [box.pose.translation(), np.abs(box.pose.rotation().matrix()).ravel()]
-                        ),
-                        9,
-                    )
-                )
-                for box in grasp.pad_boxes(opening)
-            )
-        )
-
-    return boxes(grasp.pregrasp_opening), boxes(grasp.closed_opening)
+    """The TCP position and approach axis, rounded to 1 nm: grasps with the same key have
+    the same ``pad_paths`` (they differ by a half turn about the approach, and the pads
+    lie mirrored about it: their centres are on the approach axis's plane, wsg50.urdf)."""
+    pose = grasp.pose.GetAsMatrix4()
+    return tuple(np.round(np.concatenate([pose[:3, 3], pose[:3, 2]]), 9))
 
 
 def pads_above_table(grasp: Grasp, min_height: float) -> bool:
