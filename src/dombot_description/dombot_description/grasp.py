@@ -220,44 +220,34 @@ def _near_pairs(
     Two levels of bounds: each chain of overlapping boxes (a pad's path), then each run
     of NEAREST_GROUP boxes of a chain, on the points the first level leaves."""
     local, centres = points @ rotation, centres @ rotation
-    chains = _chains(centres, halves)
-    lower = _lower_bounds(local, centres, halves, chains)
+    low, high = centres - halves, centres + halves
+    apart = np.any((low[1:] > high[:-1]) | (high[1:] < low[:-1]), axis=1)
+    chains = np.flatnonzero(np.concatenate([[True], apart]))
+    lower = _lower_bounds(local, low, high, chains)
     bound = _upper_bound(local, lower, centres, halves, bound)
     near = np.flatnonzero(lower.min(axis=0) < bound)
     local = local[near]
-    runs = [
-        chain[k : k + NEAREST_GROUP]
-        for chain in chains
-        for k in range(0, len(chain), NEAREST_GROUP)
-    ]
-    lower = _lower_bounds(local, centres, halves, runs)
+    ends = np.append(chains[1:], len(centres))
+    runs = np.concatenate(
+        [np.arange(a, b, NEAREST_GROUP) for a, b in zip(chains, ends, strict=True)]
+    )
+    lower = _lower_bounds(local, low, high, runs)
     bound = _upper_bound(local, lower, centres, halves, bound)
-    values, indices, boxes = [np.zeros(0)], [np.zeros(0, dtype=int)], [np.zeros(0, dtype=int)]
-    for run, run_lower in zip(runs, lower, strict=True):
-        inside = np.flatnonzero(run_lower < bound)
-        if len(inside):
-            distances = excess_signed_distance(
-                np.abs(local[inside, None] - centres[run]) - halves[run]
-            )
-            values.append(distances.ravel())
-            indices.append(np.repeat(near[inside], len(run)))
-            boxes.append(np.tile(run, len(inside)))
-    return bound, np.concatenate(values), np.concatenate(indices), np.concatenate(boxes)
-
-
-def _chains(centres: np.ndarray, halves: np.ndarray) -> list[np.ndarray]:
-    """Runs of consecutive axis-aligned boxes that each overlap the one before."""
-    apart = np.any(np.abs(np.diff(centres, axis=0)) > halves[1:] + halves[:-1], axis=1)
-    return np.split(np.arange(len(centres)), np.flatnonzero(apart) + 1)
+    run, point = np.nonzero(lower < bound)
+    # each run's boxes, the last repeated up to NEAREST_GROUP (a repeat changes no minimum)
+    run_end = np.append(runs[1:], len(centres))[run]
+    box = np.minimum(runs[run, None] + np.arange(NEAREST_GROUP), run_end[:, None] - 1)
+    values = excess_signed_distance(np.abs(local[point, None] - centres[box]) - halves[box])
+    return bound, values.ravel(), np.repeat(near[point], NEAREST_GROUP), box.ravel()
 
 
 def _lower_bounds(
-    local: np.ndarray, centres: np.ndarray, halves: np.ndarray, groups: list[np.ndarray]
+    local: np.ndarray, low: np.ndarray, high: np.ndarray, starts: np.ndarray
 ) -> np.ndarray:
-    """groups × points: less than the signed distance of each point to any box of each
-    group (axis-aligned): the largest excess along one axis over the group's bounds."""
-    low = np.array([(centres[group] - halves[group]).min(axis=0) for group in groups])
-    high = np.array([(centres[group] + halves[group]).max(axis=0) for group in groups])
+    """groups × points: less than the signed distance of each point to any box (axis-aligned,
+    corners ``low``, ``high``) of each group of consecutive boxes from ``starts``: the
+    largest excess along one axis over the group's bounds."""
+    low, high = np.minimum.reduceat(low, starts), np.maximum.reduceat(high, starts)
     excess = np.abs(local - ((low + high) / 2.0)[:, None]) - ((high - low) / 2.0)[:, None]
     return np.maximum(np.maximum(excess[..., 0], excess[..., 1]), excess[..., 2]) - ROUNDING
 
@@ -353,6 +343,15 @@ def release_opening(width: float) -> float:
     return width + 2.0 * RELEASE_CLEARANCE
 
 
+CANONICAL_GRASP = canonical_grasp()  # made once: perception ranks the grasps of every domino
+
+
+@cache
+def _pad_boxes_in_tcp(opening: float) -> tuple[OrientedBox, ...]:
+    """``GripperGeometry.pad_boxes_in_tcp``, made once per opening (a few are used)."""
+    return tuple(gripper_geometry().pad_boxes_in_tcp(opening))
+
+
 def top_grasp() -> RigidTransform:
     """X_DG of the regrasp: straight down onto a flat domino, fingers across its width.
 
@@ -384,10 +383,7 @@ class Grasp:
     def pad_boxes(self, opening: float | None = None) -> list[OrientedBox]:
         """Where the two pads are in world at ``opening`` (default: closed on the domino)."""
         opening = self.closed_opening if opening is None else opening
-        return [
-            OrientedBox(self.pose @ box.pose, box.size)
-            for box in gripper_geometry().pad_boxes_in_tcp(opening)
-        ]
+        return [OrientedBox(self.pose @ box.pose, box.size) for box in _pad_boxes_in_tcp(opening)]
 
     def pad_paths(
         self, approach_distance: float, retreat: np.ndarray | None = None
@@ -434,7 +430,7 @@ def equivalent_grasps(
     ``tcp_in_domino``: the grasp X_DG (default: the canonical tilted grasp).
     """
     width = float(size[1])
-    tcp_in_domino = canonical_grasp() if tcp_in_domino is None else tcp_in_domino
+    tcp_in_domino = CANONICAL_GRASP if tcp_in_domino is None else tcp_in_domino
     return [
         Grasp(
             domino_pose @ RigidTransform(symmetry) @ tcp_in_domino @ swap,

@@ -78,12 +78,9 @@ def score_detections(
     tops = np.array([_top_height(d.X_WD) for d in detections])
     span = tops.max() - tops.min()
     for detection, top in zip(detections, tops, strict=True):
-        # a distance mask: a k-d tree's answer, as a list, costs more to turn into an index
-        offsets = scene_points - detection.X_WD[:3, 3]
-        nearby = scene_points[dot3(offsets, offsets) <= NEIGHBOURHOOD**2]
-        obstacles = _obstacles(detection.X_WD, nearby, config.own_surface)
+        obstacles, local = _obstacles(detection.X_WD, scene_points, config.own_surface)
         choice = best_grasp(detection.X_WD, obstacles, config)
-        covered = _points_on_top(detection.X_WD, obstacles, config.cover_height)
+        covered = _points_on_top(detection.X_WD, obstacles, local, config.cover_height)
         terms = {
             "flatness": abs(detection.X_WD[2, 2]),
             "clearance": clearance_term(choice.clearance, config),
@@ -181,15 +178,24 @@ def pads_above_table(grasp: Grasp, min_height: float) -> bool:
     return True
 
 
-def _obstacles(domino_pose: np.ndarray, scene_points: np.ndarray, own_surface: float) -> np.ndarray:
-    """Scene points not on this domino's own surface."""
-    local = (scene_points - domino_pose[:3, 3]) @ domino_pose[:3, :3]
-    return scene_points[box_signed_distance(local) > own_surface]
+def _obstacles(
+    domino_pose: np.ndarray, scene_points: np.ndarray, own_surface: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scene points within NEIGHBOURHOOD not on this domino's own surface, in world and in
+    the domino's frame."""
+    # a distance mask: a k-d tree's answer, as a list, costs more to turn into an index
+    offsets = scene_points - domino_pose[:3, 3]
+    nearby = dot3(offsets, offsets) <= NEIGHBOURHOOD**2
+    local = offsets[nearby] @ domino_pose[:3, :3]
+    apart = box_signed_distance(local) > own_surface
+    return scene_points[nearby][apart], local[apart]
 
 
-def _points_on_top(domino_pose: np.ndarray, obstacles: np.ndarray, cover_height: float) -> int:
-    """Obstacle points above the domino's top, inside its outline across its up axis."""
-    local = (obstacles - domino_pose[:3, 3]) @ domino_pose[:3, :3]
+def _points_on_top(
+    domino_pose: np.ndarray, obstacles: np.ndarray, local: np.ndarray, cover_height: float
+) -> int:
+    """Obstacle points (world, and ``local`` in the domino's frame) above the domino's top,
+    inside its outline across its up axis."""
     across = [axis for axis in range(3) if axis != int(np.argmax(np.abs(domino_pose[2, :3])))]
     outline = np.all(np.abs(local[:, across]) <= HALF_SIZE[across], axis=1)
     above = obstacles[:, 2] > _top_height(domino_pose) + cover_height
