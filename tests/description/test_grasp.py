@@ -27,6 +27,7 @@ from dombot_description.grasp import (
     SYMMETRIES,
     WSG_URDF,
     BoxArray,
+    Grasp,
     OrientedBox,
     canonical_grasp,
     domino_in_tcp,
@@ -276,6 +277,19 @@ def test_oblique_sweep_overhangs_the_swept_volume_by_less_than_a_step() -> None:
     assert np.all(exact - covered < 0.002)  # by less than a step
     straight = pad.sweep(pad.pose.rotation().matrix()[:, 0] * 0.03)
     assert len(straight) == 1  # along an axis the one box is exact
+
+
+def test_finger_swapped_twins_sweep_the_same_space() -> None:
+    """Perception scores one of each twin (same TCP position and approach): its pads'
+    paths must be the other's, box for box."""
+    grasps = pick_grasps(flat_pose(0.5, -0.3, 0.4))
+    for grasp in grasps:
+        twin = Grasp(grasp.pose @ FINGER_SWAP, grasp.closed_opening, grasp.pregrasp_opening)
+        ours, theirs = (g.pad_path_array(0.05, np.array([0.0, 0.0, 1.0])) for g in (grasp, twin))
+        half = len(ours) // 2  # the pads trade places
+        assert np.allclose(ours.centres, np.roll(theirs.centres, half, axis=0), atol=1e-12)
+        assert np.allclose(ours.sizes, np.roll(theirs.sizes, half, axis=0), atol=1e-12)
+        assert np.allclose(np.abs(ours.rotations), np.abs(theirs.rotations), atol=1e-12)
 
 
 def test_nearest_distance_is_the_smallest_signed_distance_to_any_box() -> None:

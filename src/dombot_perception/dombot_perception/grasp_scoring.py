@@ -162,8 +162,8 @@ def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: floa
 
 def _pad_space(grasp: Grasp) -> tuple:
     """The TCP position and approach axis, rounded to 1 nm: grasps with the same key have
-    the same ``pad_paths`` (they differ by a half turn about the approach, and the pads
-    lie mirrored about it: their centres are on the approach axis's plane, wsg50.urdf)."""
+    the same ``pad_paths`` (finger-swapped twins differ by a half turn about the approach;
+    the pad boxes' centres lie in the TCP's y-z plane, wsg50.urdf, so it swaps the pads)."""
     pose = grasp.pose.GetAsMatrix4()
     return tuple(np.round(np.concatenate([pose[:3, 3], pose[:3, 2]]), 9))
 
