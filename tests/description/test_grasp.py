@@ -26,6 +26,8 @@ from dombot_description.grasp import (
     PREGRASP_CLEARANCE,
     SYMMETRIES,
     WSG_URDF,
+    BoxArray,
+    Grasp,
     OrientedBox,
     canonical_grasp,
     domino_in_tcp,
@@ -277,16 +279,30 @@ def test_oblique_sweep_overhangs_the_swept_volume_by_less_than_a_step() -> None:
     assert len(straight) == 1  # along an axis the one box is exact
 
 
+def test_finger_swapped_twins_sweep_the_same_space() -> None:
+    """Perception scores one of each twin (same TCP position and approach): its pads'
+    paths must be the other's, box for box."""
+    grasps = pick_grasps(flat_pose(0.5, -0.3, 0.4))
+    for grasp in grasps:
+        twin = Grasp(grasp.pose @ FINGER_SWAP, grasp.closed_opening, grasp.pregrasp_opening)
+        ours, theirs = (g.pad_path_array(0.05, np.array([0.0, 0.0, 1.0])) for g in (grasp, twin))
+        half = len(ours) // 2  # the pads trade places
+        assert np.allclose(ours.centres, np.roll(theirs.centres, half, axis=0), atol=1e-12)
+        assert np.allclose(ours.sizes, np.roll(theirs.sizes, half, axis=0), atol=1e-12)
+        assert np.allclose(np.abs(ours.rotations), np.abs(theirs.rotations), atol=1e-12)
+
+
 def test_nearest_distance_is_the_smallest_signed_distance_to_any_box() -> None:
+    """To the last bit: the bounds only choose which distances to measure."""
     grasp = pick_grasps(flat_pose(0.5, -0.3, 0.4))[0]
-    paths = grasp.pad_paths(0.05, np.array([0.0, 0.0, 1.0]))
+    turned = pick_grasps(flat_pose(0.51, -0.29, 1.3))[2]  # boxes of a second rotation
+    paths = grasp.pad_paths(0.05, np.array([0.0, 0.0, 1.0])) + turned.pad_paths(0.03)
     rng = np.random.default_rng(1)
     for spread in (0.002, 0.01, 0.05):  # inside the pads' path, near it, around it
         points = grasp.pose.translation() + rng.normal(0.0, spread, (500, 3))
         brute = min(float(path.signed_distance(points).min()) for path in paths)
-        assert nearest_distance(paths, points) == pytest.approx(brute, abs=1e-12)
-        capped = nearest_distance(paths, points, cap=0.004)
-        assert capped == pytest.approx(min(brute, 0.004), abs=1e-12)
+        assert nearest_distance(paths, points) == brute
+        assert nearest_distance(BoxArray.of(paths), points, cap=0.004) == min(brute, 0.004)
     assert nearest_distance(paths, np.zeros((0, 3))) == math.inf
     assert nearest_distance(paths, np.ones((4, 3)), cap=0.01) == 0.01  # all far away
 

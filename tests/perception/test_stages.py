@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
+from dombot_description.grasp import comes_from_above, pick_grasps
 from dombot_perception.backprojection import WorkRegion, backproject, image_normals
 from dombot_perception.box_fit import (
     BoxFitConfig,
@@ -37,7 +39,11 @@ from dombot_perception.frames import (
 )
 from dombot_perception.fusion import FusionConfig, MaskCloud, fuse
 from dombot_perception.grasp_scoring import (
+    FREE_SPACE,
+    NEIGHBOURHOOD,
+    VERTICAL,
     GraspScoringConfig,
+    pads_above_table,
     predicted_success,
     score_detections,
     weighted_geometric_mean,
@@ -383,6 +389,64 @@ def test_a_domino_tucked_in_the_fingers_gap_blocks_their_close() -> None:
     assert detection.score == 0.0 and not predicted_success(detection, config)
     (alone,) = score_detections([_detection(pose)], visible_surface(pose, CAMERA)[0], config)
     assert alone.score > 0.5 and predicted_success(alone, config)
+
+
+def _straightforward_choice(pose: np.ndarray, scene: np.ndarray, config: GraspScoringConfig):
+    """The grasp scoring's choice measured the plain way: every pad-path box against every
+    obstacle point, each grasp on its own; the first that clears, else the clearest (the
+    first of a finger-swapped twin, whose pads pass through the same space); none from
+    above the table: -1."""
+    nearby = scene[np.linalg.norm(scene - pose[:3, 3], axis=1) <= NEIGHBOURHOOD]
+    own = box_signed_distance((nearby - pose[:3, 3]) @ pose[:3, :3]) <= config.own_surface
+    obstacles = nearby[~own]
+    candidates = pick_grasps(RigidTransform(pose), base_xy=config.base_xy)
+    grasps = [
+        grasp
+        for grasp in candidates
+        if comes_from_above(grasp.pose) and pads_above_table(grasp, config.min_table_clearance)
+    ]
+    if not grasps:
+        return candidates[0], -1.0
+    clearances = [
+        min(
+            FREE_SPACE,
+            *(
+                float(box.signed_distance(obstacles).min())
+                for box in grasp.pad_paths(config.approach_distance, VERTICAL)
+            ),
+        )
+        for grasp in grasps
+    ]
+    clear = [k for k, c in enumerate(clearances) if c >= config.min_clearance]
+    best = (
+        clear[0]
+        if clear
+        else min(k for k, c in enumerate(clearances) if c >= max(clearances) - 1e-12)
+    )
+    return grasps[best], clearances[best]
+
+
+def test_scoring_measures_clearances_as_the_straightforward_way_does() -> None:
+    """A crowded, seeded patch of dominoes (some touching, some clear, some tilted onto a
+    neighbour): the pruned clearances are the plain ones to the last bit, same grasps."""
+    rng = np.random.default_rng(RNG_SEED)
+    poses = []
+    for row in range(3):
+        for col in range(3):
+            x = PILE_CENTRE[0] + 0.032 * col + rng.uniform(-0.004, 0.004)
+            y = PILE_CENTRE[1] + 0.05 * row + rng.uniform(-0.004, 0.004)
+            tilt = Rotation.from_euler("zx", [rng.uniform(-0.5, 0.5), rng.uniform(-0.2, 0.2)])
+            poses.append(domino_pose((x, y, 0.006 + 0.004 * (row == 1)), tilt.as_matrix()))
+    scene = np.vstack([visible_surface(pose, CAMERA, spacing=0.002)[0] for pose in poses])
+    config = GraspScoringConfig()
+    detections = score_detections([_detection(pose) for pose in poses], scene, config)
+    clearances = []
+    for detection in detections:
+        grasp, clearance = _straightforward_choice(detection.X_WD, scene, config)
+        assert detection.clearance == clearance
+        assert np.array_equal(detection.grasp_pose, grasp.pose.GetAsMatrix4())
+        clearances.append(clearance)
+    assert min(clearances) < 0.0 < config.min_clearance < max(clearances)  # both kinds
 
 
 def test_points_on_no_detected_domino_are_unexplained() -> None:

@@ -78,12 +78,9 @@ def score_detections(
     tops = np.array([_top_height(d.X_WD) for d in detections])
     span = tops.max() - tops.min()
     for detection, top in zip(detections, tops, strict=True):
-        # a distance mask: a k-d tree's answer, as a list, costs more to turn into an index
-        offsets = scene_points - detection.X_WD[:3, 3]
-        nearby = scene_points[dot3(offsets, offsets) <= NEIGHBOURHOOD**2]
-        obstacles = _obstacles(detection.X_WD, nearby, config.own_surface)
+        obstacles, local = _obstacles(detection.X_WD, scene_points, config.own_surface)
         choice = best_grasp(detection.X_WD, obstacles, config)
-        covered = _points_on_top(detection.X_WD, obstacles, config.cover_height)
+        covered = _points_on_top(detection.X_WD, obstacles, local, config.cover_height)
         terms = {
             "flatness": abs(detection.X_WD[2, 2]),
             "clearance": clearance_term(choice.clearance, config),
@@ -159,30 +156,16 @@ def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: floa
     """Smallest distance [m] from the pads' path (``Grasp.pad_paths``: straight down to the
     grasp, the planner's first approach line, then closing onto the domino) to any
     obstacle point; ``FREE_SPACE`` when nothing is nearer."""
-    paths = grasp.pad_paths(approach_distance, VERTICAL)
+    paths = grasp.pad_path_array(approach_distance, VERTICAL)
     return nearest_distance(paths, obstacles, cap=FREE_SPACE)
 
 
 def _pad_space(grasp: Grasp) -> tuple:
-    """The open and the closed pads as unordered sets of boxes (centre, axes up to sign),
-    rounded to 1 nm: grasps with the same key have the same ``pad_paths``."""
-
-    def boxes(opening: float) -> tuple:
-        return tuple(
-            sorted(
-                tuple(
-                    np.round(
-                        np.concatenate(
-                            [box.pose.translation(), np.abs(box.pose.rotation().matrix()).ravel()]
-                        ),
-                        9,
-                    )
-                )
-                for box in grasp.pad_boxes(opening)
-            )
-        )
-
-    return boxes(grasp.pregrasp_opening), boxes(grasp.closed_opening)
+    """The TCP position and approach axis, rounded to 1 nm: grasps with the same key have
+    the same ``pad_paths`` (finger-swapped twins differ by a half turn about the approach;
+    the pad boxes' centres lie in the TCP's y-z plane, wsg50.urdf, so it swaps the pads)."""
+    pose = grasp.pose.GetAsMatrix4()
+    return tuple(np.round(np.concatenate([pose[:3, 3], pose[:3, 2]]), 9))
 
 
 def pads_above_table(grasp: Grasp, min_height: float) -> bool:
@@ -195,15 +178,24 @@ def pads_above_table(grasp: Grasp, min_height: float) -> bool:
     return True
 
 
-def _obstacles(domino_pose: np.ndarray, scene_points: np.ndarray, own_surface: float) -> np.ndarray:
-    """Scene points not on this domino's own surface."""
-    local = (scene_points - domino_pose[:3, 3]) @ domino_pose[:3, :3]
-    return scene_points[box_signed_distance(local) > own_surface]
+def _obstacles(
+    domino_pose: np.ndarray, scene_points: np.ndarray, own_surface: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scene points within NEIGHBOURHOOD not on this domino's own surface, in world and in
+    the domino's frame."""
+    # a distance mask: a k-d tree's answer, as a list, costs more to turn into an index
+    offsets = scene_points - domino_pose[:3, 3]
+    nearby = dot3(offsets, offsets) <= NEIGHBOURHOOD**2
+    local = offsets[nearby] @ domino_pose[:3, :3]
+    apart = box_signed_distance(local) > own_surface
+    return scene_points[nearby][apart], local[apart]
 
 
-def _points_on_top(domino_pose: np.ndarray, obstacles: np.ndarray, cover_height: float) -> int:
-    """Obstacle points above the domino's top, inside its outline across its up axis."""
-    local = (obstacles - domino_pose[:3, 3]) @ domino_pose[:3, :3]
+def _points_on_top(
+    domino_pose: np.ndarray, obstacles: np.ndarray, local: np.ndarray, cover_height: float
+) -> int:
+    """Obstacle points (world, and ``local`` in the domino's frame) above the domino's top,
+    inside its outline across its up axis."""
     across = [axis for axis in range(3) if axis != int(np.argmax(np.abs(domino_pose[2, :3])))]
     outline = np.all(np.abs(local[:, across]) <= HALF_SIZE[across], axis=1)
     above = obstacles[:, 2] > _top_height(domino_pose) + cover_height
