@@ -6,7 +6,9 @@ the simulated seconds per placed domino split by activity (motion, perception,
 planning, gripper, waiting, other: the run report's split), the wall seconds per
 domino, and the CPU seconds each node process used (psutil, read off the process tree);
 sim_node's CPU per simulated second over the whole job and while the arm moves (from
-its "executing a T s trajectory" to its "trajectory done" lines, against the T's).
+its "executing a T s trajectory" to its "trajectory done" lines, against the T's), and
+how many picks were planned ahead (asked as the fingers let go or after the retreat,
+used or dropped: ``task.ahead``).
 Compare two code versions by running this in both workspaces at the same time (the
 machine's load then weighs on both alike) and taking ratios: docs/SPEED.md.
 
@@ -164,6 +166,10 @@ def summarize(args, result: dict, moving: tuple[float, float]) -> dict:
             round(moving_cpu / moving_sim, 3) if moving_sim else None
         ),
         "arm_moving_simulated_s": round(moving_sim, 1),
+        "planned_ahead": {
+            key: summary.get(f"planned_ahead_{key}")
+            for key in ("early", "after_retreat", "used", "dropped")
+        },
     }
 
 

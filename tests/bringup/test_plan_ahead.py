@@ -1,20 +1,47 @@
 """Planning ahead (``task.ahead``): the next slot's first request goes to the planner
-before perception has checked the placement just made, and its answer serves that slot's
-turn only when the turn makes the very same request with the arm where it was."""
+as the fingers let go of the domino just placed (once the look at the pile has
+answered; else after the retreat), before perception has checked the placement, and its
+answer serves that slot's turn only when the turn makes the very same request with the
+arm where the plan starts."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
 
+import numpy as np
+
 from dombot_bringup import layouts
-from dombot_bringup.task.cell import PlacementCheck, PlaceRequest, Plan, Pose, Seen
+from dombot_bringup.task import ahead
+from dombot_bringup.task.cell import (
+    GripperEvent,
+    Motion,
+    PlacementCheck,
+    PlaceRequest,
+    Plan,
+    Pose,
+    Seen,
+    Segment,
+    Trajectory,
+)
 from dombot_bringup.task.loop import run
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
-from support.scripted_cell import ScriptedCell, closing, flat, planned, seen
+from support.scripted_cell import ScriptedCell, closing, flat, path, planned, seen
 
-PICK_AND_PLACE = (closing(), "transfer", "place", "retreat")
+ARM = ("a1", "a2")
+RETREAT_END = {"a1": 0.3, "a2": -0.2}  # where every retreat leaves the arm
+RETREAT = Segment(
+    "retreat",
+    Trajectory(ARM, np.array([0.0, 1.0]), np.array([[0.1, 0.0], [0.3, -0.2]]), np.zeros((0, 2))),
+)
+# the fingers open once "place" ends, as the planner's plans say
+PICK_AND_PLACE = (
+    closing(),
+    "transfer",
+    Segment("place", path("place"), GripperEvent.OPEN),
+    RETREAT,
+)
 
 
 def line_job(cell: ScriptedCell, count: int = 3, **settings) -> Job:
@@ -24,18 +51,23 @@ def line_job(cell: ScriptedCell, count: int = 3, **settings) -> Job:
     return Job.new(cell, layout, "line", ArmJobSettings(in_hand_tolerance=0.0, **settings))
 
 
-def recording_cell() -> tuple[ScriptedCell, list[tuple[int, int]]]:
-    """A cell that plans every pick, and the (slot, checks made so far) of each request."""
-    asked: list[tuple[int, int]] = []
+def recording_cell() -> tuple[ScriptedCell, list[tuple[int, int, int]]]:
+    """A cell that plans every pick, and for each request (slot, retreats run, checks
+    made) so far."""
+    asked: list[tuple[int, int, int]] = []
     cell = ScriptedCell(pile=[flat(0.50), flat(0.55), flat(0.60), flat(0.65)])
     cell.strike = lambda request: planned("strike")
 
     def place(request: PlaceRequest) -> Plan:
-        asked.append((slot_of(request), len(cell.checks)))
+        asked.append((slot_of(request), retreats(cell), len(cell.checks)))
         return planned(*PICK_AND_PLACE, held_above=request.place)
 
     cell.place = place
     return cell, asked
+
+
+def retreats(cell: ScriptedCell) -> int:
+    return sum(t.joint_names == ARM for t in cell.executed)
 
 
 def slot_of(request: PlaceRequest) -> int:
@@ -43,21 +75,36 @@ def slot_of(request: PlaceRequest) -> int:
     return round((request.place[1, 3] - 0.10) / 0.0288)
 
 
-def test_the_next_slots_pick_is_planned_while_the_placement_is_checked() -> None:
+def test_the_next_slots_pick_is_asked_for_as_the_fingers_let_go() -> None:
     cell, asked = recording_cell()
     report = run(line_job(cell))
     assert report.built
-    # slot k+1's request went out before slot k's check (the k-th), and was not asked again
-    assert asked == [(0, 0), (1, 0), (2, 1)]
-    assert report.planned_ahead == {"used": 2, "dropped": 0}
-    request = cell.place_requests[1]
-    assert len(request.standing) == 1  # slot 0 taken as standing at its target meanwhile
+    # slot k+1's request went out before slot k's retreat ran, and was not asked again
+    assert asked == [(0, 0, 0), (1, 0, 0), (2, 1, 1)]
+    assert report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 2, "dropped": 0}
+    first, early = cell.place_requests[:2]
+    assert first.start is None  # the planner takes the arm where it stands
+    assert early.start == RETREAT_END
+    assert len(early.standing) == 1  # slot 0 taken as standing at its target meanwhile
+
+
+def test_a_look_not_answered_yet_leaves_the_request_until_after_the_retreat() -> None:
+    """The arm does not wait for the look at the pile: the request goes out as before."""
+    cell, asked = recording_cell()
+    cell.looks_answer_at_once = False
+    report = run(line_job(cell))
+    assert report.built
+    assert asked == [(0, 0, 0), (1, 1, 0), (2, 2, 1)]  # after the retreat, before the check
+    assert report.planned_ahead == {"early": 0, "after_retreat": 2, "used": 2, "dropped": 0}
+    assert cell.place_requests[1].start is None
 
 
 def test_without_planning_ahead_each_pick_is_asked_for_after_the_check() -> None:
     cell, asked = recording_cell()
-    assert run(line_job(cell, plan_ahead=False)).built
-    assert asked == [(0, 0), (1, 1), (2, 2)]
+    report = run(line_job(cell, plan_ahead=False))
+    assert report.built
+    assert asked == [(0, 0, 0), (1, 1, 1), (2, 2, 2)]
+    assert report.planned_ahead == {"early": 0, "after_retreat": 0, "used": 0, "dropped": 0}
 
 
 def test_an_answer_asked_for_a_domino_that_then_fell_is_not_used() -> None:
@@ -74,7 +121,7 @@ def test_an_answer_asked_for_a_domino_that_then_fell_is_not_used() -> None:
     cell.placements = placements
     report = run(line_job(cell))
     assert report.built and report.dominoes[0].attempts == 2
-    slots = [slot for slot, _ in asked]
+    slots = [slot for slot, _, _ in asked]
     assert slots[:3] == [0, 1, 0]  # asked ahead for slot 1, then slot 0's fallen domino again
     assert slots.count(1) == 2
     assert report.planned_ahead["dropped"] == 1
@@ -82,15 +129,66 @@ def test_an_answer_asked_for_a_domino_that_then_fell_is_not_used() -> None:
     assert len(last_for_slot_1.standing) == 1
 
 
-def test_an_answer_is_not_used_once_the_arm_has_moved() -> None:
-    cell, asked = recording_cell()
-    cell.joint_positions = (["a1"], [0.0])
+def nudging(cell: ScriptedCell, by: float) -> None:
+    """Each placement check finds the arm's first joint ``by`` rad from where it stood."""
 
     def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
-        cell.joint_positions = (["a1"], [0.01 * len(cell.checks)])  # nudged meanwhile
+        names, positions = cell.joint_positions
+        cell.joint_positions = (names, [positions[0] + by, *positions[1:]])
         return seen([Seen.STANDING] * len(expected))(expected, in_hand)
 
     cell.placements = placements
+
+
+def test_an_answer_is_not_used_once_the_arm_has_moved() -> None:
+    cell, asked = recording_cell()
+    cell.joint_positions = (list(ARM), [0.0, 0.0])
+    nudging(cell, 2 * ahead.START_TOLERANCE)
     report = run(line_job(cell))
-    assert report.built and report.planned_ahead == {"used": 0, "dropped": 2}
-    assert [slot for slot, _ in asked] == [0, 1, 1, 2, 2]
+    assert report.built
+    assert report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 0, "dropped": 2}
+    assert [slot for slot, _, _ in asked] == [0, 1, 1, 2, 2]
+
+
+def test_an_answer_is_used_with_the_arm_within_its_tracking_error_of_the_start() -> None:
+    cell, asked = recording_cell()
+    cell.joint_positions = (list(ARM), [0.0, 0.0])
+    nudging(cell, ahead.START_TOLERANCE / 2)
+    report = run(line_job(cell))
+    assert report.built and report.planned_ahead["used"] == 2
+    assert [slot for slot, _, _ in asked] == [0, 1, 2]
+
+
+def test_a_retreat_that_failed_drops_the_answer() -> None:
+    """The first retreat stops short: the arm stands elsewhere than the plan asked for as
+    the fingers let go starts, and that plan is not run (the attempt failed: slot 0 is
+    built again first, then slot 1 asked for again)."""
+    cell, asked = recording_cell()
+    cell.joint_positions = (list(ARM), [0.0, 0.0])
+
+    def motion(trajectory: Trajectory) -> Motion:
+        if trajectory.joint_names == ARM and retreats(cell) == 1:
+            cell.joint_positions = (list(ARM), [0.2, -0.1])  # where it stopped
+            return Motion(False, "stopped short")
+        return Motion(True)
+
+    cell.motion = motion
+    report = run(line_job(cell))
+    assert report.built and report.dominoes[0].attempts == 2
+    assert [slot for slot, _, _ in asked] == [0, 1, 0, 1, 2]
+    assert report.planned_ahead == {"early": 3, "after_retreat": 0, "used": 2, "dropped": 1}
+
+
+def test_the_same_request_with_the_arm_elsewhere_is_dropped() -> None:
+    """What the turn asks is what was asked ahead, but the arm does not stand where that
+    plan starts (a retreat that stopped short): dropped; standing there: used."""
+    cell, _ = recording_cell()
+    job = line_job(cell)
+    job.upcoming = 1
+    request = PlaceRequest(domino=flat(0.5).pose, place=job.releases[1])
+    for stands in ([0.2, -0.1], list(RETREAT_END.values())):
+        cell.joint_positions = (list(ARM), stands)
+        ahead.send(job, 0, lambda job, index: request, RETREAT_END)
+        plan = ahead.answer(job, request)
+        assert (plan is not None) == (stands == list(RETREAT_END.values()))
+    assert job.report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 1, "dropped": 1}

@@ -1,5 +1,5 @@
 """planner_node over real DDS: good and bad /plan_place and /plan_strike requests, the
-start state from /joint_states, bad requests answered while others are being planned,
+start state given or from /joint_states, bad requests answered while others are being planned,
 parameters validated. The node plans with a budget no search uses up (``UNHURRIED``): an
 unreachable domino is proven so by its search, not cut short by a loaded machine."""
 
@@ -341,6 +341,25 @@ def test_an_arm_that_does_not_come_to_rest_is_planned_from_where_it_is(client: C
     start = strike_start(client, publish=STOPPING)
     assert start == pytest.approx(STOPPING.position.tolist(), abs=1e-9)
     client.joints.publish(arm_state(0.0, 0.0))  # at rest again for the tests after
+
+
+def test_a_given_start_state_is_where_the_plan_starts(client: Client) -> None:
+    """The bring-up asks for a pick from where the retreat under way will end: the plan
+    starts at start_state, not where /joint_states shows the arm."""
+    elsewhere = arm_state(0.2, 0.0)
+    until = time.monotonic() + 1.0  # the node has it before the request comes
+    spin_until(
+        client.node, lambda: client.joints.publish(elsewhere) or time.monotonic() > until, 30
+    )
+    future = client.call_async(plan_request())  # start_state: home
+    assert spin_until(
+        client.node, lambda: client.joints.publish(elsewhere) or future.done(), timeout=300
+    )
+    response = future.result()
+    assert response.success, response.message
+    start = list(response.segments[1].trajectory.points[0].positions)
+    assert start == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
+    client.joints.publish(arm_state(0.0, 0.0))  # at home again for the tests after
 
 
 def test_bad_requests_are_answered_while_others_are_planned(client: Client) -> None:

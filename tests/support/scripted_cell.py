@@ -13,6 +13,7 @@ from dombot_bringup.task.cell import (
     Detection,
     Detections,
     GripperEvent,
+    Later,
     Motion,
     PlacementCheck,
     PlaceRequest,
@@ -105,8 +106,11 @@ class ScriptedCell:
     placements: Callable[[Sequence[Pose], bool], PlacementCheck] = all_standing
     grip: float = HELD  # where the fingers stop when closed
     looks_without_frames: int = 0  # the first looks find no camera frames
+    looks_answer_at_once: bool = True  # a look asked for later has answered when asked
     dominoes: list[tuple[str, Pose]] = field(default_factory=list)  # the simulator's truth
+    # the arm's and fingers' joints: each trajectory run moves its joints to its end
     joint_positions: tuple[list[str], list[float]] = ([], [])
+    motion: Callable[[Trajectory], Motion] = lambda trajectory: Motion(True)  # how each ran
     sim_time: float = 0.0
     time_spent: dict[str, float] = field(default_factory=dict)
     # what the task asked
@@ -129,9 +133,9 @@ class ScriptedCell:
             return Detections(False, "no colour received yet")
         return Detections(True, "", tuple(self.pile), self.unexplained)
 
-    def detect_later(self, not_before: float) -> Callable[[], Detections]:
+    def detect_later(self, not_before: float) -> Later[Detections]:
         answer = self.detect(not_before)
-        return lambda: answer
+        return Later(lambda: answer, lambda: self.looks_answer_at_once)
 
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
@@ -143,9 +147,9 @@ class ScriptedCell:
         self.place_requests.append(request)
         return self.place(request)
 
-    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
+    def plan_place_later(self, request: PlaceRequest) -> Later[Plan]:
         answer = self.plan_place(request)
-        return lambda: answer
+        return Later(lambda: answer)
 
     def plan_strike(self, request: StrikeRequest) -> Plan:
         self.strike_requests.append(request)
@@ -153,7 +157,13 @@ class ScriptedCell:
 
     def execute(self, trajectory: Trajectory, goal_tolerance: float = 0.0) -> Motion:
         self.executed.append(trajectory)
-        return Motion(True)
+        motion = self.motion(trajectory)
+        if motion.ok and len(trajectory.times):
+            names, positions = self.joint_positions
+            joints = dict(zip(names, positions, strict=True))
+            joints.update(zip(trajectory.joint_names, trajectory.positions[-1], strict=True))
+            self.joint_positions = (list(joints), list(joints.values()))
+        return motion
 
     def gripper(self, position: float, max_effort: float) -> float:
         self.openings.append(position)

@@ -214,7 +214,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         dest="plan_ahead",
         action="store_false",
         help="ask for each pick only once the last placement is checked (default: the "
-        "planner plans it while perception checks)",
+        "planner plans it while the arm retreats and perception checks)",
     )
     cell.add_argument(
         "--visual",

@@ -42,6 +42,7 @@ from dombot_bringup.task.cell import (
     Detection,
     Detections,
     GripperEvent,
+    Later,
     Motion,
     PlacementCheck,
     PlaceRequest,
@@ -325,18 +326,18 @@ class CellClient:
         request = DetectDominoes.Request(not_before=time_message(not_before))
         return detections_of(self.call(DETECT_SERVICE, request, DETECT_TIMEOUT))
 
-    def detect_later(self, not_before: float) -> Callable[[], Detections]:
-        """``detect(not_before)`` sent now; the returned function waits for its answer
-        (only that wait counts as perception's time), or asks again when perception was
-        restarted meanwhile."""
+    def detect_later(self, not_before: float) -> Later[Detections]:
+        """``detect(not_before)`` sent now; calling the answer waits for it (only that wait
+        counts as perception's time), or asks again when perception was restarted
+        meanwhile."""
         request = DetectDominoes.Request(not_before=time_message(not_before))
         answer = self.call_later(DETECT_SERVICE, request, DETECT_TIMEOUT)
-        return lambda: detections_of(answer())
+        return Later(lambda: detections_of(answer()), answer.answered)
 
-    def call_later(self, name: str, request, timeout: float) -> Callable[[], Any]:
-        """``request`` sent to ``name`` now; the returned function waits for its answer
-        (only that wait counts as the service's activity), or sends it again, waiting,
-        when the server was restarted meanwhile."""
+    def call_later(self, name: str, request, timeout: float) -> Later[Any]:
+        """``request`` sent to ``name`` now; calling the answer waits for it (only that
+        wait counts as the service's activity), or sends it again, waiting, when the
+        server was restarted meanwhile (not answered yet then)."""
         self._await_server(name, timeout)
         started = self._server_restarts(name)
         future = self._clients[name].call_async(request)
@@ -351,7 +352,7 @@ class CellClient:
                 response = self._wait(answer_or_restart, timeout, name)
             return self.call(name, request, timeout) if response is _RESTARTED else response
 
-        return answer
+        return Later(answer, future.done)
 
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
@@ -374,8 +375,10 @@ class CellClient:
     def plan_place(self, request: PlaceRequest) -> Plan:
         return self.plan_place_later(request)()
 
-    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
+    def plan_place_later(self, request: PlaceRequest) -> Later[Plan]:
+        start = {} if request.start is None else request.start
         message = PlanPlace.Request(
+            start_state=JointState(name=list(start), position=[*start.values()]),
             domino_pose=pose_message(request.domino),
             grasp_pose=geometry_pose(request.grasp),
             grasp_width=0.0,
@@ -393,7 +396,7 @@ class CellClient:
             response = answer()
             return plan_of(response, pose_or_none(response.held_above_place))
 
-        return plan
+        return Later(plan, answer.answered)
 
     def plan_strike(self, request: StrikeRequest) -> Plan:
         sweep = np.zeros(2) if request.sweep is None else request.sweep

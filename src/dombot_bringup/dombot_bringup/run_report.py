@@ -158,9 +158,13 @@ class RunReport:
     simulated_s: float = 0.0
     wall_s: float = 0.0
     node_restarts: dict[str, int] = field(default_factory=dict)  # nodes started again
-    # first requests of a turn asked for while the last placement was checked (``ahead``):
-    # how many answers served their turn, how many were dropped (another request came)
-    planned_ahead: dict[str, int] = field(default_factory=lambda: {"used": 0, "dropped": 0})
+    # first requests of a turn asked for before the last placement was checked (``ahead``):
+    # how many went out as the fingers let go and how many after the retreat, how many
+    # answers served their turn and how many were dropped (another request came, the arm
+    # stood elsewhere)
+    planned_ahead: dict[str, int] = field(
+        default_factory=lambda: dict.fromkeys(("early", "after_retreat", "used", "dropped"), 0)
+    )
     # the pile dominoes out of every grasp's and push's reach when a slot last found
     # nothing to pick (empty once a later pick planned)
     pile_out_of_reach: list[PileDomino] = field(default_factory=list)
@@ -207,8 +211,7 @@ class RunReport:
             "pile_isolated": sum(len(d.isolations) for d in self.dominoes),
             "pile_laid_flat": sum(len(d.laid_flat) for d in self.dominoes),
             "pile_out_of_reach": len(self.pile_out_of_reach),
-            "planned_ahead_used": self.planned_ahead["used"],
-            "planned_ahead_dropped": self.planned_ahead["dropped"],
+            **{f"planned_ahead_{k}": n for k, n in self.planned_ahead.items()},
             "empty_slots": [e.slot for e in self.empty_slots],
             **{
                 f"gaps_{verdict}": sum(g.verdict == verdict for g in self.safety_gaps)

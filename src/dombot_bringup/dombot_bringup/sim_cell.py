@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +23,7 @@ from dombot_bringup.task.cell import (
     Detection,
     Detections,
     GripperEvent,
+    Later,
     Motion,
     PlacementCheck,
     PlaceRequest,
@@ -157,10 +158,10 @@ class SimCell:
             result.unexplained.reshape(-1, 3),
         )
 
-    def detect_later(self, not_before: float) -> Callable[[], Detections]:
+    def detect_later(self, not_before: float) -> Later[Detections]:
         """Looks at once (in-process perception takes no simulated time)."""
         answer = self.detect(not_before)
-        return lambda: answer
+        return Later(lambda: answer)
 
     def check_placement(
         self, expected: Sequence[Pose], in_hand: bool = False, not_before: float = 0.0
@@ -178,10 +179,13 @@ class SimCell:
         )
 
     # ------------------------------------------------------------------ planning
-    def _start(self) -> tuple[np.ndarray, float | None]:
-        """The arm's joints as planner_node reads /joint_states, and the finger opening."""
+    def _start(self, given: Mapping[str, float] | None = None) -> tuple[np.ndarray, float | None]:
+        """The arm's joints as planner_node reads ``given`` (a request's start_state), or
+        /joint_states when None, and the finger opening."""
         state, scenario = self.world.joint_state(), self.planner.scenario
         names, positions = list(state.names), state.position.tolist()
+        if given is not None:
+            names, positions = list(given), list(given.values())
         arm = arm_positions(
             names, positions, scenario.arm_joints, self.planner.lower, self.planner.upper
         )
@@ -193,7 +197,7 @@ class SimCell:
                 PickPlaceRequest(
                     domino_pose=RigidTransform(request.domino),
                     place_pose=RigidTransform(request.place),
-                    start=self._start()[0],
+                    start=self._start(request.start)[0],
                     grasp_pose=None if request.grasp is None else RigidTransform(request.grasp),
                     standing=tuple(RigidTransform(p) for p in request.standing),
                     pile=tuple(RigidTransform(p) for p in request.pile),
@@ -206,9 +210,9 @@ class SimCell:
 
         return self._plan("place", planned)
 
-    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
+    def plan_place_later(self, request: PlaceRequest) -> Later[Plan]:
         """Plans when the answer is asked for (one process: nothing to overlap)."""
-        return lambda: self.plan_place(request)
+        return Later(lambda: self.plan_place(request))
 
     def plan_strike(self, request: StrikeRequest) -> Plan:
         def planned() -> PlannerPlan:

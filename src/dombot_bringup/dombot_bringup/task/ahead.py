@@ -1,29 +1,45 @@
-"""Planning ahead: the next slot's first pick is asked for while perception checks the
-placement just made, and its answer is used when the next attempt makes that very
-request from where the arm stands.
+"""Planning ahead: the next slot's first pick is asked for before the placement just made
+is checked, and its answer is used when the next attempt makes that very request with
+the arm where the plan starts.
 
-The arm stands still from the retreat to the next pick, the pile has been looked at
-while the arm placed, and a domino that stands where it should is kept at its target
-pose for the planner (``checks.check``): the next slot's first request is then known
-before the check has answered, and the planner works on it on the other core meanwhile.
-When the check says otherwise (the domino fell, stands off target, the next slot is
-another) the request differs and the answer is not used.
+The request goes out as the fingers let go of the domino on its slot (``ask_early``),
+starting where the retreat still to run ends (PlanPlace's start_state): the planner
+works on it while the arm retreats and perception checks the placement. That needs the
+look at the pile made while the arm placed to have answered already; it is never waited
+for there (the arm would stand still meanwhile), the request then goes out after the
+retreat (``ask``), from where the arm stands (the planner reads /joint_states).
+
+Why an answer asked for so early is right when it is used:
+* the request is the one the next slot's turn makes first if the placement stands: the
+  pile has been still since the lift and was looked at while the arm placed, and a domino
+  that stands where it should is kept at its target pose for the planner
+  (``checks.check``). When the check says otherwise (the domino fell, stands off target,
+  another slot comes next) the turn's request differs and the answer is dropped;
+* the plan starts where the arm stands: any motion after the request but the retreat it
+  was asked from drops the answer (``drop``, as ``placing.execute`` starts), and when the
+  turn starts the arm must stand within START_TOLERANCE of the plan's start (a retreat
+  that stopped short left it elsewhere: dropped).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from dombot_bringup.task.cell import CellError, PlaceRequest, Plan
+from dombot_bringup.task.cell import CellError, Later, PlaceRequest, Plan
 from dombot_bringup.task.state import Job, log
 
-# rad: the arm must stand where it stood when the plan was asked for (the planner took
-# its start from /joint_states then); a plan's start is as far from the arm after any
-# motion (the controller's tracking error)
-SAME_START = 1e-3
+# rad per joint the arm may stand from a plan's start. A retreat ends within the
+# controller's goal tolerance of its last point or fails (0.01 rad in sim_node); the
+# simulator takes a trajectory whose first point lies within 0.05 rad of the arm. Measured
+# on the default job: retreats ended 0.16-0.22 mrad off their last point (sim_node's
+# "when it ended"), and the arm stood within 0.12 mrad of it when the next turn began.
+START_TOLERANCE = 0.01
+
+RequestFor = Callable[[Job, int], PlaceRequest | None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,14 +47,29 @@ class PlanAhead:
     """A request sent before the attempt that makes it, and its answer to come."""
 
     request: PlaceRequest
-    joints: np.ndarray  # the arm and fingers when it was sent
-    answer: Callable[[], Plan]
+    start: Mapping[str, float]  # the joints the plan starts from (name → rad)
+    answer: Later[Plan]
 
 
-def ask(job: Job, index: int, request_for: Callable[[Job, int], PlaceRequest | None]) -> None:
+def ask_early(job: Job, index: int, request_for: RequestFor, start: Mapping[str, float]) -> None:
+    """As the fingers let go of slot ``index``'s domino: the next slot's first request
+    (``request_for``), planned from ``start`` (where the retreat ends), if the look at the
+    pile made while placing has answered."""
+    look = job.pile_look
+    if look is not None and look.answered():
+        send(job, index, request_for, start)
+
+
+def ask(job: Job, index: int, request_for: RequestFor) -> None:
+    """After the retreat, unless it went out as the fingers let go: the next slot's first
+    request, planned from where the arm stands."""
+    if job.ahead is None:
+        send(job, index, request_for, None)
+
+
+def send(job: Job, index: int, request_for: RequestFor, start: Mapping[str, float] | None) -> None:
     """Send the next slot's first request (``request_for``, with slot ``index`` taken as
-    standing at its target) before the placement at ``index`` is checked."""
-    job.ahead = None
+    standing at its target), planned from ``start`` (None: where the arm stands)."""
     upcoming = job.upcoming
     if not job.settings.plan_ahead or upcoming is None or upcoming == index:
         return
@@ -54,39 +85,67 @@ def ask(job: Job, index: int, request_for: Callable[[Job, int], PlaceRequest | N
             state.standing[index] = kept
     if request is None:
         return
+    request = replace(request, start=start)
     try:
         answer = job.cell.plan_place_later(request)
     except CellError as error:
         log(f"planning ahead: {error}")
         return
-    job.ahead = PlanAhead(request, np.asarray(job.cell.joints()[1]), answer)
+    job.report.planned_ahead["after_retreat" if start is None else "early"] += 1
+    job.ahead = PlanAhead(request, joints_now(job) if start is None else start, answer)
 
 
 def answer(job: Job, request: PlaceRequest) -> Plan | None:
-    """The answer asked for ahead, if it was for ``request`` from where the arm stands;
-    None otherwise (the answer, which the planner works on first anyway, is dropped)."""
-    ahead, job.ahead = job.ahead, None
+    """The answer asked for ahead, if it was for ``request`` and the arm stands at its
+    start; None otherwise (the answer is dropped)."""
+    ahead = job.ahead
     if ahead is None:
         return None
+    if not same_request(ahead.request, request):
+        drop(job, "the turn asks for another pick")
+        return None
+    off = off_start(job, ahead.start)
+    if off > START_TOLERANCE:
+        drop(job, f"the arm stands {off:.3f} rad from where it starts")
+        return None
+    job.ahead = None
     try:
         plan = ahead.answer()
     except CellError as error:
         log(f"planning ahead: {error}")
         return None
-    joints = np.asarray(job.cell.joints()[1])
-    moved = joints.shape != ahead.joints.shape or (
-        np.abs(joints - ahead.joints).max(initial=0.0) > SAME_START
+    job.report.planned_ahead["used"] += 1
+    log(f"planned ahead, used: the arm {off * 1e6:.1f} µrad from where it starts")
+    return plan
+
+
+def drop(job: Job, why: str) -> None:
+    """Forget the answer asked for ahead, if any (the planner works on it first anyway)."""
+    if job.ahead is None:
+        return
+    job.ahead = None
+    job.report.planned_ahead["dropped"] += 1
+    log(f"planned ahead, not used: {why}")
+
+
+def joints_now(job: Job) -> dict[str, float]:
+    names, positions = job.cell.joints()
+    return dict(zip(names, positions, strict=True))
+
+
+def off_start(job: Job, start: Mapping[str, float]) -> float:
+    """How far [rad, the largest joint's] the arm stands from ``start``; inf when it lacks
+    one of its joints."""
+    now = joints_now(job)
+    return max(
+        (abs(now[name] - q) if name in now else math.inf for name, q in start.items()),
+        default=0.0,
     )
-    used = not moved and same_request(ahead.request, request)
-    job.report.planned_ahead["used" if used else "dropped"] += 1
-    if not used:
-        why = "the arm moved since" if moved else "the turn asks for another pick"
-        log(f"planned ahead, not used: {why}")
-    return plan if used else None
 
 
 def same_request(a: PlaceRequest, b: PlaceRequest) -> bool:
-    """Whether two requests ask the planner the same (field by field, poses exactly)."""
+    """Whether two requests ask the planner the same pick (field by field, poses exactly;
+    where the plan starts is for ``answer`` to judge)."""
     return (
         same(a.domino, b.domino)
         and same(a.place, b.place)

@@ -3,9 +3,10 @@ check the placement."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
+from functools import partial
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from dombot_bringup.offers import (
 )
 from dombot_bringup.run_report import PileDomino
 from dombot_bringup.task import ahead
-from dombot_bringup.task.cell import CellError, Detections, PlaceRequest, Posture
+from dombot_bringup.task.cell import CellError, Detections, Later, PlaceRequest, Posture
 from dombot_bringup.task.checks import check
 from dombot_bringup.task.clearing import isolate, lay_flat, lay_leaning_flat, spread, to_lay_flat
 from dombot_bringup.task.geometry import near, near_any, spot_of
@@ -158,11 +159,11 @@ def first_request(job: Job, index: int) -> PlaceRequest | None:
         seen = early()
     except CellError:
         seen = Detections(False)
-    job.pile_look = lambda: seen
+    job.pile_look = Later(lambda: seen)
     if not (seen.success and seen.dominoes):
         return None
     found, _ = candidates(job, [], index)
-    job.pile_look = lambda: seen
+    job.pile_look = Later(lambda: seen)
     offers = offers_with_pile(job, found)
     return place_request(job, index, *offers[0]) if offers else None
 
@@ -271,13 +272,12 @@ def pick(
     turn = [s for s in plan.segments if s.label.startswith(REGRASP_PREFIX)]
     look_again = bool(turn) and candidate.run_index is None and not turned
     segments = turn if look_again else plan.segments
-    held = plan.held_above_place
-    execution = execute(job, segments, None if held is None else Hold(index, held, candidate.pose))
+    held, letting_go = plan.held_above_place, partial(let_go, job, index, candidate)
+    hold = None if held is None else Hold(index, held, candidate.pose, letting_go)
+    execution = execute(job, segments, hold)
     write_pick_record(job, record, execution.why or ("turned in place only" if look_again else ""))
-    if execution.ran is not Ran.FAILED:  # carried away
-        if candidate.run_index is not None:
-            state.fallen.pop(candidate.run_index, None)
-        state.toppled = [pose for pose in state.toppled if pose is not candidate.pose]
+    if execution.ran is not Ran.FAILED:
+        carried_away(job, candidate)
     if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
         return Attempt(Outcome.NOT_PLACED, execution.why)
     if execution.ran is Ran.FAILED:  # blocked or missed: unless it moved, it would recur
@@ -293,9 +293,25 @@ def pick(
     if look_again:
         log(f"{job.domino(index)}: turned it in place; looking again")
         return attempt(job, index, failed, ignore_pile, turned=True)
-    ahead.ask(job, index, first_request)
+    ahead.ask(job, index, first_request)  # unless asked as the fingers let go
     placed = Outcome.PLACED if check(job, index) else Outcome.NOT_PLACED
     return Attempt(placed, job.report.dominoes[index].check)
+
+
+def let_go(job: Job, index: int, candidate: Candidate, start: Mapping[str, float]) -> None:
+    """As the fingers let go of ``candidate`` on slot ``index``: the next slot's first
+    pick asked for ahead, from ``start``, the arm's joints where the plan ends."""
+    carried_away(job, candidate)  # no longer where it lay, for that request
+    ahead.ask_early(job, index, first_request, start)
+
+
+def carried_away(job: Job, candidate: Candidate) -> None:
+    """``candidate`` no longer lies where it was seen: no run domino fallen there, no
+    domino toppled there."""
+    state = job.state
+    if candidate.run_index is not None:
+        state.fallen.pop(candidate.run_index, None)
+    state.toppled = [pose for pose in state.toppled if pose is not candidate.pose]
 
 
 def keep_if_standing(job: Job, index: int, run_index: int, why: str, spot: np.ndarray) -> Attempt:

@@ -12,17 +12,31 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Protocol
+from typing import Generic, Protocol, TypeVar
 
 import numpy as np
 
 from dombot_planner.errors import ErrorCode
 
 Pose = np.ndarray  # 4x4, world frame
+T = TypeVar("T")
 
 
 class CellError(RuntimeError):
     """The cell did not answer (a call timed out, a goal was refused)."""
+
+
+@dataclass(frozen=True)
+class Later(Generic[T]):
+    """An answer asked for now and taken later: calling it waits for the answer (and
+    raises ``CellError`` when none comes); ``answered()`` says, without waiting, whether
+    it has come (a caller that must not wait asks first)."""
+
+    wait: Callable[[], T]
+    answered: Callable[[], bool] = lambda: True
+
+    def __call__(self) -> T:
+        return self.wait()
 
 
 class Posture(IntEnum):
@@ -147,6 +161,9 @@ class PlaceRequest:
     pads_into_pile: bool = False  # only the gripper body and arm keep clear of ``pile``
     holding: bool = False
     time_budget: float = 0.0  # s; 0: the planner's default
+    # the arm's joints (name → rad) the plan starts from; None: where the arm stands when
+    # the planner takes the request
+    start: Mapping[str, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,9 +206,8 @@ class Cell(Protocol):
         """Perception's look at the pile in frames stamped at or after ``not_before``."""
         ...
 
-    def detect_later(self, not_before: float) -> Callable[[], Detections]:
-        """Ask for ``detect(not_before)`` now and take the answer later (calling the
-        returned function, which raises ``CellError`` when none comes): perception looks
+    def detect_later(self, not_before: float) -> Later[Detections]:
+        """Ask for ``detect(not_before)`` now and take the answer later: perception looks
         while the arm goes on."""
         ...
 
@@ -201,10 +217,9 @@ class Cell(Protocol):
 
     def plan_place(self, request: PlaceRequest) -> Plan: ...
 
-    def plan_place_later(self, request: PlaceRequest) -> Callable[[], Plan]:
-        """Ask for ``plan_place(request)`` now and take the answer later (calling the
-        returned function, which raises ``CellError`` when none comes): the planner plans
-        while perception checks a placement."""
+    def plan_place_later(self, request: PlaceRequest) -> Later[Plan]:
+        """Ask for ``plan_place(request)`` now and take the answer later: the planner
+        plans while the arm retreats and perception checks a placement."""
         ...
 
     def plan_strike(self, request: StrikeRequest) -> Plan: ...

@@ -5,12 +5,13 @@ or put back on the pile)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
 
+from dombot_bringup.task import ahead
 from dombot_bringup.task.cell import (
     CellError,
     GripperEvent,
@@ -60,11 +61,13 @@ class Execution:
 @dataclass(frozen=True)
 class Hold:
     """A domino being carried to slot ``index``: where the plan holds it above the slot,
-    and where it was picked (a fallen run domino is no obstacle there any more)."""
+    where it was picked (a fallen run domino is no obstacle there any more), and what to
+    do as the fingers let go of it there, given where the arm's joints end (name → rad)."""
 
     index: int
     held_above: Pose
     picked: Pose
+    let_go: Callable[[Mapping[str, float]], None] | None = None
 
 
 @dataclass(frozen=True)
@@ -83,8 +86,11 @@ def execute(
     A close that should hold a domino is checked by where the fingers stopped (the strike
     closes them on nothing). When a grasp fails, the arm backs out the way it came before
     anything else is tried. With a ``hold``, the domino is looked at in the hand where
-    "transfer" ends above its slot (``in_hand``).
+    "transfer" ends above its slot (``in_hand``), and ``hold.let_go`` is told where the
+    plan ends as the fingers let go of it on the slot. Any motion drops what was planned
+    ahead (``ahead.drop``) and the look at the pile made while placing.
     """
+    ahead.drop(job, "the arm moves before the turn")
     job.still_since = job.let_go_at = job.pile_look = None
     cell = job.cell
     for segment in segments:
@@ -112,6 +118,8 @@ def execute(
             cell.gripper(segment.gripper_position, 0.0)
             if segment.label == PLACE_SEGMENT:
                 job.let_go_at = cell.sim_time
+                if hold is not None and hold.let_go is not None:
+                    hold.let_go(end_of(segments))
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
             verdict = in_hand(job, hold)
             if verdict.put_back:
@@ -232,6 +240,12 @@ def move(job: Job, trajectory: Trajectory, what: str) -> None:
     motion = job.cell.execute(trajectory)
     if not motion.ok:
         log(f"{what} failed: {motion.error}")
+
+
+def end_of(segments: Sequence[Segment]) -> dict[str, float]:
+    """Where the arm's joints stand once ``segments`` have run: their last point."""
+    last = next(s.trajectory for s in reversed(segments) if len(s.trajectory.times))
+    return dict(zip(last.joint_names, last.positions[-1].tolist(), strict=True))
 
 
 def is_approach(segment: Segment) -> bool:

@@ -77,8 +77,9 @@ class ArmJobSettings:
     # next pick's look at the pile is asked for as the descent starts and made while the
     # arm places, retreats and the placement settles.
     look_while_placing: float = 0.32  # m
-    # Ask for the next slot's first pick while perception checks a placement (``ahead``):
-    # the planner then plans on the other core. False: asked once the check has answered.
+    # Ask for the next slot's first pick as the fingers let go of a domino (``ahead``): the
+    # planner then plans on the other core while the arm retreats and perception checks the
+    # placement. False: asked once the check has answered.
     plan_ahead: bool = True
     section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
     # Before the build, the planner is asked to place a flat pile domino at each safety

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -11,7 +11,7 @@ import numpy as np
 from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import say
 from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
-from dombot_bringup.task.cell import Cell, Detections, Pose
+from dombot_bringup.task.cell import Cell, Detections, Later, Pose
 from dombot_bringup.task.geometry import SAME_SPOT, near, placement_pose
 from dombot_bringup.task.settings import ArmJobSettings
 
@@ -83,10 +83,10 @@ class Job:
     let_go_at: float | None = None
     # A look at the pile asked for while the arm placed (its answer when called), for the
     # next pick: nothing touches the pile between (any other motion drops it).
-    pile_look: Callable[[], Detections] | None = None
+    pile_look: Later[Detections] | None = None
     pile_seen_at: float = 0.0  # simulated time of the last look's frames (not_before)
     # The slot whose turn comes next if the one being built stands (``loop.build``), and
-    # its first request sent while the placement is checked (``ahead``).
+    # its first request sent as the fingers let go or after the retreat (``ahead``).
     upcoming: int | None = None
     ahead: PlanAhead | None = None
     pictures: dict[str, np.ndarray] = field(default_factory=dict)  # for the report
