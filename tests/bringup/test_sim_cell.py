@@ -128,3 +128,43 @@ def test_a_domino_on_its_edge_no_grasp_holds_is_pushed_over_and_then_plans() -> 
     assert abs(flat[2, 2]) > math.cos(math.radians(5.0))  # its thickness axis vertical
     planned = cell.plan_place(PlaceRequest(flat, place))
     assert planned.success, planned.message
+
+
+@pytest.mark.slow
+def test_a_placed_domino_has_settled_when_its_placement_is_checked() -> None:
+    """``settle_after_place`` is long enough: in the simulator's truth, when the real loop
+    asks for the placement check, the domino let go on its slot stands within 0.5 mm and
+    0.5° of where it stands a second later (perception's own error is ~0.9 mm), so the
+    check's frame shows it as it will stand. (This one rocks by ~0.3 mm at 12 Hz for
+    over a second, at 0.25 s after the release as at 0.5 s; others were asleep by 0.17 s.)"""
+    from dombot_description.scenario import load_scenario
+    from dombot_perception.pipeline import build_pipeline
+    from dombot_planner.planner import PickPlacePlanner
+    from dombot_sim.world import CellWorld, WorldConfig
+
+    scenario = load_scenario()
+    world = CellWorld(WorldConfig(cameras=True, domino_capacity=8), scenario)
+    cell = SimCell(world, build_pipeline(scenario), PickPlacePlanner(scenario))
+    layout = layouts.arc((0.0, 0.0), 0.6, math.radians(5.0), 1)
+    job = Job.new(cell, layout, "arc", ArmJobSettings(pile=8, seed=0))
+    cell.reset(8, 0)
+    seen = []  # (the placed domino's truth when checked, how long after the release)
+    check_placement = cell.check_placement
+
+    def checked(expected, in_hand=False, not_before=0.0):
+        if not in_hand:
+            world.advance(max(0.0, not_before - world.time))  # when perception's frame is
+            placed = min(world.domino_truth(), key=lambda t: foot_distance(t.X_WD, job.targets[0]))
+            seen.append((placed, world.time - job.let_go_at))
+        return check_placement(expected, in_hand, not_before)
+
+    cell.check_placement = checked
+    assert place_slot(job, 0, may_defer=False) is Turn.PLACED
+    placed, after_release = seen[0]
+    assert after_release >= job.settings.settle_after_place - 1e-9
+    cell.wait_for_sim_time(1.0)
+    later = next(t for t in world.domino_truth() if t.name == placed.name)
+    moved = np.linalg.norm(later.X_WD[:3, 3] - placed.X_WD[:3, 3])
+    turned = abs(tilt_from_vertical(later.X_WD) - tilt_from_vertical(placed.X_WD))
+    assert moved < 0.0005
+    assert turned < math.radians(0.5)

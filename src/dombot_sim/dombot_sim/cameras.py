@@ -12,7 +12,7 @@ much as the step of a sleeping pile; the cameras render a few times a simulated 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +49,27 @@ class CameraFrame:
     label: np.ndarray | None  # (H, W) int32: domino index, or -1; None when not rendered
     K: np.ndarray  # 3x3 pinhole intrinsics
     X_WC: np.ndarray  # 4x4 pose of the optical frame (z forward, x right, y down) in world
+
+
+def cameras_due(
+    now: float,
+    next_frame: Mapping[str, float],
+    audience: Mapping[str, Sequence[int]],
+    last_audience: Mapping[str, Sequence[int]],
+) -> list[str]:
+    """The cameras to render at simulated time ``now``, rendered on demand: those with a
+    subscriber on any of their topics (``audience``: subscribers per topic) whose frame is
+    due by ``next_frame``, and those one of whose topics gained a subscriber since the
+    last tick (``last_audience``). A reader's topics match one at a time: a frame sent
+    while only its colour topic had matched never reached its depth reader, which then
+    waited a whole camera period for the next."""
+    due = []
+    for name, counts in audience.items():
+        before = last_audience.get(name) or (0,) * len(counts)
+        joined = any(count > old for count, old in zip(counts, before, strict=True))
+        if any(counts) and (now >= next_frame[name] or joined):
+            due.append(name)
+    return due
 
 
 def add_renderer(scene_graph: SceneGraph) -> None:

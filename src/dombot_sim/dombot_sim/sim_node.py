@@ -19,11 +19,12 @@ Frames, as robot_state_publisher and a calibrated camera mount would give them: 
 from __future__ import annotations
 
 import math
+import os
 import queue
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, MutableMapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ from typing import TypeVar
 
 import numpy as np
 import rclpy
+from ament_index_python.packages import get_package_share_directory
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from geometry_msgs.msg import Quaternion, Transform, TransformStamped, Twist, Vector3
 from pydrake.math import RigidTransform
@@ -54,7 +56,7 @@ from dombot_description.allocator import release_memory, set_mmap_threshold, tun
 from dombot_description.robot_description import robot_urdf
 from dombot_msgs.msg import DominoState, DominoStateArray
 from dombot_msgs.srv import ResetSim
-from dombot_sim.cameras import CameraFrame
+from dombot_sim.cameras import CameraFrame, cameras_due
 from dombot_sim.frames import FrameTransform, camera_transforms
 from dombot_sim.goal_monitor import (
     DEFAULT_GOAL_TOLERANCE,
@@ -107,6 +109,8 @@ TF_QOS = QoSProfile(depth=100)  # tf2_ros TransformBroadcaster
 # tf2_ros StaticTransformBroadcaster and robot_state_publisher's /robot_description: the
 # last message, kept for subscribers that come later
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+DDS_PROFILES = "FASTRTPS_DEFAULT_PROFILES_FILE"  # Fast DDS 2's XML profiles file
+DDS_PROFILE_FILE = "fastdds_sim_node.xml"  # in the package's share/config
 
 
 class SimStoppedError(RuntimeError):
@@ -277,6 +281,7 @@ class SimNode(Node):
         self._tf_pub = self.create_publisher(TFMessage, "/tf", TF_QOS)
         self._camera_pubs = {}
         self._next_frame = dict.fromkeys(self.world.camera_names, 0.0)  # s simulated
+        self._audience: dict[str, tuple[int, ...]] = {}  # subscribers per camera topic
         self.frames_rendered = dict.fromkeys(self.world.camera_names, 0)
         for name in self.world.camera_names:
             self._camera_pubs[name] = (
@@ -347,20 +352,17 @@ class SimNode(Node):
                 time.sleep(delay)
 
     # ------------------------------------------------------------------ publishing
-    def _watched_cameras(self) -> list[str]:
-        """The cameras with a subscriber on any of their topics: only those are rendered
-        (a frame nobody takes costs ~25 ms of rendering and ~2 MB of copies)."""
-        return [
-            name
-            for name, publishers in self._camera_pubs.items()
-            if any(publisher.get_subscription_count() for publisher in publishers)
-        ]
-
     def _render_watched(self, now: float, period: float) -> None:
-        """Render and publish the watched cameras whose last frame is a ``period`` old:
-        a camera someone starts watching gets a frame at this tick (unless it had one
-        less than a period ago), then one a period."""
-        due = [name for name in self._watched_cameras() if now >= self._next_frame[name]]
+        """Render and publish the cameras someone subscribes to (a frame nobody takes
+        costs ~25 ms of rendering and ~2 MB of copies): a camera someone starts watching,
+        or one of whose topics gains a subscriber, gets a frame at this tick, then one a
+        ``period`` (``cameras_due``)."""
+        audience = {
+            name: tuple(publisher.get_subscription_count() for publisher in publishers)
+            for name, publishers in self._camera_pubs.items()
+        }
+        due = cameras_due(now, self._next_frame, audience, self._audience)
+        self._audience = audience
         if not due:
             return
         frames = self.world.render(due, labels=False)
@@ -786,8 +788,18 @@ def spin_forever(executor: DrainingExecutor, node: Node) -> None:
             node.get_logger().error(f"callback failed: {error!r}; still serving")
 
 
+def use_dds_profile(environ: MutableMapping[str, str] = os.environ) -> None:
+    """Have Fast DDS read sim_node's writer settings (DDS_PROFILE_FILE: a heartbeat every
+    0.1 s) unless the user chose a profiles file: a reliable writer repairs a frame its
+    reader missed only at its next heartbeat, by default 3 s on, and in-hand checks
+    waited up to 2.5 s for a frame so (docs/SIM.md, "Camera frames on time")."""
+    share = Path(get_package_share_directory("dombot_sim"))
+    environ.setdefault(DDS_PROFILES, str(share / "config" / DDS_PROFILE_FILE))
+
+
 def main(args: list[str] | None = None) -> int:
     tune_allocator()
+    use_dds_profile()  # before the DDS participant is made
     rclpy.init(args=args)
     try:
         node = SimNode()

@@ -22,7 +22,7 @@ from enum import Enum
 from dombot_bringup.layouts import gap_at, safety_gaps
 from dombot_bringup.offers import PILE_IGNORED
 from dombot_bringup.run_report import GapDecision
-from dombot_bringup.task.cell import CellError, Detections, Posture
+from dombot_bringup.task.cell import CellError, Detections, Later, Posture
 from dombot_bringup.task.picking import Candidate, look_at_pile, pile_candidate, place_request
 from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
@@ -68,7 +68,7 @@ def flat_pile_dominoes(job: Job) -> list[Candidate]:
         return []
     if detections:
         seen = Detections(True, "", tuple(detections), unexplained)
-        job.pile_look = lambda: seen
+        job.pile_look = Later(lambda: seen)
     return [
         pile_candidate(d, detections, unexplained) for d in detections if d.posture == Posture.FLAT
     ]
