@@ -51,9 +51,9 @@ class PlacementConfig:
     max_tilt: float = np.radians(15.0)  # body x from vertical: beyond this it has fallen
     region_margin: float = 0.06  # m around the run for the work region
     # of a domino's length the pipeline's detections must see (its FilterConfig.min_coverage
-    # is the pile's 0.85): a struck run lies shingled, each domino's lower half under the
-    # one that fell on it, and at 0.85 a struck 10-domino arc had 1-3 of its 10 found; the
-    # depth check pulls a box fitted to the visible half back onto the domino
+    # is the pile's 0.85): a struck run lies shingled and the segmentation cuts each face,
+    # though seen whole, into pieces of about half its length; at 0.85 a struck 10-domino
+    # arc had 1-3 of its 10 found. The depth check sets a box fitted to such a piece right
     min_lying_coverage: float = 0.45
     min_height_seen: float = 0.5  # of the domino's length, along its (vertical) length axis
     depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
