@@ -181,6 +181,11 @@ def correct_box(
     """
     evidence = depth_evidence(fit.X_WD, views, config)
     reads = evidence.reads
+    if evidence.see_through_fraction > config.correct_above:
+        fit, evidence, slid_reads = _flush_with_an_end(
+            fit, points, views, config, fit_config, evidence
+        )
+        reads += slid_reads
     for _ in range(config.corrections):
         if evidence.see_through_fraction <= config.correct_above:
             break
@@ -197,6 +202,37 @@ def correct_box(
         evidence = corrected
     evidence.reads = reads
     return fit, evidence
+
+
+def _flush_with_an_end(
+    fit: BoxFit,
+    points: np.ndarray,
+    views: list[CameraView],
+    config: DepthCheckConfig,
+    fit_config: BoxFitConfig,
+    evidence: DepthEvidence,
+) -> tuple[BoxFit, DepthEvidence, list]:
+    """The box slid along its length to end where its points end, at one end or the
+    other, when the cameras see past less of it there.
+
+    A piece of a domino's face half its length long (the segmentation cuts a struck
+    run's shingled dominoes so) leaves the box
+    free to sit anywhere along it, and from a box seen past on half its pixels the ICP
+    rounds below often stall; its points end where the domino does. On struck arcs
+    this located 24 of 40 toppled dominoes instead of 21.
+    Also returns the depth windows read.
+    """
+    along = (points - fit.X_WD[:3, 3]) @ fit.X_WD[:3, 0]
+    best, best_evidence, reads = fit, evidence, []
+    for shift in (along.min() + HALF_SIZE[0], along.max() - HALF_SIZE[0]):
+        pose = fit.X_WD.copy()
+        pose[:3, 3] += shift * fit.X_WD[:3, 0]
+        slid = depth_evidence(pose, views, config)
+        reads += slid.reads
+        if slid.see_through_fraction < best_evidence.see_through_fraction:
+            on_box = _on_box(pose, points, fit_config.inlier_distance)
+            best, best_evidence = fit_statistics(pose, points, on_box), slid
+    return best, best_evidence, reads
 
 
 def _on_box(pose: np.ndarray, points: np.ndarray, distance: float) -> np.ndarray:

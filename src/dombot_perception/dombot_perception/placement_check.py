@@ -50,6 +50,11 @@ class PlacementConfig:
     inlier_distance: float = 0.002  # m
     max_tilt: float = np.radians(15.0)  # body x from vertical: beyond this it has fallen
     region_margin: float = 0.06  # m around the run for the work region
+    # of a domino's length the pipeline's detections must see (its FilterConfig.min_coverage
+    # is the pile's 0.85): a struck run lies shingled and the segmentation cuts each face,
+    # though seen whole, into pieces of about half its length; at 0.85 a struck 10-domino
+    # arc had 1-3 of its 10 found. The depth check sets a box fitted to such a piece right
+    min_lying_coverage: float = 0.45
     min_height_seen: float = 0.5  # of the domino's length, along its (vertical) length axis
     depth_check: DepthCheckConfig = field(default_factory=DepthCheckConfig)
     max_see_through: float = 0.2  # of the box's pixels the camera may see past
@@ -110,7 +115,8 @@ def check_placements(
             results.append(_placement(STANDING, fitted, pose))
             continue
         if detections is None:
-            local = replace(pipeline.config, region=region)
+            filtering = replace(pipeline.config.filtering, min_coverage=config.min_lying_coverage)
+            local = replace(pipeline.config, region=region, filtering=filtering)
             detections = PerceptionPipeline(pipeline.segmenter, local).run(views).detections
             claimed = _claim(detections, expected, config.search_radius)
         mine = detections[claimed[index]] if index in claimed else None
