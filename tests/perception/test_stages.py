@@ -8,7 +8,7 @@ from pydrake.math import RigidTransform
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from dombot_description.grasp import comes_from_above, pick_grasps
+from dombot_description.grasp import pick_grasps
 from dombot_perception.backprojection import WorkRegion, backproject, image_normals
 from dombot_perception.box_fit import (
     BoxFitConfig,
@@ -43,7 +43,7 @@ from dombot_perception.grasp_scoring import (
     NEIGHBOURHOOD,
     VERTICAL,
     GraspScoringConfig,
-    pads_above_table,
+    feasible_grasps,
     predicted_success,
     score_detections,
     weighted_geometric_mean,
@@ -400,11 +400,7 @@ def _straightforward_choice(pose: np.ndarray, scene: np.ndarray, config: GraspSc
     own = box_signed_distance((nearby - pose[:3, 3]) @ pose[:3, :3]) <= config.own_surface
     obstacles = nearby[~own]
     candidates = pick_grasps(RigidTransform(pose), base_xy=config.base_xy)
-    grasps = [
-        grasp
-        for grasp in candidates
-        if comes_from_above(grasp.pose) and pads_above_table(grasp, config.min_table_clearance)
-    ]
+    grasps = feasible_grasps(candidates, config)
     if not grasps:
         return candidates[0], -1.0
     clearances = [

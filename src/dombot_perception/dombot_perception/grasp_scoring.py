@@ -23,6 +23,7 @@ their thresholds; ``predicted_success`` says so.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -133,11 +134,7 @@ def best_grasp(
     with none, the clearance is -1 (unpickable).
     """
     candidates = pick_grasps(RigidTransform(domino_pose), base_xy=config.base_xy)
-    feasible = [
-        grasp
-        for grasp in candidates
-        if comes_from_above(grasp.pose) and pads_above_table(grasp, config.min_table_clearance)
-    ]
+    feasible = feasible_grasps(candidates, config)
     if not feasible:
         return GraspChoice(candidates[0], -1.0)
     choices, clearances = [], {}
@@ -150,6 +147,15 @@ def best_grasp(
             return choice
         choices.append(choice)
     return max(choices, key=lambda choice: choice.clearance)
+
+
+def feasible_grasps(candidates: Sequence[Grasp], config: GraspScoringConfig) -> list[Grasp]:
+    """Those of ``candidates`` that come from above and keep the pads above the table."""
+    return [
+        grasp
+        for grasp in candidates
+        if comes_from_above(grasp.pose) and pads_above_table(grasp, config.min_table_clearance)
+    ]
 
 
 def grasp_clearance(grasp: Grasp, obstacles: np.ndarray, approach_distance: float) -> float:
