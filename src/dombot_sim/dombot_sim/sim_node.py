@@ -101,9 +101,9 @@ RESTART_PARAMETERS = (
 )
 RATES = ("joint_state_rate", "camera_rate", "ground_truth_rate", "tf_rate", "domino_tf_rate")
 # Images and camera_info: RELIABLE keep-last 5 (sensor data's depth). A reliable writer
-# serves reliable readers and best-effort ones (perception subscribes with sensor-data QoS,
-# as it must for a best-effort camera driver); a best-effort writer would serve only
-# best-effort readers. docs/ARCHITECTURE.md, "Quality of service".
+# serves reliable readers and best-effort ones (perception's `image_reliability`
+# best_effort, as for a best-effort camera driver; its default is reliable); a best-effort
+# writer would serve only best-effort readers. docs/ARCHITECTURE.md, "Quality of service".
 CAMERA_QOS = QoSProfile(depth=5)
 TF_QOS = QoSProfile(depth=100)  # tf2_ros TransformBroadcaster
 # tf2_ros StaticTransformBroadcaster and robot_state_publisher's /robot_description: the
