@@ -596,6 +596,22 @@ def test_flatter_grasps_lean_further_and_hold_nearer_the_pads_end() -> None:
     assert flatter_grasps(domino, 0.0, 0.0) == []
 
 
+def test_a_pick_no_grasp_reaches_searches_no_flatter_grasp(planner) -> None:
+    """Boxed in 4 mm from both long faces, no canonical or steeper grasp reaches the
+    domino: the flatter ones (leaning further, for holds no place suits) are not searched,
+    and the refusal, with its counts of why, is the one of a planner without them."""
+    domino = flat_pose(0.60, -0.28, 0.4)
+    boxed = tuple(
+        domino @ RigidTransform([0.0, side * (DOMINO_SIZE[1] + 0.004), 0.0]) for side in (-1, 1)
+    )
+    req = request(domino_pose=domino, pile=boxed)
+    no_flatter = dataclasses.replace(SETTINGS, flatter_grasp_turn=0.0, flatter_grasp_shift=0.0)
+    without = PickPlacePlanner(SCENARIO, no_flatter, plants=planner.plants)
+    refused = failure(planner, req)
+    assert refused.code == ErrorCode.GRASP_UNREACHABLE
+    assert str(refused) == str(failure(without, req))
+
+
 def test_leaning_domino_out_of_canonical_reach_is_picked_with_a_steeper_grasp(planner) -> None:
     """Leaning 19° about its width 0.7 m out: the canonical grasps lean 82° (the gripper
     body reaches the table) or point at the base (out of reach); a steeper one is used,

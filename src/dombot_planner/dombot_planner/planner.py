@@ -489,11 +489,18 @@ class RequestPlanning(RequestMotions):
         once all of them failed, so they cost an ordinary request nothing) the turned ones.
         When a grasp reached the domino but no place suited its hold, the flatter ones come
         first: a steeper hold leans further over the neighbours at place. Otherwise the
-        pick is what failed, and the steeper ones (reaching farther) come first."""
+        pick is what failed, and the steeper ones (reaching farther) are tried, the flatter
+        ones only if one of them reached it: a flatter grasp is a canonical one leaning 2.5°
+        or 5° further, its wrist lower (docs/PLANNER.md), and where no canonical grasp
+        reached a pile domino it added a third of the refused request's grasps to search."""
         yield from ((grasp, False) for grasp in self.grasps)
         steeper, flatter = self.turned
-        turned = flatter + steeper if self.search.picks_found else steeper + flatter
-        yield from ((grasp, True) for grasp in turned)
+        if self.search.picks_found:
+            yield from ((grasp, True) for grasp in flatter + steeper)
+            return
+        yield from ((grasp, True) for grasp in steeper)
+        if self.search.picks_found:
+            yield from ((grasp, True) for grasp in flatter)
 
     def plan(self) -> PickPlacePlan:
         self.check_start(self.approach)
@@ -565,11 +572,11 @@ class RequestPlanning(RequestMotions):
     def _ends(self) -> Iterator[tuple[End, End, Scene]]:
         """Pick and place ends that pass their checks, best candidates first."""
         request = self.request
-        self.search.grasp_candidates = len(self.grasps) + sum(map(len, self.turned))
         release = self._release()
         free = self._free_direction()
         for grasp, turned in self._grasps():
             self.deadline.check("grasp")
+            self.search.grasp_candidates += 1
             lifts = [d for d in lift_directions(grasp) if not self._pads_meet_pile_points(grasp, d)]
             if not lifts:
                 self.search.grasp_failures["pads' path meets pile points"] += 1
