@@ -489,17 +489,19 @@ class RequestPlanning(RequestMotions):
         once all of them failed, so they cost an ordinary request nothing) the turned ones.
         When a grasp reached the domino but no place suited its hold, the flatter ones come
         first: a steeper hold leans further over the neighbours at place. Otherwise the
-        pick is what failed, and the steeper ones (reaching farther) are tried, the flatter
-        ones only if one of them reached it: a flatter grasp is a canonical one leaning 2.5°
-        or 5° further, its wrist lower (docs/PLANNER.md), and where no canonical grasp
-        reached a pile domino it added a third of the refused request's grasps to search."""
+        pick is what failed, and the steeper ones (reaching farther) come first; the
+        flatter ones then only when the pads may nudge the pile, or when a steeper one
+        reached it. With the pads clear of the pile they reached no pile domino that no
+        canonical or steeper one did (68 recorded pile requests replayed, the same answers)
+        but were 8 of the 20 grasps searched before every plan that nudges the pile;
+        nudging, they found 2 of those 68 plans."""
         yield from ((grasp, False) for grasp in self.grasps)
         steeper, flatter = self.turned
         if self.search.picks_found:
             yield from ((grasp, True) for grasp in flatter + steeper)
             return
         yield from ((grasp, True) for grasp in steeper)
-        if self.search.picks_found:
+        if self.nudge or self.search.picks_found:
             yield from ((grasp, True) for grasp in flatter)
 
     def plan(self) -> PickPlacePlan:
