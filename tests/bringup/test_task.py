@@ -22,7 +22,7 @@ from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED
 from dombot_bringup.run_report import DominoOutcome, TruthPose, plot_run, write_report
 from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, count_refusal
 from dombot_bringup.spread import SLIDE_DISTANCE, STIR_DISTANCE, TIP_DISTANCE
-from dombot_bringup.task.attempts import Outcome, attempt
+from dombot_bringup.task.attempts import Outcome, attempt, offers_with_pile
 from dombot_bringup.task.cell import (
     Detection,
     GripperEvent,
@@ -148,10 +148,23 @@ def test_the_finger_opening_tells_a_flat_hold_from_a_miss_and_an_edge() -> None:
 def test_refused_grasps_are_forgotten_once_a_pick_nearby_changes_the_pile() -> None:
     state = job().state
     state.crowded = [np.array([0.55, -0.30]), np.array([0.45, -0.40])]
+    state.cored = [np.array([0.55, -0.30]), np.array([0.45, -0.40])]
     state.unpickable = [np.array([0.56, -0.31]), np.array([0.57, -0.36])]
     state.forget_refusals_near(np.array([0.57, -0.30]))  # within 5 cm of two, 6 cm of one
     assert [u.tolist() for u in state.crowded] == [[0.45, -0.40]]
+    assert [u.tolist() for u in state.cored] == [[0.45, -0.40]]
     assert [u.tolist() for u in state.unpickable] == [[0.57, -0.36]]
+
+
+def test_a_domino_refused_with_its_piles_cores_is_not_asked_so_again() -> None:
+    """Seed 0: one domino was refused with its pile's cores five times at three slots,
+    nothing picked or pushed near it between. Its boxes are asked (refused so, it is
+    ``crowded``), and ignoring its pile."""
+    run_job = job(refusing({0.50: ErrorCode.GRASP_UNREACHABLE, 0.55: ErrorCode.TIMEOUT}))
+    found, _ = candidates(run_job, [], 0)
+    run_job.state.cored.append(np.array([0.50, -0.3]))
+    offers = [(x_of(c.pose), pile) for c, pile in offers_with_pile(run_job, found)]
+    assert offers == [(0.50, PILE_BOXES), (0.55, PILE_BOXES), (0.55, PILE_CORES)]
 
 
 def test_fallen_run_dominoes_are_obstacles_for_every_pick_but_their_own() -> None:
@@ -356,6 +369,7 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
         *[(0.50, 0, False), (0.55, 0, False)],
     ]
     assert [c.tolist() for c in run_job.state.crowded] == [[0.50, -0.3], [0.55, -0.3]]
+    assert [c.tolist() for c in run_job.state.cored] == [[0.50, -0.3], [0.55, -0.3]]
     assert [c.tolist() for c in run_job.state.unpickable] == [[0.50, -0.3], [0.55, -0.3]]
     assert [f.tolist() for f in failed] == [[0.60, -0.3]]
     assert run_job.report.dominoes[0].refusals == {  # by code, for the report

@@ -231,6 +231,8 @@ def first_plan(
             failed.append(spot)
         elif pile == PILE_BOXES:
             job.state.crowded.append(spot)
+        elif pile == PILE_CORES:
+            job.state.cored.append(spot)
         elif pile == PILE_IGNORED:
             job.state.unpickable.append(spot)
             job.state.remember_why(spot, f"refused ignoring its pile: {plan.message}")
