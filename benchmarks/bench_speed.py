@@ -8,7 +8,7 @@ domino, and the CPU seconds each node process used (psutil, read off the process
 sim_node's CPU per simulated second over the whole job and while the arm moves (from
 its "executing a T s trajectory" to its "trajectory done" lines, against the T's), and
 how many picks were planned ahead (asked as the fingers let go or after the retreat,
-used or dropped: ``task.ahead``).
+used or dropped: ``task.ahead``), and the planner's refusals by service and error code.
 Compare two code versions by running this in both workspaces at the same time (the
 machine's load then weighs on both alike) and taking ratios: docs/SPEED.md.
 
@@ -25,6 +25,7 @@ import re
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import psutil
@@ -36,6 +37,8 @@ TRAJECTORY_START = re.compile(r"\[sim_node\].*executing a ([0-9.]+) s trajectory
 TRAJECTORY_END = re.compile(r"\[sim_node\].*(trajectory done|follow_joint_trajectory \w+:)")
 FRAMES = re.compile(r"\[sim_node\].*camera frames rendered: (.*)")
 STILL = re.compile(r"\[sim_node\].*simulated [0-9.]+ s, of which the cell was still .* ([0-9.]+) s")
+# the planner's refusals, requests planned ahead and pushes included
+REFUSED = re.compile(r"\[planner_node\] \[WARN\].*(plan_place|plan_strike): ([A-Z_]+) at")
 # perception's words for a look that found no usable frame of a camera
 MISSED_FRAMES = re.compile(
     r"\[perception_node\] \[WARN\].*(stopped publishing|no colour and depth images)"
@@ -97,6 +100,7 @@ def run(args: argparse.Namespace) -> dict:
     started = time.monotonic()
     moving_cpu = moving_sim = 0.0
     frames, missed, still = None, 0, None
+    refused: Counter[str] = Counter()
     motion_start: tuple[float, float] | None = None  # (sim_node CPU, trajectory seconds)
     with (
         (args.out / "bringup.log").open("w") as log_file,
@@ -110,6 +114,8 @@ def run(args: argparse.Namespace) -> dict:
             if line.startswith("[bringup]"):
                 print(line.rstrip(), file=sys.stderr, flush=True)
             missed += bool(MISSED_FRAMES.search(line))
+            if refusal := REFUSED.search(line):
+                refused[" ".join(refusal.groups())] += 1
             if rendered := FRAMES.search(line):
                 frames = rendered.group(1)
             if skipped := STILL.search(line):
@@ -136,6 +142,7 @@ def run(args: argparse.Namespace) -> dict:
         "camera_frames_rendered": frames,  # sim_node's last line; None: it did not say
         "sim_node_still_simulated_s": still,  # advanced without physics steps; None: not said
         "perception_missed_frames": missed,
+        "planner_refusals": dict(refused.most_common()),  # "service CODE" → requests
     }
     return summarize(args, result, (moving_cpu, moving_sim))
 

@@ -22,7 +22,7 @@ from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED
 from dombot_bringup.run_report import DominoOutcome, TruthPose, plot_run, write_report
 from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, count_refusal
 from dombot_bringup.spread import SLIDE_DISTANCE, STIR_DISTANCE, TIP_DISTANCE
-from dombot_bringup.task.attempts import Outcome, attempt
+from dombot_bringup.task.attempts import Outcome, attempt, offers_with_pile
 from dombot_bringup.task.cell import (
     Detection,
     GripperEvent,
@@ -148,10 +148,23 @@ def test_the_finger_opening_tells_a_flat_hold_from_a_miss_and_an_edge() -> None:
 def test_refused_grasps_are_forgotten_once_a_pick_nearby_changes_the_pile() -> None:
     state = job().state
     state.crowded = [np.array([0.55, -0.30]), np.array([0.45, -0.40])]
+    state.cored = [np.array([0.55, -0.30]), np.array([0.45, -0.40])]
     state.unpickable = [np.array([0.56, -0.31]), np.array([0.57, -0.36])]
     state.forget_refusals_near(np.array([0.57, -0.30]))  # within 5 cm of two, 6 cm of one
     assert [u.tolist() for u in state.crowded] == [[0.45, -0.40]]
+    assert [u.tolist() for u in state.cored] == [[0.45, -0.40]]
     assert [u.tolist() for u in state.unpickable] == [[0.57, -0.36]]
+
+
+def test_a_domino_refused_with_its_piles_cores_is_not_asked_so_again() -> None:
+    """Seed 0: one domino was refused with its pile's cores five times at three slots,
+    nothing picked or pushed near it between. Its boxes are asked (refused so, it is
+    ``crowded``), and ignoring its pile."""
+    run_job = job(refusing({0.50: ErrorCode.GRASP_UNREACHABLE, 0.55: ErrorCode.TIMEOUT}))
+    found, _ = candidates(run_job, [], 0)
+    run_job.state.cored.append(np.array([0.50, -0.3]))
+    offers = [(x_of(c.pose), pile) for c, pile in offers_with_pile(run_job, found)]
+    assert offers == [(0.50, PILE_BOXES), (0.55, PILE_BOXES), (0.55, PILE_CORES)]
 
 
 def test_fallen_run_dominoes_are_obstacles_for_every_pick_but_their_own() -> None:
@@ -356,6 +369,7 @@ def test_refusals_about_the_domino_are_remembered_for_the_run_those_about_the_sl
         *[(0.50, 0, False), (0.55, 0, False)],
     ]
     assert [c.tolist() for c in run_job.state.crowded] == [[0.50, -0.3], [0.55, -0.3]]
+    assert [c.tolist() for c in run_job.state.cored] == [[0.50, -0.3], [0.55, -0.3]]
     assert [c.tolist() for c in run_job.state.unpickable] == [[0.50, -0.3], [0.55, -0.3]]
     assert [f.tolist() for f in failed] == [[0.60, -0.3]]
     assert run_job.report.dominoes[0].refusals == {  # by code, for the report
@@ -987,17 +1001,37 @@ def test_a_leaning_domino_that_plans_is_pushed_over_flat_before_it_is_picked() -
 def test_a_leaning_domino_no_push_lays_flat_gives_way_to_a_flat_one_that_plans() -> None:
     """Spiral seed 11: both pushes of a leaning domino were refused (one into the
     neighbour it leaned on), its pick closed on nothing, and a flat one planned at the
-    next attempt. The flat one offered after it is asked first."""
+    next attempt. The flat one offered after it (refused with its pile's boxes, planning
+    with their cores) is asked first."""
+    leaning = lying(0.50, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
+    pile = [Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01), unscored]
+
+    def place(request: PlaceRequest) -> Plan:
+        if x_of(request.domino) == pytest.approx(0.60) and not request.pads_into_pile:
+            return refused(ErrorCode.GRASP_UNREACHABLE)
+        return planned()
+
+    cell = ScriptedCell(pile=pile, place=place)
+    run_job = job(cell)
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    assert len(cell.strike_requests) == 2  # both ways over: refused
+    assert [offer[0] for offer in offered(cell)] == pytest.approx([0.60, 0.50, 0.60])
+    assert run_job.report.dominoes[0].attempts == 1
+
+
+def test_a_flat_domino_is_offered_before_a_leaning_one_perception_scored_better() -> None:
+    """The default job, seed 0: at three slots a leaning domino planned first, both its
+    pushes were refused and a flat one was picked: three requests for nothing."""
     leaning = lying(0.50, -0.3)
     leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
     unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
     pile = [Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01), unscored]
     cell = ScriptedCell(pile=pile, place=lambda request: planned())
-    run_job = job(cell)
-    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
-    assert len(cell.strike_requests) == 2  # both ways over: refused
-    assert [offer[0] for offer in offered(cell)] == pytest.approx([0.50, 0.60])
-    assert run_job.report.dominoes[0].attempts == 1
+    assert place_slot(job(cell), 0, may_defer=False) is Turn.PLACED
+    assert [offer[0] for offer in offered(cell)] == pytest.approx([0.60])
+    assert cell.strike_requests == []
 
 
 NO_PLACE_POSE = (

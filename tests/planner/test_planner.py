@@ -23,7 +23,13 @@ from dombot_planner.motion import (
     elbow_not_up,
     faces_away,
 )
-from dombot_planner.planner import PickPlacePlanner, flatter_grasps, steeper_grasps
+from dombot_planner.planner import (
+    PickPlacePlanner,
+    RequestPlanning,
+    SharedWork,
+    flatter_grasps,
+    steeper_grasps,
+)
 from dombot_planner.request import PickPlaceRequest, box_corners, dominoes_overlap
 from dombot_planner.scene import Scene
 from dombot_planner.settings import PlannerSettings
@@ -594,6 +600,27 @@ def test_flatter_grasps_lean_further_and_hold_nearer_the_pads_end() -> None:
             lean = math.degrees(math.acos(abs(pose.rotation().matrix()[2, 2])))
             assert lean == pytest.approx(63.0 + math.degrees(part * turn), abs=1e-6)
     assert flatter_grasps(domino, 0.0, 0.0) == []
+
+
+def test_where_no_grasp_reached_the_pick_flatter_ones_are_searched_only_nudging(planner) -> None:
+    """Flatter grasps lean further than the canonical ones, for holds no place suits:
+    with the pads clear of the pile they reached no pile domino the others did not
+    (replayed requests), nudging it they found a few plans."""
+    req = request()
+    turn, shift = SETTINGS.flatter_grasp_turn, SETTINGS.flatter_grasp_shift
+    flatter = flatter_grasps(req.domino_pose, turn, shift)
+
+    def searched(nudge: bool) -> list[RigidTransform]:
+        planning = RequestPlanning(
+            planner, req, Deadline(UNHURRIED), SharedWork(planner), nudge=nudge
+        )
+        return [grasp for grasp, _ in planning._grasps()]  # none tried: none reached it
+
+    def any_flatter(grasps: list[RigidTransform]) -> bool:
+        return any(g.IsNearlyEqualTo(f, 1e-9) for g in grasps for f in flatter)
+
+    assert not any_flatter(searched(nudge=False))
+    assert any_flatter(searched(nudge=True))
 
 
 def test_leaning_domino_out_of_canonical_reach_is_picked_with_a_steeper_grasp(planner) -> None:

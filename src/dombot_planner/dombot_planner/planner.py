@@ -489,11 +489,20 @@ class RequestPlanning(RequestMotions):
         once all of them failed, so they cost an ordinary request nothing) the turned ones.
         When a grasp reached the domino but no place suited its hold, the flatter ones come
         first: a steeper hold leans further over the neighbours at place. Otherwise the
-        pick is what failed, and the steeper ones (reaching farther) come first."""
+        pick is what failed, and the steeper ones (reaching farther) come first; the
+        flatter ones then only when the pads may nudge the pile, or when a steeper one
+        reached it. With the pads clear of the pile they reached no pile domino that no
+        canonical or steeper one did (68 recorded pile requests replayed, the same answers)
+        but were 8 of the 20 grasps searched before every plan that nudges the pile;
+        nudging, they found 2 of those 68 plans."""
         yield from ((grasp, False) for grasp in self.grasps)
         steeper, flatter = self.turned
-        turned = flatter + steeper if self.search.picks_found else steeper + flatter
-        yield from ((grasp, True) for grasp in turned)
+        if self.search.picks_found:
+            yield from ((grasp, True) for grasp in flatter + steeper)
+            return
+        yield from ((grasp, True) for grasp in steeper)
+        if self.nudge or self.search.picks_found:
+            yield from ((grasp, True) for grasp in flatter)
 
     def plan(self) -> PickPlacePlan:
         self.check_start(self.approach)
@@ -565,11 +574,11 @@ class RequestPlanning(RequestMotions):
     def _ends(self) -> Iterator[tuple[End, End, Scene]]:
         """Pick and place ends that pass their checks, best candidates first."""
         request = self.request
-        self.search.grasp_candidates = len(self.grasps) + sum(map(len, self.turned))
         release = self._release()
         free = self._free_direction()
         for grasp, turned in self._grasps():
             self.deadline.check("grasp")
+            self.search.grasp_candidates += 1
             lifts = [d for d in lift_directions(grasp) if not self._pads_meet_pile_points(grasp, d)]
             if not lifts:
                 self.search.grasp_failures["pads' path meets pile points"] += 1

@@ -136,11 +136,16 @@ def attempt(
 
 def offers_with_pile(job: Job, found: Sequence[Candidate]) -> list[tuple[Candidate, str]]:
     """The offers planned with their pile, in order: the best ranked with their pile's
-    boxes (none refused so already), then the roomiest with their pile's cores."""
-    ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), job.state.crowded)]
+    boxes, then the roomiest with their pile's cores; none refused so already, until a
+    pick or push nearby (the default job, seed 0, asked for one domino with its pile's
+    cores at three slots, five times with no pick or push within 5 cm of it between, and
+    five times it was refused)."""
+    state = job.state
+    ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), state.crowded)]
+    cored = [c for c in last_resort(job, found) if not near_any(c.spot(), state.cored)]
     return [
         *((c, PILE_BOXES) for c in ranked[: job.settings.max_candidates]),
-        *((c, PILE_CORES) for c in last_resort(job, found)),
+        *((c, PILE_CORES) for c in cored),
     ]
 
 

@@ -220,7 +220,10 @@ def first_plan(
         if plan.success:
             return Offer(candidate, pile, plan), refused
         refused += 1
-        where = f"{candidate.source} at {spot.round(3).tolist()}{PILE_WORDS[pile]}"
+        where = (
+            f"{candidate.source} ({candidate.posture_name}) at "
+            f"{spot.round(3).tolist()}{PILE_WORDS[pile]}"
+        )
         log(f"{job.domino(index)}: refused {where}: {plan.message.split(' (')[0]}")
         count_refusal(job.report.dominoes[index].refusals, plan.error)
         refusals.append(Refusal(candidate, plan.error, plan.message))
@@ -228,6 +231,8 @@ def first_plan(
             failed.append(spot)
         elif pile == PILE_BOXES:
             job.state.crowded.append(spot)
+        elif pile == PILE_CORES:
+            job.state.cored.append(spot)
         elif pile == PILE_IGNORED:
             job.state.unpickable.append(spot)
             job.state.remember_why(spot, f"refused ignoring its pile: {plan.message}")

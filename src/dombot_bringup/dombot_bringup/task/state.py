@@ -37,6 +37,7 @@ class BuildState:
     unpickable: list[np.ndarray] = field(default_factory=list)
     stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
     crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
+    cored: list[np.ndarray] = field(default_factory=list)  # ... and with its pile's cores
     # (x, y) of pile dominoes pushed to lay them flat, or whose pushes were all refused:
     # not pushed again there (one that did not move would be pushed for ever)
     pushed: list[np.ndarray] = field(default_factory=list)
@@ -51,6 +52,7 @@ class BuildState:
         """A pick or push at ``spot`` moved the dominoes around it: offer them again."""
         self.unpickable = [u for u in self.unpickable if not near(u, spot, DISTURBED_RADIUS)]
         self.crowded = [u for u in self.crowded if not near(u, spot, DISTURBED_RADIUS)]
+        self.cored = [u for u in self.cored if not near(u, spot, DISTURBED_RADIUS)]
         self.pushed = [u for u in self.pushed if not near(u, spot, DISTURBED_RADIUS)]
         self.reasons = [r for r in self.reasons if not near(r[0], spot, DISTURBED_RADIUS)]
 
