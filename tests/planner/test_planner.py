@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 import pytest
@@ -554,6 +555,19 @@ def test_settings_refuse_bad_values() -> None:
     with pytest.raises(ValueError, match="flatter_grasp_turn"):
         PlannerSettings(flatter_grasp_turn=-0.1)
     assert PlannerSettings(flatter_grasp_turn=0.0, flatter_grasp_shift=0.0)  # none: allowed
+    with pytest.raises(ValueError, match="budget_clock"):
+        PlannerSettings(budget_clock="gpu")
+
+
+def test_a_cpu_budget_is_not_used_up_by_waiting() -> None:
+    """The bring-up's clock: a thread that waits for its core (here: sleeps) spends no
+    budget, so a loaded machine gets the same search as an idle one."""
+    on_cpu, on_wall = Deadline(0.05, "cpu"), Deadline(0.05, "wall")
+    time.sleep(0.2)
+    on_cpu.check("search")
+    with pytest.raises(PlanningError, match=r"time budget of 0\.05 s used up"):
+        on_wall.check("search")
+    assert on_wall.elapsed() >= 0.2 and on_cpu.elapsed() >= 0.2  # elapsed is wall time
 
 
 def leaning_pose(x: float, y: float, yaw: float, tilt: float) -> RigidTransform:

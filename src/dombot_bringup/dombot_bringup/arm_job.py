@@ -82,9 +82,10 @@ def run_arm_job(
             node_command("dombot_perception", "perception_node", on_demand),
             restartable=True,
         )
+        # a refusal is remembered for the run: on CPU time it is the search's, not the load's
         group.start(
             "planner_node",
-            node_command("dombot_planner", "planner_node", on_sim_time),
+            node_command("dombot_planner", "planner_node", on_sim_time | {"budget_clock": "cpu"}),
             restartable=True,
         )
         rclpy.init()

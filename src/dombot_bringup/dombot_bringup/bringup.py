@@ -206,8 +206,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "--plan-budget",
         type=float,
         default=5.0,
-        help="[s] of wall-clock time per planner request, after which it is TIMEOUT and the "
-        "job offers another domino (5; up to 3600: never on a slow or loaded machine)",
+        help="[s] of the planning thread's CPU time per planner request, after which it is "
+        "TIMEOUT and the job offers another domino (5; up to 3600); CPU, not wall: a load on "
+        "the machine does not change the answers",
     )
     cell.add_argument(
         "--no-plan-ahead",

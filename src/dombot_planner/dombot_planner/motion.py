@@ -37,7 +37,7 @@ from dombot_planner.scene import (
     ShadowPlants,
     table_top,
 )
-from dombot_planner.settings import PlannerSettings
+from dombot_planner.settings import BUDGET_CLOCKS, PlannerSettings
 from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
 
 GRIPPER_NONE, GRIPPER_OPEN, GRIPPER_CLOSE = "none", "open", "close"
@@ -213,18 +213,24 @@ def reasons(failures: Counter) -> str:
 
 
 class Deadline:
-    def __init__(self, budget: float) -> None:
-        self.start = time.monotonic()
+    """A request's time budget on one of BUDGET_CLOCKS; ``elapsed`` is wall time."""
+
+    def __init__(self, budget: float, clock: str = "wall") -> None:
+        self.clock = clock
+        self.now = getattr(time, BUDGET_CLOCKS[clock])
+        self.began = time.monotonic()
+        self.start = self.now()
         self.end = self.start + budget
 
     def check(self, stage: str) -> None:
-        if time.monotonic() > self.end:
+        if self.now() > self.end:
+            what = "CPU time" if self.clock == "cpu" else "time"
             raise PlanningError(
-                ErrorCode.TIMEOUT, stage, f"time budget of {self.end - self.start:.2f} s used up"
+                ErrorCode.TIMEOUT, stage, f"{what} budget of {self.end - self.start:.2f} s used up"
             )
 
     def elapsed(self) -> float:
-        return time.monotonic() - self.start
+        return time.monotonic() - self.began
 
 
 class ArmPlanner:

@@ -333,7 +333,9 @@ class PickPlacePlanner(ArmPlanner):
         """A plan for ``request``; raises PlanningError with a code and the failing stage."""
         self.check(request)
         request = near_pick(request)
-        deadline = Deadline(request.time_budget or self.settings.default_time_budget)
+        deadline = Deadline(
+            request.time_budget or self.settings.default_time_budget, self.settings.budget_clock
+        )
         shared = SharedWork(self)
         if request.holding:
             plan = RequestPlanning(self, request, deadline, shared).plan_held()

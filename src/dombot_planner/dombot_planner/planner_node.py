@@ -181,8 +181,9 @@ class PlannerNode(Node):
             budget = plan_request.time_budget or planner.settings.default_time_budget
             self._queue(budget)
             try:
-                remaining = max(budget - (time.monotonic() - began), 1e-3)
-                plan = planner.plan(dataclasses.replace(plan_request, time_budget=remaining))
+                if planner.settings.budget_clock == "wall":  # the queue's wait counts
+                    budget = max(budget - (time.monotonic() - began), 1e-3)
+                plan = planner.plan(dataclasses.replace(plan_request, time_budget=budget))
             finally:
                 self.lock.release()
             remark = note(plan)

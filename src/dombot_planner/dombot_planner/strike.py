@@ -157,7 +157,9 @@ class StrikePlanner(ArmPlanner):
     def plan(self, request: StrikeRequest) -> StrikePlan:
         """A plan for ``request``; raises PlanningError with a code and the failing stage."""
         self.check(request)
-        deadline = Deadline(request.time_budget or self.settings.default_time_budget)
+        deadline = Deadline(
+            request.time_budget or self.settings.default_time_budget, self.settings.budget_clock
+        )
         plan = StrikePlanning(self, request, deadline).plan()
         plan.planning_time = deadline.elapsed()
         return plan
