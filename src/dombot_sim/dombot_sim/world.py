@@ -190,6 +190,11 @@ class CellWorld:
             CONTACT_APPROXIMATIONS[config.contact_approximation]
         )
         plant.set_contact_model(CONTACT_MODELS[config.contact_model])
+        # live output ports: a sampled plant also computes and stores every step's contact
+        # results, reaction forces and accelerations, which nothing here reads (the net
+        # actuation of ``joint_state`` is then the current state's); ~15 % of a step with a
+        # domino in the pads, the states bit-identical (docs/SIM.md, *Stepping*)
+        plant.SetUseSampledOutputPorts(False)
         models = add_cell(plant, scenario)
         domino_models = add_dominoes(plant, capacity, config.domino_size)
         # GetJointActuatorIndices(model_instance) is empty before Finalize: filter all of them.
