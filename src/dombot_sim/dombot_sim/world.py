@@ -190,6 +190,11 @@ class CellWorld:
             CONTACT_APPROXIMATIONS[config.contact_approximation]
         )
         plant.set_contact_model(CONTACT_MODELS[config.contact_model])
+        # live output ports: a sampled plant also computes and stores every step's contact
+        # results, reaction forces and accelerations, which nothing here reads; ~15 % of a
+        # step with a domino in the pads, the states bit-identical (docs/SIM.md, *Stepping*).
+        # ``joint_state`` then computes the efforts itself (``_efforts``)
+        plant.SetUseSampledOutputPorts(False)
         models = add_cell(plant, scenario)
         domino_models = add_dominoes(plant, capacity, config.domino_size)
         # GetJointActuatorIndices(model_instance) is empty before Finalize: filter all of them.
@@ -231,6 +236,17 @@ class CellWorld:
         self._plant, self._scene_graph, self._models = plant, scene_graph, models
         self._links = LinkTree(plant, (models.arm, models.gripper, models.table))
         self._arm_source, self._gripper = arm_source, gripper
+        self._actuation_inputs = [
+            plant.get_actuation_input_port(model) for model in (models.arm, models.gripper)
+        ]
+        self._arm_pd = np.array([config.arm_gains.stiffness, config.arm_gains.damping])
+        self._effort_limits = np.array(
+            [
+                plant.get_joint_actuator(index).effort_limit()
+                for model in (models.arm, models.gripper)
+                for index in plant.GetJointActuatorIndices(model)
+            ]
+        )
         self._domino_bodies = [plant.GetBodyByName("domino", m) for m in domino_models]
         self._domino_names = [plant.GetModelInstanceName(m) for m in domino_models]
         self._domino_xyz = np.array(  # each domino's position entries in the plant's q
@@ -618,18 +634,37 @@ class CellWorld:
 
     # ------------------------------------------------------------------ robot
     def joint_state(self) -> JointStateSample:
-        """Arm joints then finger joints: positions [rad | m], velocities, measured efforts."""
+        """Arm joints then finger joints: positions [rad | m], velocities, and the efforts
+        the controllers apply now (``_efforts``)."""
         plant, context = self._plant, self._plant_context
         models = (self._models.arm, self._models.gripper)
-        effort = np.concatenate(
-            [plant.get_net_actuation_output_port(m).Eval(context) for m in models]
-        )
+        position = np.concatenate([plant.GetPositions(context, m) for m in models])
+        velocity = np.concatenate([plant.GetVelocities(context, m) for m in models])
         return JointStateSample(
             names=self.scenario.arm_joints + self.scenario.gripper_joints,
-            position=np.concatenate([plant.GetPositions(context, m) for m in models]),
-            velocity=np.concatenate([plant.GetVelocities(context, m) for m in models]),
-            effort=effort,
+            position=position,
+            velocity=velocity,
+            effort=self._efforts(position, velocity),
         )
+
+    def _efforts(self, position: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """The actuators' efforts at the current state and command: the arm's feedforward
+        plus its joint PD, the fingers' forces, clamped to the limits as the plant clamps
+        them. The plant's net actuation port gave the last step's (its PD is implicit, so
+        they differ by the command's change over one step, ~3 N·m on joint 1 in a fast
+        swing); with live output ports (``_build``) evaluating it solves a step again."""
+        feedforward, fingers = (port.Eval(self._plant_context) for port in self._actuation_inputs)
+        desired = self._arm_source.desired_state_port.Eval(
+            self._arm_source.split.GetMyContextFromRoot(self._root)
+        )
+        stiffness, damping = self._arm_pd
+        dofs = len(stiffness)
+        arm = (
+            feedforward
+            + stiffness * (desired[:dofs] - position[:dofs])
+            + damping * (desired[dofs:] - velocity[:dofs])
+        )
+        return np.clip(np.concatenate([arm, fingers]), -self._effort_limits, self._effort_limits)
 
     def arm_limits(self) -> JointLimits:
         """Position and velocity limits of the arm joints, in ``arm_joint_names`` order."""
