@@ -10,16 +10,19 @@ import math
 from collections.abc import Sequence
 
 import pytest
+from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
 from dombot_bringup.bringup import cycle_layouts, parse_args
 from dombot_bringup.layouts import LayoutError
 from dombot_bringup.process_group import resident_mb
 from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, EXIT_SUCCESS, worst_status
+from dombot_bringup.task.attempts import carried_away
 from dombot_bringup.task.cell import PlacementCheck, Pose, Seen
 from dombot_bringup.task.cycles import cycle_line, run_cycles
-from dombot_bringup.task.geometry import spot_of
+from dombot_bringup.task.geometry import distinct, in_the_way, placement_pose, spot_of
 from dombot_bringup.task.loop import Turn, place_slot
+from dombot_bringup.task.picking import Candidate, in_its_way, toppled_candidates
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description.scenario import load_scenario
@@ -226,3 +229,87 @@ def test_a_bad_cycle_option_is_refused_before_anything_starts(
 def test_resident_memory_is_read_for_a_running_process_and_none_for_a_gone_one() -> None:
     assert resident_mb() > 10.0  # this test's python
     assert resident_mb(2**22 + 1) is None  # above the kernel's pid_max default
+
+
+def test_a_lying_domino_is_in_a_slots_way_within_the_margin_and_where_the_pads_go() -> None:
+    """The slot's domino stands across the line (thickness along y, width along x); a
+    flat domino lies with its length along x, its width (24 mm) along y."""
+    target, along, across = placement_pose(LINE[0]), 0.008, 0.021
+    # its near side 8 mm ahead of the slot's centre: 4.25 mm from the slot's front face
+    assert in_the_way(lying(0.45, 0.020), target, along, across)
+    # its near side 14 mm ahead (over 8 mm clear of the front face): not in the way
+    assert not in_the_way(lying(0.45, 0.026), target, along, across)
+    # beside the slot across the run, its end 19 mm from the slot's side: where the pads go
+    assert in_the_way(lying(0.505, 0.0), target, along, across)
+    assert not in_the_way(lying(0.530, 0.0), target, along, across)
+    # a struck domino leaning 75° on the next, its foot 5 mm ahead of the front face
+    leaning = placement_pose(LINE[0])
+    leaning[:3, :3] = Rotation.from_euler("x", -75.0, degrees=True).as_matrix() @ leaning[:3, :3]
+    leaning[:3, 3] = [0.45, 0.00875 + 0.024 * math.sin(math.radians(75.0)), 0.01]
+    assert in_the_way(leaning, target, along, across)
+
+
+def test_a_domino_remembered_twice_is_one() -> None:
+    """A struck run's check gave two slots the same lying domino, 4 mm apart: it is one
+    obstacle, one toppled domino for the next cycle, and gone once it is picked up."""
+    one, twin, other = lying(0.45, 0.020), lying(0.45, 0.024), lying(0.45, 0.0488)
+    assert distinct([one, twin, other]) == [one, other]
+    job = Job.new(ScriptedCell(), LINE, "line", ArmJobSettings())
+    job.state.fallen = {1: one, 2: twin}
+    job.state.toppled = [other]
+    assert job.state.lying() == [one, other]
+    carried_away(job, Candidate(one, 1))
+    assert job.state.fallen == {} and job.state.lying() == [other]
+
+
+def test_the_toppled_domino_in_a_slots_way_is_offered_first() -> None:
+    job = Job.new(ScriptedCell(), LINE, "line", ArmJobSettings())
+    # ahead: along the run, its end 10 mm ahead of the slot's centre (6 mm from its front
+    # face); beside: across it, nearer the slot's centre, its side 13.5 mm ahead (clear)
+    ahead, beside = lying(0.47, 0.034), lying(0.43, 0.0255)
+    ahead[:3, :3] = Rotation.from_euler("z", 90.0, degrees=True).as_matrix()
+    job.state.toppled = [beside, ahead]
+    assert in_its_way(job, 0) == [ahead]
+    assert [c.pose for c in toppled_candidates(job, 0, [])] == [ahead, beside]
+
+
+def in_the_way_cell(refuse_toppled: bool) -> tuple[ScriptedCell, list[int]]:
+    """A cell whose sweeps plan, whose pile domino plans, and whose toppled dominoes plan
+    unless ``refuse_toppled``; with the sweeps done when each pick was asked for."""
+    sweeps_before: list[int] = []
+    cell = ScriptedCell(pile=[flat(0.55)], strike=lambda request: planned("sweep"))
+
+    def place(request):
+        sweeps_before.append(len(cell.strike_requests))
+        if refuse_toppled and request.domino[1, 3] > PILE_Y + 0.1:
+            return refused(ErrorCode.GRASP_UNREACHABLE)
+        return planned("place")
+
+    cell.place = place
+    return cell, sweeps_before
+
+
+def test_no_pile_domino_is_placed_while_a_toppled_one_no_grasp_takes_lies_in_the_way() -> None:
+    """Cycle 3 of the arc: a pile domino placed beside a toppled one fell onto the run.
+    Refused, the toppled domino is swept out of the slot's way before the pile's plans."""
+    cell, sweeps_before = in_the_way_cell(refuse_toppled=True)
+    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    job.state.toppled = [lying(0.45, 0.020)]
+    assert place_slot(job, 0, may_defer=True) is Turn.PLACED
+    froms = [round(r.domino[1, 3], 4) for r in cell.place_requests]
+    assert froms[0] == 0.02 and froms[-1] == PILE_Y  # the toppled one first, refused
+    assert len(cell.strike_requests) == 1 and sweeps_before[-1] == 1  # swept, then the pile
+    assert in_its_way(job, 0) == [] and len(job.state.toppled) == 1  # out of the way, known
+
+
+def test_of_two_toppled_dominoes_in_a_slots_way_one_is_swept_and_one_becomes_its_domino() -> None:
+    cell, sweeps_before = in_the_way_cell(refuse_toppled=False)
+    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    over, ahead = lying(0.45, -0.004), lying(0.45, 0.020)
+    job.state.toppled = [over, ahead]
+    assert place_slot(job, 0, may_defer=True) is Turn.PLACED
+    (sweep,) = cell.strike_requests
+    assert sweeps_before == [1]  # nothing planned while two lay there
+    (left,) = job.state.toppled  # the swept one, out of the way; the other placed
+    assert cell.place_requests[0].domino is not sweep.domino
+    assert left[0, 3] != pytest.approx(0.45) and in_its_way(job, 0) == []

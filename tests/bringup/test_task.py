@@ -749,7 +749,7 @@ def test_fallen_debris_no_grasp_reaches_is_swept_out_of_the_slot_it_blocks() -> 
     assert place_slot(run_job, 2, may_defer=True) is Turn.PLACED
     (sweep,) = cell.strike_requests
     assert sweep.sweep.tolist() == pytest.approx([1.0, 0.0])
-    assert sweep.push_distance == pytest.approx(0.031)
+    assert sweep.push_distance == pytest.approx(0.045)  # out of its way (clear_pads)
     assert x_of(sweep.domino) == pytest.approx(x_of(targets[2]) + 0.013)
     assert len(sweep.standing) == 3
     assert 2 not in state.fallen and sorted(state.standing) == [0, 1, 2, 3]

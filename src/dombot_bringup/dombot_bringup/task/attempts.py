@@ -20,10 +20,10 @@ from dombot_bringup.offers import (
 )
 from dombot_bringup.run_report import PileDomino
 from dombot_bringup.task import ahead
-from dombot_bringup.task.cell import CellError, Detections, Later, PlaceRequest, Posture
+from dombot_bringup.task.cell import CellError, Detections, Later, PlaceRequest, Pose, Posture
 from dombot_bringup.task.checks import check
 from dombot_bringup.task.clearing import isolate, lay_flat, lay_leaning_flat, spread, to_lay_flat
-from dombot_bringup.task.geometry import near, near_any, spot_of
+from dombot_bringup.task.geometry import SAME_SPOT, near, near_any, spot_of
 from dombot_bringup.task.picking import (
     PICKABLE_POSTURES,
     PILE_WORDS,
@@ -32,6 +32,8 @@ from dombot_bringup.task.picking import (
     Refusal,
     candidates,
     first_plan,
+    in_its_way,
+    is_among,
     place_request,
 )
 from dombot_bringup.task.placing import REGRASP_PREFIX, Hold, Ran, execute
@@ -99,6 +101,8 @@ def attempt(
     picked blind where the plan expected it to settle, 3 of 7 such picks missed.
     """
     found, stuck = candidates(job, failed, index)
+    if way := in_its_way(job, index):
+        return clear_the_way(job, index, way, found, failed, ignore_pile, refusals)
     settings = job.settings
     roomiest = last_resort(job, found)
     refusals = [] if refusals is None else refusals
@@ -132,6 +136,34 @@ def attempt(
     job.report.pile_out_of_reach.clear()
     refusals.clear()  # something plans for the slot: what was refused tells nothing of it
     return pick(job, index, offer, failed, ignore_pile, turned)
+
+
+def clear_the_way(
+    job: Job,
+    index: int,
+    way: Sequence[Pose],
+    found: Sequence[Candidate],
+    failed: list[np.ndarray],
+    ignore_pile: bool,
+    refusals: list[Refusal] | None,
+) -> Attempt:
+    """The attempt at slot ``index`` while dominoes lie in its way (``way``,
+    ``picking.in_its_way``): one alone is offered as the slot's domino, nothing else (a
+    pile domino placed beside a toppled one fell onto the run, arc cycle 3); when it is
+    refused (then in ``failed``), or more lie there, nothing plans (NO_PLAN) and
+    ``clearing.sweep_debris`` pushes them aside."""
+    lying = [c for c in found if is_among(c.pose, way)]
+    offer = None
+    if len(way) == 1 and lying:
+        offer, _ = first_plan(job, index, offers_with_pile(job, lying), failed, [])
+        if offer is None and not near_any(lying[0].spot(), failed):
+            failed.append(lying[0].spot())  # refused about the domino: no other goes there
+    if offer is None:
+        spots = ", ".join(str(spot_of(pose).round(3).tolist()) for pose in way)
+        return Attempt(Outcome.NO_PLAN, f"{len(way)} lying in its way (at {spots})")
+    if refusals is not None:
+        refusals.clear()
+    return pick(job, index, offer, failed, ignore_pile, turned=False)
 
 
 def offers_with_pile(job: Job, found: Sequence[Candidate]) -> list[tuple[Candidate, str]]:
@@ -312,11 +344,17 @@ def let_go(job: Job, index: int, candidate: Candidate, start: Mapping[str, float
 
 def carried_away(job: Job, candidate: Candidate) -> None:
     """``candidate`` no longer lies where it was seen: no run domino fallen there, no
-    domino toppled there."""
-    state = job.state
+    domino toppled there, nor any remembered within SAME_SPOT of it (the same domino
+    measured twice: left behind, it blocked its slot for good)."""
+    state, spot = job.state, candidate.spot()
     if candidate.run_index is not None:
         state.fallen.pop(candidate.run_index, None)
-    state.toppled = [pose for pose in state.toppled if pose is not candidate.pose]
+
+    def there(pose: Pose) -> bool:
+        return pose is candidate.pose or near(spot_of(pose), spot, SAME_SPOT)
+
+    state.fallen = {k: pose for k, pose in state.fallen.items() if not there(pose)}
+    state.toppled = [pose for pose in state.toppled if not there(pose)]
 
 
 def keep_if_standing(job: Job, index: int, run_index: int, why: str, spot: np.ndarray) -> Attempt:

@@ -15,7 +15,7 @@ from dombot_bringup.spread import TIP_DISTANCE, lay_flat_pushes, spread_pushes, 
 from dombot_bringup.task.cell import Pose, StrikeRequest
 from dombot_bringup.task.checks import check
 from dombot_bringup.task.geometry import near, near_any, spot_of
-from dombot_bringup.task.picking import Candidate
+from dombot_bringup.task.picking import Candidate, in_its_way, is_among
 from dombot_bringup.task.placing import execute
 from dombot_bringup.task.state import Job, log
 
@@ -23,21 +23,32 @@ SPREAD_TRIES = 2  # pushes of one pile domino offered to the planner (the shorte
 
 
 def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
-    """Push aside the nearest fallen or toppled domino within a domino length of slot
-    ``index`` that no grasp reached (refused, or its pick failed); True once one was
-    pushed (or the push failed after the arm moved)."""
-    state = job.state
+    """Push aside a fallen or toppled domino within a domino length of slot ``index``
+    that no grasp reached (refused, or its pick failed), or one of two or more in its way
+    (``picking.in_its_way``): those no grasp reached first, nearest the slot first, out of
+    the slot's way; True once one was pushed (or the push failed after the arm moved)."""
+    state, settings = job.state, job.settings
     place, avoid = spot_of(job.releases[index]), failed + state.unpickable
-    lying = [*state.fallen.items(), *((None, pose) for pose in state.toppled)]
+    way = in_its_way(job, index)
+    known = state.lying()  # a domino remembered twice is swept once
+    lying = [
+        (k, pose)
+        for k, pose in [*state.fallen.items(), *((None, pose) for pose in state.toppled)]
+        if is_among(pose, known)
+    ]
+    refused = [near_any(spot_of(pose), avoid) for _, pose in lying]
     debris = sorted(
-        (float(np.linalg.norm(spot_of(pose) - place)), n)
+        (not refused[n], float(np.linalg.norm(spot_of(pose) - place)), n)
         for n, (_, pose) in enumerate(lying)
-        if near(spot_of(pose), place, DOMINO_LENGTH) and near_any(spot_of(pose), avoid)
+        if (is_among(pose, way) and (refused[n] or len(way) > 1))
+        or (refused[n] and near(spot_of(pose), place, DOMINO_LENGTH))
     )
-    for _, n in debris:
+    # beyond the run's side by sweep_margin, and out of the slot's way (a millimetre more)
+    margin = max(settings.sweep_margin, settings.clear_margin + settings.clear_pads + 1e-3)
+    for _, _, n in debris:
         k, pose = lying[n]
-        others = [p for p in state.lying() if p is not pose]
-        for direction, distance in sweep_pushes(pose, job.layout[index], job.settings.sweep_margin):
+        others = [p for p in known if p is not pose]
+        for direction, distance in sweep_pushes(pose, job.layout[index], margin):
             name = "toppled domino" if k is None else f"domino {k + 1}"
             what = f"{name} lying at {spot_of(pose).round(3).tolist()}"
             swept = sweep(job, pose, others, direction, distance, what, "across the run")

@@ -3,11 +3,13 @@ from the dominoes the strike left lying in the build area and what is left of th
 and so on.
 
 The pile is poured once. After each strike perception says where the run's dominoes lie
-(``strike``: its look at what fell); the next cycle takes them as ``BuildState.toppled``:
-offered for each slot before the pile's, the nearest the slot first (one lying over the
-slot is cleared by becoming its domino), and obstacles for every carry and placement
-until picked up. A cycle that failed (a strike refused, or dominoes left standing) ends
-the cycles: what stands where the next layout goes is nothing the next cycle knows.
+(``strike``: its look at what fell); the next cycle takes them as ``BuildState.toppled``
+(one measured twice, once): offered for each slot before the pile's, one in the slot's
+way first (it is cleared by becoming its domino; nothing else is placed there while one
+lies in its way, ``attempts.clear_the_way``), then the nearest the slot, and obstacles
+for every carry and placement until picked up. A cycle that failed (a strike refused,
+or dominoes left standing) ends the cycles: what stands where the next layout goes is
+nothing the next cycle knows.
 """
 
 from __future__ import annotations

@@ -7,11 +7,13 @@ import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
+from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement
 from dombot_bringup.offers import NEIGHBOUR_RADIUS
 from dombot_bringup.task.cell import Pose
+from dombot_description import DOMINO_SIZE, domino_corners
 
 SAME_SPOT = 0.01  # m: detections this close are taken for the same domino
 POINTS_RADIUS = 0.12  # m: seen points farther from a pick than this cannot meet the pads
@@ -49,6 +51,33 @@ def foot_distance(measured: Pose, expected: Pose) -> float:
         axis = pose[:3, 0] * (1.0 if pose[2, 0] <= 0.0 else -1.0)  # pointing down
         feet.append(pose[:2, 3] + axis[:2] * DOMINO_LENGTH / 2.0)
     return float(np.linalg.norm(feet[0] - feet[1]))
+
+
+def in_the_way(lying: Pose, target: Pose, along: float, across: float) -> bool:
+    """Whether the footprint of the domino lying at ``lying`` (its corners seen from above)
+    reaches into the keep-out of the domino to stand at ``target``: its footprint grown
+    ``along`` the run (perception's error on a lying domino) and ``across`` it (the pads
+    beside it, and that error). Separating axes of the keep-out and the footprint's hull."""
+    frame = np.column_stack([target[:2, 2], target[:2, 1]])  # along (thickness), across
+    frame /= np.linalg.norm(frame, axis=0)
+    corners = (domino_corners(lying)[:, :2] - target[:2, 3]) @ frame
+    half = np.array([DOMINO_SIZE[2] / 2 + along, DOMINO_SIZE[1] / 2 + across])
+    if np.any(corners.min(axis=0) >= half) or np.any(corners.max(axis=0) <= -half):
+        return False
+    keep_out = half * np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
+    # each edge of the hull: normal · p + offset <= 0 inside
+    equations = ConvexHull(corners, qhull_options="QJ").equations
+    return not any(np.all(keep_out @ e[:2] + e[2] >= 0.0) for e in equations)
+
+
+def distinct(poses: Iterable[Pose]) -> list[Pose]:
+    """``poses`` less those within SAME_SPOT of one listed before: one domino measured
+    twice (a struck run's check gave two slots the same lying domino, 4 mm apart)."""
+    kept: list[Pose] = []
+    for pose in poses:
+        if not near_any(spot_of(pose), [spot_of(k) for k in kept]):
+            kept.append(pose)
+    return kept
 
 
 def points_near(pose: Pose, points: np.ndarray) -> np.ndarray:

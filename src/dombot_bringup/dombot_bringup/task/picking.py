@@ -23,7 +23,14 @@ from dombot_bringup.task.cell import (
     Posture,
 )
 from dombot_bringup.task.checks import settle
-from dombot_bringup.task.geometry import near, near_any, neighbours_of, points_near, spot_of
+from dombot_bringup.task.geometry import (
+    in_the_way,
+    near,
+    near_any,
+    neighbours_of,
+    points_near,
+    spot_of,
+)
 from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
 
@@ -121,11 +128,11 @@ def candidates(
     refused for this slot (a hold leaning with the domino may have no place pose)."""
     unpickable = job.state.unpickable
     avoid = failed + unpickable
-    fallen, lying = job.state.fallen, job.state.lying()
+    fallen, lying, way = job.state.fallen, job.state.lying(), in_its_way(job, index)
     run = [
         Candidate(pose, k, neighbours_of(pose, lying))
-        for k, pose in sorted(fallen.items())
-        if not near_any(spot_of(pose), avoid)
+        for k, pose in sorted(fallen.items(), key=lambda item: not is_among(item[1], way))
+        if is_among(pose, lying) and not near_any(spot_of(pose), avoid)  # a twin once
     ]
     run += toppled_candidates(job, index, avoid)
     detections, unexplained = look_at_pile(job)
@@ -141,14 +148,36 @@ def candidates(
 
 
 def toppled_candidates(job: Job, index: int, avoid: list[np.ndarray]) -> list[Candidate]:
-    """The dominoes an earlier cycle toppled, nearest slot ``index`` first: one lying over
-    the slot is cleared by becoming its domino, and the rest of a fallen row lies ahead."""
-    lying, place = job.state.lying(), spot_of(job.targets[index])
-    toppled = [pose for pose in job.state.toppled if not near_any(spot_of(pose), avoid)]
-    toppled.sort(key=lambda pose: float(np.linalg.norm(spot_of(pose) - place)))
+    """The dominoes an earlier cycle toppled, those in the way of slot ``index``
+    (``in_its_way``) first, then nearest the slot first: one lying over the slot is
+    cleared by becoming its domino, and the rest of a fallen row lies ahead."""
+    lying, place, way = job.state.lying(), spot_of(job.targets[index]), in_its_way(job, index)
+    toppled = [
+        pose
+        for pose in job.state.toppled
+        if is_among(pose, lying) and not near_any(spot_of(pose), avoid)
+    ]
+    toppled.sort(
+        key=lambda pose: (not is_among(pose, way), float(np.linalg.norm(spot_of(pose) - place)))
+    )
     return [
         Candidate(pose, neighbours=neighbours_of(pose, lying), toppled=True) for pose in toppled
     ]
+
+
+def in_its_way(job: Job, index: int) -> list[Pose]:
+    """The lying dominoes (fallen, toppled) in the way of slot ``index``'s domino and the
+    pads beside it (``geometry.in_the_way``, settings clear_margin and clear_pads): each
+    is taken as the slot's domino or swept aside before anything is placed there."""
+    settings, target = job.settings, job.targets[index]
+    along = settings.clear_margin + abs(settings.place_lead)  # let go that far ahead
+    across = settings.clear_margin + settings.clear_pads
+    return [pose for pose in job.state.lying() if in_the_way(pose, target, along, across)]
+
+
+def is_among(pose: Pose, poses: Sequence[Pose]) -> bool:
+    """``pose`` is one of ``poses`` (the same object: the same remembered domino)."""
+    return any(pose is other for other in poses)
 
 
 def pile_candidate(

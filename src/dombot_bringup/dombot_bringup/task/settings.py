@@ -156,6 +156,14 @@ class ArmJobSettings:
     # run until they lie this far beyond its side; at most max_sweeps per slot.
     sweep_margin: float = 0.008  # m
     max_sweeps: int = 2
+    # A domino lying (fallen, or toppled by an earlier cycle) whose footprint comes within
+    # clear_margin of a slot's domino (perception located a struck run's dominoes within
+    # 7.6 mm), or within clear_pads more across the run (the pads beside it: release
+    # clearance and pad thickness), is in that slot's way: nothing is placed there until it
+    # is gone, taken as the slot's domino or swept aside (``picking.in_its_way``). A
+    # placement beside a toppled domino knocked three standing ones down (arc, cycle 3).
+    clear_margin: float = 0.008  # m
+    clear_pads: float = 0.013  # m
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
     meshcat: bool = False  # show the cell in Meshcat; keep it up at the end until Enter

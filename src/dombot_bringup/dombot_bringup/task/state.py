@@ -12,7 +12,7 @@ from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import say
 from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
 from dombot_bringup.task.cell import Cell, Detections, Later, Pose
-from dombot_bringup.task.geometry import SAME_SPOT, near, placement_pose
+from dombot_bringup.task.geometry import SAME_SPOT, distinct, near, placement_pose
 from dombot_bringup.task.settings import ArmJobSettings
 
 if TYPE_CHECKING:
@@ -45,8 +45,9 @@ class BuildState:
     reasons: list[tuple[np.ndarray, str]] = field(default_factory=list)
 
     def lying(self) -> list[Pose]:
-        """Every domino known to lie in the build area: the run's fallen, the toppled."""
-        return [*self.fallen.values(), *self.toppled]
+        """Every domino known to lie in the build area: the run's fallen, the toppled; one
+        remembered twice (within SAME_SPOT) once."""
+        return distinct([*self.fallen.values(), *self.toppled])
 
     def forget_refusals_near(self, spot: np.ndarray) -> None:
         """A pick or push at ``spot`` moved the dominoes around it: offer them again."""
