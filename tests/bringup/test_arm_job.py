@@ -105,7 +105,9 @@ def test_three_dominoes_in_a_line_are_built_and_knocked_down_through_node_restar
     # where the simulated time went: every activity was waited for, and they add up
     by_activity = report["summary"]["simulated_s_per_domino_by_activity"]
     assert {"motion", "planning", "perception", "gripper"} <= set(by_activity)
-    assert min(by_activity[a] for a in ("motion", "perception", "planning", "gripper")) > 0.0, by_activity
+    assert min(by_activity[a] for a in ("motion", "perception", "planning", "gripper")) > 0.0, (
+        by_activity
+    )
     # settling after each release: the retreat (~0.3 s) covers the 0.25 s asked for
     # before the placement check; what is left is a camera period (0.5 s) at most
     assert 0.0 <= by_activity.get("waiting", 0.0) < 0.5, by_activity
