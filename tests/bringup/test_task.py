@@ -681,6 +681,31 @@ def test_a_hold_that_can_neither_stand_nor_be_carried_again_goes_back_to_the_pil
     assert run_job.report.dominoes[1].put_back == ["foot 3.0 mm off, leaning 12.3°"]
 
 
+@pytest.mark.parametrize(("fingers", "while_moving"), [(None, False), (0.034, True), (0.0, False)])
+def test_the_fingers_open_for_a_grasp_as_the_move_there_starts_when_they_are_nearly_open(
+    fingers: float | None, while_moving: bool
+) -> None:
+    """The move to above a grasp was planned with the fingers open: after a let-go
+    (34 mm) they open to 40 mm as it starts, and are open before the line down; where
+    they stand is not known (as poured) or far off (closed after a strike), they open
+    first, the arm still. A grasp that missed backs out along the line and the move."""
+    cell = ScriptedCell(grip=0.001)  # closed on nothing
+    run_job = job(cell)
+    run_job.fingers = fingers
+    pick = [
+        Segment("open_gripper", path("move", 0.1, 0.3), GripperEvent.OPEN, 0.04),
+        Segment("approach_grasp", path("down", 0.3, 0.4), GripperEvent.CLOSE, 0.0, 40.0),
+        Segment("lift"),
+    ]
+    execution = execute(run_job, pick)
+    assert execution.ran is Ran.FAILED and "grasp missed" in execution.why
+    assert cell.openings_while_moving == ([(0.04, 0)] if while_moving else [])
+    assert cell.openings == [0.04, 0.0, LET_GO_OPENING]  # open, close, open to back out
+    carried = [t.positions[:, 0].tolist() for t in cell.executed]
+    assert carried == [[0.1, 0.3], [0.3, 0.4], [0.4, 0.3], [0.3, 0.1]]  # in, and out again
+    assert run_job.fingers == LET_GO_OPENING
+
+
 def test_a_hold_put_back_costs_an_attempt_not_a_pick_and_leaves_its_spot_pickable() -> None:
     """The domino lies on the pile again, near where it was picked: that spot is not
     remembered as unpickable, nor the pick as one that failed."""
