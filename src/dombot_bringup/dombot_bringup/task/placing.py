@@ -21,6 +21,7 @@ from dombot_bringup.task.cell import (
     Seen,
     Segment,
     Trajectory,
+    chained,
 )
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.geometry import foot_distance
@@ -271,9 +272,9 @@ def back_out(job: Job, way_in: Sequence[Segment]) -> None:
     the cameras' view of the pile before perception looks again.
     """
     grip(job, LET_GO_OPENING, 0.0)
-    for segment in reversed(way_in):
-        if len(segment.trajectory.times):
-            move(job, segment.trajectory.reversed(BACK_OUT_LEAD), "backing out")
+    way = [segment.trajectory for segment in way_in if len(segment.trajectory.times)]
+    if way:
+        move(job, chained(way).reversed(BACK_OUT_LEAD), "backing out")
 
 
 def move(job: Job, trajectory: Trajectory, what: str) -> None:
