@@ -682,12 +682,12 @@ def test_a_hold_that_can_neither_stand_nor_be_carried_again_goes_back_to_the_pil
     assert run_job.report.dominoes[1].put_back == ["foot 3.0 mm off, leaning 12.3°"]
 
 
-@pytest.mark.parametrize(("fingers", "while_moving"), [(None, False), (0.034, True), (0.0, False)])
+@pytest.mark.parametrize(("fingers", "while_moving"), [(None, False), (0.0334, True), (0.0, False)])
 def test_the_fingers_open_for_a_grasp_as_the_move_there_starts_when_they_are_nearly_open(
     fingers: float | None, while_moving: bool
 ) -> None:
     """The move to above a grasp was planned with the fingers open: after a let-go
-    (34 mm) they open to 40 mm as it starts, and are open before the line down; where
+    (stopped at 33.4 mm) they open to 40 mm as it starts, and are open before the line down; where
     they stand is not known (as poured) or far off (closed after a strike), they open
     first, the arm still. A grasp that missed backs out along the line and the move, in
     one motion."""
