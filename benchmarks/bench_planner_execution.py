@@ -79,25 +79,25 @@ def gripper_event(world: CellWorld, segment: SampledSegment, force: float) -> bo
 def execute(world: CellWorld, plan, period: float) -> dict:
     """Run every segment and gripper event; the held domino and its hold in the TCP just
     before release. The fingers open for a grasp as the bring-up opens them
-    (``placing.open_for_grasp``): as the move to above it starts when they stand within
+    (``placing.opens_while_moving``): while the approach moves when they stand within
     ``open_while_moving`` of the opening, else first."""
     before_release = {}
-    holding = False
+    holding = opening = False
     for segment in plan.sampled(period):
-        if segment.label.endswith(OPEN_SEGMENT) and segment.gripper_after == GRIPPER_OPEN:
-            world.command_gripper(segment.gripper_position, 0.0)
-            if abs(world.gripper_state().opening - segment.gripper_position) > OPEN_WHILE_MOVING:
-                wait_for_gripper(world)
-            track(world, segment)
-            wait_for_gripper(world)
-            continue
         track(world, segment)
+        if opening:  # the fingers opened while this approach moved
+            wait_for_gripper(world)
+            opening = False
         if segment.gripper_after == GRIPPER_OPEN and holding:
             before_release = {
                 "domino": domino_pose(world, PICKED),
                 "hold": RigidTransform(world.domino_in_tcp(PICKED)),
             }
-        if gripper_event(world, segment, plan_force(plan, segment.label)):
+        near = abs(world.gripper_state().opening - segment.gripper_position) <= OPEN_WHILE_MOVING
+        if segment.label.endswith(OPEN_SEGMENT) and near:
+            world.command_gripper(segment.gripper_position, 0.0)
+            opening = True
+        elif gripper_event(world, segment, plan_force(plan, segment.label)):
             holding = segment.gripper_after == GRIPPER_CLOSE
     return before_release
 

@@ -337,7 +337,7 @@ def test_start_where_a_grasp_missed_is_left_straight_up_first(planner, planned) 
     at_grasp = down.sample(np.array([down.duration]))[0][0]
     nxt = request(domino_pose=flat_pose(0.50, -0.36, 1.2), start=at_grasp, pile=(req.domino_pose,))
     again = planner.plan(nxt)
-    escape = again.segments[0].pieces[0]
+    escape = again.segments[1].pieces[0]
     assert escape.label == "escape"
     checker = checker_for(nxt)
     ends = [checker.tcp_pose(q).translation() for q in escape.sample([0.0, escape.duration])[0]]

@@ -126,7 +126,7 @@ def test_good_request_gets_a_trajectory_with_gripper_events(client: Client) -> N
         (place.position.x, place.position.y), abs=1e-3
     )
     assert above.position.z == pytest.approx(place.position.z + 0.07, abs=1e-3)
-    approach = response.segments[0].trajectory  # the move to above the grasp, fingers opening
+    approach = response.segments[1].trajectory
     assert list(approach.joint_names) == list(SCENARIO.arm_joints)
     first = approach.points[0]
     assert first.positions == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
@@ -294,7 +294,7 @@ def test_empty_start_state_uses_joint_states(client: Client) -> None:
     assert spin_until(client.node, received, timeout=120)
     response = client.call(empty)
     assert response.success, response.message
-    start = response.segments[0].trajectory.points[0].positions
+    start = response.segments[1].trajectory.points[0].positions
     assert start == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
 
 
@@ -357,7 +357,7 @@ def test_a_given_start_state_is_where_the_plan_starts(client: Client) -> None:
     )
     response = future.result()
     assert response.success, response.message
-    start = list(response.segments[0].trajectory.points[0].positions)
+    start = list(response.segments[1].trajectory.points[0].positions)
     assert start == pytest.approx(SCENARIO.home_position.tolist(), abs=1e-9)
     client.joints.publish(arm_state(0.0, 0.0))  # at home again for the tests after
 

@@ -20,10 +20,8 @@ Plan of a request (docs/PLANNER.md has the picture):
    every result is checked at dense samples before it is accepted. A start closer to
    something than a coarse move may begin (e.g. where a missed grasp left the arm) is
    left first by a straight line up (``RequestMotions.escape``).
-3. *Timing:* every piece is retimed by TOPP-RA and pieces join at rest. Segments: the
-   coarse move to above the grasp, planned with the fingers open, and the gripper opening
-   (the bring-up opens it as the move starts: ``open_gripper``); the line down and grasp
-   (close); lift; transfer; descend (open); retreat.
+3. *Timing:* every piece is retimed by TOPP-RA and pieces join at rest. Segments:
+   open the gripper; approach and grasp (close); lift; transfer; descend (open); retreat.
 """
 
 from __future__ import annotations
@@ -705,14 +703,15 @@ class RequestPlanning(RequestMotions):
         segments = [
             Segment(
                 "open_gripper",
-                [*pieces["escape"], to_pick],
-                openings["pregrasp"],
+                [],
+                openings["release"],
                 GRIPPER_OPEN,
                 openings["pregrasp"],
+                start=start,
             ),
             Segment(
                 "approach_grasp",
-                [pieces["down_to_grasp"]],
+                [*pieces["escape"], to_pick, pieces["down_to_grasp"]],
                 openings["pregrasp"],
                 GRIPPER_CLOSE,
                 0.0,

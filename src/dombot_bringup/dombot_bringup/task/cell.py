@@ -126,22 +126,6 @@ class Trajectory:
 NO_TRAJECTORY = Trajectory((), np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0)))
 
 
-def chained(trajectories: Sequence[Trajectory]) -> Trajectory:
-    """Trajectories that each start where the one before ends, at rest, as one: each
-    played after the one before (the first point of each after the first dropped)."""
-    first, rest = trajectories[0], trajectories[1:]
-    times, positions, velocities = [first.times], [first.positions], [first.velocities]
-    for trajectory in rest:
-        times.append(times[-1][-1] + trajectory.times[1:] - trajectory.times[0])
-        positions.append(trajectory.positions[1:])
-        velocities.append(trajectory.velocities[1:])
-    if any(len(t.velocities) == 0 for t in trajectories):
-        velocities = [np.zeros((0, first.positions.shape[1]))]
-    return Trajectory(
-        first.joint_names, np.concatenate(times), np.vstack(positions), np.vstack(velocities)
-    )
-
-
 @dataclass(frozen=True, eq=False)
 class Segment:
     """One piece of a plan: a trajectory, then a gripper event."""

@@ -21,7 +21,6 @@ from dombot_bringup.task.cell import (
     Seen,
     Segment,
     Trajectory,
-    chained,
 )
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.geometry import foot_distance
@@ -32,8 +31,7 @@ BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto i
 LET_GO_OPENING = 0.04  # m the fingers open to, around a 24 mm domino, to let go of it
 # ends straight above the slot, where the hold is looked at (a regrasp's own is prefixed)
 HOLD_CHECK_SEGMENT = "transfer"
-# the move to above a grasp, planned with the fingers open: they open as it starts
-OPEN_SEGMENT = "open_gripper"
+OPEN_SEGMENT = "open_gripper"  # the fingers open for the approach that follows
 PLACE_SEGMENT = "place"  # the fingers let go of the domino on its slot once it ends
 REGRASP_PREFIX = "regrasp_"  # the planner's turn in place before the pick proper
 # What the in-hand check says when it cannot measure the held domino.
@@ -87,51 +85,47 @@ def execute(
 ) -> Execution:
     """Run the segments and their gripper events.
 
-    The fingers open for a grasp as the move to above it starts (``open_for_grasp``), and
-    are open before the line down to it. A close that should hold a domino is checked by
-    where the fingers stopped (the strike closes them on nothing). When a grasp fails, the
-    arm backs out the way it came (from where the fingers opened) before anything else is
-    tried. With a ``hold``, the domino is looked at in the hand where
-    "transfer" ends above its slot (``in_hand``), and ``hold.let_go`` is told where the
-    plan ends as the fingers let go of it on the slot. Any motion drops what was planned
-    ahead (``ahead.drop``) and the look at the pile made while placing.
+    The fingers open for a grasp while the approach moves, when they are nearly open
+    (``opens_while_moving``). A close that should hold a domino is checked by where the
+    fingers stopped (the strike closes them on nothing). When a grasp fails, the arm
+    backs out the way it came before anything else is tried. With a ``hold``, the domino
+    is looked at in the hand where "transfer" ends above its slot (``in_hand``), and
+    ``hold.let_go`` is told where the plan ends as the fingers let go of it on the slot.
+    Any motion drops what was planned ahead (``ahead.drop``) and the look at the pile
+    made while placing.
     """
     ahead.drop(job, "the arm moves before the turn")
     job.still_since = job.let_go_at = job.pile_look = None
     cell = job.cell
-    way_in: list[Segment] = []  # the motions since the fingers opened for a grasp
-    for segment in segments:
+    opening: Later[float] | None = None  # the fingers opening while the approach moves
+    for index, segment in enumerate(segments):
         approach = is_approach(segment)
-        opens = opens_for_grasp(segment)
-        if opens:
-            way_in = []
         if hold is not None and segment.label == PLACE_SEGMENT and pile_in_view(job, hold.index):
             look_while_placing(job)
-        opening = open_for_grasp(job, segment) if opens else None
         if len(segment.trajectory.times):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             motion = cell.execute(segment.trajectory, tolerance)
             if opening is not None:
-                job.fingers = opening()
+                job.fingers, opening = opening(), None
             if not motion.ok:
-                if approach or opens:
-                    back_out(job, [*way_in, segment])
+                if approach:
+                    back_out(job, segment)
                 return Execution(Ran.FAILED, f"{segment.label}: {motion.error}")
-            way_in.append(segment)
-        elif opening is not None:
-            job.fingers = opening()
         if segment.gripper_after == GripperEvent.CLOSE:
             stopped = grip(job, segment.gripper_position, segment.gripper_max_effort)
             problem = grasp_problem(job, stopped)
             if holds_domino and problem:
-                back_out(job, way_in)
+                back_out(job, segment)
                 return Execution(
                     Ran.FAILED,
                     f"{segment.label}: grasp {problem} (fingers stopped at "
                     f"{stopped * 1e3:.1f} mm, domino {DOMINO_SIZE[1] * 1e3:.0f} mm)",
                 )
-        elif segment.gripper_after == GripperEvent.OPEN and not opens:
-            grip(job, segment.gripper_position, 0.0)
+        elif segment.gripper_after == GripperEvent.OPEN:
+            if opens_while_moving(job, segment, segments[index + 1 : index + 2]):
+                opening = cell.gripper_later(segment.gripper_position, 0.0)
+            else:
+                grip(job, segment.gripper_position, 0.0)
             if segment.label == PLACE_SEGMENT:
                 job.let_go_at = cell.sim_time
                 if hold is not None and hold.let_go is not None:
@@ -144,6 +138,25 @@ def execute(
             if verdict.again:
                 return execute(job, verdict.again)
     return Execution(Ran.DONE)
+
+
+def opens_while_moving(job: Job, segment: Segment, following: Sequence[Segment]) -> bool:
+    """Whether ``segment``'s open, the fingers' for a grasp before ``following``'s approach
+    (the planner's ``open_gripper``, where the arm stands), runs while that approach moves:
+    when the fingers stand within ``open_while_moving`` of the opening. The approach was
+    planned with them open all the way: a pad that far inside where the plan has it
+    stays clear on its coarse move, and they open within ~0.07 s (7 mm at 0.1 m/s),
+    the coarse move lasting ~1 s before its line down to the grasp."""
+    goal, fingers = segment.gripper_position, job.fingers
+    return (
+        segment.label.endswith(OPEN_SEGMENT)
+        and not len(segment.trajectory.times)
+        and bool(following)
+        and is_approach(following[0])
+        and len(following[0].trajectory.times) > 0
+        and fingers is not None
+        and abs(fingers - goal) <= job.settings.open_while_moving
+    )
 
 
 def in_hand(job: Job, hold: Hold) -> InHand:
@@ -218,25 +231,6 @@ def look_while_placing(job: Job) -> None:
         log(f"perception while placing: {error}")
 
 
-def opens_for_grasp(segment: Segment) -> bool:
-    """Whether ``segment`` is the move to above a grasp (regrasps included), or a
-    motionless segment before one, whose fingers open for it."""
-    return segment.label.endswith(OPEN_SEGMENT) and segment.gripper_after == GripperEvent.OPEN
-
-
-def open_for_grasp(job: Job, segment: Segment) -> Later[float]:
-    """Open the fingers for a grasp: sent as the arm starts its move to above the grasp
-    when they stand within ``open_while_moving`` of the opening (the move was planned
-    with them open, with room for a pad that far off), else first, the arm still; the
-    answer is where they stopped. Either way they are open before the line down."""
-    cell, goal = job.cell, segment.gripper_position
-    near = job.fingers is not None and abs(job.fingers - goal) <= job.settings.open_while_moving
-    if near and len(segment.trajectory.times):
-        return cell.gripper_later(goal, 0.0)
-    stopped = grip(job, goal, 0.0)
-    return Later(lambda: stopped)
-
-
 def grip(job: Job, position: float, max_effort: float) -> float:
     """``cell.gripper``, remembering where the fingers stopped (``job.fingers``)."""
     job.fingers = job.cell.gripper(position, max_effort)
@@ -264,17 +258,15 @@ def grasp_problem(job: Job, opening: float) -> str:
     return ""
 
 
-def back_out(job: Job, way_in: Sequence[Segment]) -> None:
-    """After a failed grasp: open, and retrace ``way_in`` (the motions since the fingers
-    opened for it, the last one perhaps cut short) to where it started.
+def back_out(job: Job, segment: Segment) -> None:
+    """After a failed grasp: open, and retrace the approach to where it started.
 
     The way in was collision-free, so the way back is too, and it takes the arm out of
     the cameras' view of the pile before perception looks again.
     """
-    grip(job, LET_GO_OPENING, 0.0)
-    way = [segment.trajectory for segment in way_in if len(segment.trajectory.times)]
-    if way:
-        move(job, chained(way).reversed(BACK_OUT_LEAD), "backing out")
+    grip(job, segment.gripper_position + LET_GO_OPENING, 0.0)
+    if len(segment.trajectory.times):
+        move(job, segment.trajectory.reversed(BACK_OUT_LEAD), "backing out")
 
 
 def move(job: Job, trajectory: Trajectory, what: str) -> None:
