@@ -32,6 +32,7 @@ from dombot_bringup.task.cell import (
     Seen,
     Segment,
     StrikeRequest,
+    Trajectory,
 )
 from dombot_bringup.task.checks import check, remember_fallen
 from dombot_bringup.task.clearing import sweep_debris
@@ -692,17 +693,18 @@ def test_the_fingers_open_for_a_grasp_while_the_approach_moves_when_they_are_nea
     cell = ScriptedCell(grip=0.001)  # closed on nothing
     run_job = job(cell)
     run_job.fingers = fingers
+    here = Trajectory(("approach",), np.zeros(1), np.array([[0.1]]), np.zeros((1, 1)))
     pick = [
-        Segment("open_gripper", gripper_after=GripperEvent.OPEN, gripper_position=0.04),
+        Segment("open_gripper", here, GripperEvent.OPEN, 0.04),  # one point: where it stands
         Segment("approach_grasp", path("approach", 0.1, 0.4), GripperEvent.CLOSE, 0.0, 40.0),
         Segment("lift"),
     ]
     execution = execute(run_job, pick)
     assert execution.ran is Ran.FAILED and "grasp missed" in execution.why
-    assert cell.openings_while_moving == ([(0.04, 0)] if while_moving else [])
+    assert cell.openings_while_moving == ([(0.04, 1)] if while_moving else [])
     assert cell.openings == [0.04, 0.0, LET_GO_OPENING]  # open, close, open to back out
     carried = [t.positions[:, 0].tolist() for t in cell.executed]
-    assert carried == [[0.1, 0.4], [0.4, 0.1]]  # in, and out again
+    assert carried == [[0.1], [0.1, 0.4], [0.4, 0.1]]  # in, and out again
     assert run_job.fingers == LET_GO_OPENING
 
 

@@ -150,10 +150,10 @@ def opens_while_moving(job: Job, segment: Segment, following: Sequence[Segment])
     goal, fingers = segment.gripper_position, job.fingers
     return (
         segment.label.endswith(OPEN_SEGMENT)
-        and not len(segment.trajectory.times)
+        and segment.trajectory.duration == 0.0  # where the arm stands (one point, or none)
         and bool(following)
         and is_approach(following[0])
-        and len(following[0].trajectory.times) > 0
+        and following[0].trajectory.duration > 0.0
         and fingers is not None
         and abs(fingers - goal) <= job.settings.open_while_moving
     )
