@@ -30,6 +30,8 @@ from bench_run_slots import SlotCase
 from pydrake.math import RigidTransform
 from pydrake.trajectories import PiecewisePolynomial
 
+from dombot_bringup.task.placing import OPEN_SEGMENT
+from dombot_bringup.task.settings import ArmJobSettings
 from dombot_description.grasp import SYMMETRIES, flat_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import PlanningError
@@ -45,6 +47,7 @@ TRACKING_SETTLE = 0.1  # s held at the end of each segment before the gripper ev
 GRIPPER_STEP = 0.01  # s simulated between looks at the fingers
 FINAL_SETTLE = 2.0  # s limit for the dominoes to come to rest at the end
 PICKED = 0
+OPEN_WHILE_MOVING = ArmJobSettings().open_while_moving
 
 
 def domino_pose(world: CellWorld, index: int) -> RigidTransform:
@@ -75,17 +78,26 @@ def gripper_event(world: CellWorld, segment: SampledSegment, force: float) -> bo
 
 def execute(world: CellWorld, plan, period: float) -> dict:
     """Run every segment and gripper event; the held domino and its hold in the TCP just
-    before release."""
+    before release. The fingers open for a grasp as the bring-up opens them
+    (``placing.opens_while_moving``): while the approach moves when they stand within
+    ``open_while_moving`` of the opening, else first."""
     before_release = {}
-    holding = False
+    holding = opening = False
     for segment in plan.sampled(period):
         track(world, segment)
+        if opening:  # the fingers opened while this approach moved
+            wait_for_gripper(world)
+            opening = False
         if segment.gripper_after == GRIPPER_OPEN and holding:
             before_release = {
                 "domino": domino_pose(world, PICKED),
                 "hold": RigidTransform(world.domino_in_tcp(PICKED)),
             }
-        if gripper_event(world, segment, plan_force(plan, segment.label)):
+        near = abs(world.gripper_state().opening - segment.gripper_position) <= OPEN_WHILE_MOVING
+        if segment.label.endswith(OPEN_SEGMENT) and near:
+            world.command_gripper(segment.gripper_position, 0.0)
+            opening = True
+        elif gripper_event(world, segment, plan_force(plan, segment.label)):
             holding = segment.gripper_after == GRIPPER_CLOSE
     return before_release
 

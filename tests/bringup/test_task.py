@@ -32,6 +32,7 @@ from dombot_bringup.task.cell import (
     Seen,
     Segment,
     StrikeRequest,
+    Trajectory,
 )
 from dombot_bringup.task.checks import check, remember_fallen
 from dombot_bringup.task.clearing import sweep_debris
@@ -693,6 +694,32 @@ def test_a_hold_that_can_neither_stand_nor_be_carried_again_goes_back_to_the_pil
     assert carried == [[0.3, 0.5], [0.5, 0.3], [0.3, 0.5]]  # there, back, there again
     assert cell.openings == [LET_GO_OPENING]  # let go once, over the pile
     assert run_job.report.dominoes[1].put_back == ["foot 3.0 mm off, leaning 12.3°"]
+
+
+@pytest.mark.parametrize(("fingers", "while_moving"), [(None, False), (0.0334, True), (0.0, False)])
+def test_the_fingers_open_for_a_grasp_while_the_approach_moves_when_they_are_nearly_open(
+    fingers: float | None, while_moving: bool
+) -> None:
+    """The approach was planned with the fingers open: after a let-go (stopped at
+    33.4 mm) they open to 40 mm as it starts, their answer taken once it ends; where they
+    stand is not known (as poured) or far off (closed after a strike), they open first,
+    the arm still. A grasp that missed backs out along the approach."""
+    cell = ScriptedCell(grip=0.001)  # closed on nothing
+    run_job = job(cell)
+    run_job.fingers = fingers
+    here = Trajectory(("approach",), np.zeros(1), np.array([[0.1]]), np.zeros((1, 1)))
+    pick = [
+        Segment("open_gripper", here, GripperEvent.OPEN, 0.04),  # one point: where it stands
+        Segment("approach_grasp", path("approach", 0.1, 0.4), GripperEvent.CLOSE, 0.0, 40.0),
+        Segment("lift"),
+    ]
+    execution = execute(run_job, pick)
+    assert execution.ran is Ran.FAILED and "grasp missed" in execution.why
+    assert cell.openings_while_moving == ([(0.04, 1)] if while_moving else [])
+    assert cell.openings == [0.04, 0.0, LET_GO_OPENING]  # open, close, open to back out
+    carried = [t.positions[:, 0].tolist() for t in cell.executed]
+    assert carried == [[0.1], [0.1, 0.4], [0.4, 0.1]]  # in, and out again
+    assert run_job.fingers == LET_GO_OPENING
 
 
 def test_a_hold_put_back_costs_an_attempt_not_a_pick_and_leaves_its_spot_pickable() -> None:

@@ -121,6 +121,8 @@ class ScriptedCell:
     checks: list[tuple[list[Pose], bool, float]] = field(default_factory=list)
     executed: list[Trajectory] = field(default_factory=list)
     openings: list[float] = field(default_factory=list)  # every gripper command's opening
+    # of those sent without waiting: (opening, trajectories executed before it was sent)
+    openings_while_moving: list[tuple[float, int]] = field(default_factory=list)
     truths_asked: list[float] = field(default_factory=list)  # each truth's newer_than
 
     def reset(self, pile: int, seed: int) -> str:
@@ -168,6 +170,11 @@ class ScriptedCell:
     def gripper(self, position: float, max_effort: float) -> float:
         self.openings.append(position)
         return self.grip if max_effort > 0.0 else position
+
+    def gripper_later(self, position: float, max_effort: float) -> Later[float]:
+        stopped = self.gripper(position, max_effort)
+        self.openings_while_moving.append((position, len(self.executed)))
+        return Later(lambda: stopped)
 
     def wait_for_sim_time(self, seconds: float) -> None:
         self.sim_time += seconds

@@ -428,23 +428,37 @@ class CellClient:
 
     def gripper(self, position: float, max_effort: float, timeout: float = 180.0) -> float:
         """Move the fingers to the opening ``position`` [m] (the gap between them)."""
+        return self.gripper_later(position, max_effort, timeout)()
+
+    def gripper_later(
+        self, position: float, max_effort: float, timeout: float = 180.0
+    ) -> Later[float]:
+        """``gripper(position, max_effort)`` sent now; taking the answer waits for it."""
         command = GripperGoal(position=float(position), max_effort=float(max_effort))
-        result = self._run_action(
-            self._gripper, GripperCommand.Goal(command=command), timeout, GRIPPER_ACTION
-        )
-        return result.position
+        goal = GripperCommand.Goal(command=command)
+        result = self._action_later(self._gripper, goal, timeout, GRIPPER_ACTION)
+        return Later(lambda: result().position, result.answered)
 
     def _run_action(self, client: ActionClient, goal, timeout: float, name: str):
+        return self._action_later(client, goal, timeout, name)()
+
+    def _action_later(self, client: ActionClient, goal, timeout: float, name: str) -> Later[Any]:
+        """``goal`` sent now; taking the answer waits for its acceptance and result (only
+        that wait counts as ``name``'s activity: the arm may move meanwhile)."""
         if not client.wait_for_server(timeout_sec=10.0):
             raise CellError(f"{name} is not available")
-        with self._spending(name):
-            sent = client.send_goal_async(goal)
-            handle = self._wait(lambda: sent.result() if sent.done() else None, 10.0, name)
-            if not handle.accepted:
-                raise CellError(f"{name} refused the goal")
-            result = handle.get_result_async()
-            done = self._wait(lambda: result.result() if result.done() else None, timeout, name)
-            return done.result
+        sent = client.send_goal_async(goal)
+
+        def result():
+            with self._spending(name):
+                handle = self._wait(lambda: sent.result() if sent.done() else None, 10.0, name)
+                if not handle.accepted:
+                    raise CellError(f"{name} refused the goal")
+                answer = handle.get_result_async()
+                done = self._wait(lambda: answer.result() if answer.done() else None, timeout, name)
+                return done.result
+
+        return Later(result, sent.done)
 
     @contextmanager
     def _spending(self, name: str) -> Iterator[None]:

@@ -307,19 +307,28 @@ class SimCell:
             return Motion(ok, f"{verdict.message or 'goal reached'}; {figures}")
 
     def gripper(self, position: float, max_effort: float) -> float:
-        """As sim_node's GripperCommand server: until the fingers reach ``position``, stall
-        on something at the force limit, or time out; where they stopped [m]."""
+        return self.gripper_later(position, max_effort)()
+
+    def gripper_later(self, position: float, max_effort: float) -> Later[float]:
+        """As sim_node's GripperCommand server: the fingers move to ``position`` from now
+        (while the arm runs a trajectory too); taking the answer advances until they reach
+        it, stall on something at the force limit, or time out: where they stopped [m]."""
         world = self.world
         try:
             world.command_gripper(position, max_effort)
         except ValueError:
-            return world.gripper_state().opening
+            opening = world.gripper_state().opening
+            return Later(lambda: opening)
         monitor = GripperMonitor(position, world.time, world.gripper_stroke_time)
-        while True:
-            self._advance(TICK, "gripper")
-            state = world.gripper_state()
-            verdict = monitor.check(
-                world.time, state.opening, state.opening_rate, state.force, state.force_limit
-            )
-            if verdict.done:
-                return state.opening
+
+        def stopped() -> float:
+            while True:
+                self._advance(TICK, "gripper")
+                state = world.gripper_state()
+                verdict = monitor.check(
+                    world.time, state.opening, state.opening_rate, state.force, state.force_limit
+                )
+                if verdict.done:
+                    return state.opening
+
+        return Later(stopped)

@@ -233,6 +233,11 @@ class Cell(Protocol):
         """Move the fingers to the opening ``position`` [m]; where they stopped [m]."""
         ...
 
+    def gripper_later(self, position: float, max_effort: float) -> Later[float]:
+        """Start ``gripper(position, max_effort)`` now and take where the fingers stopped
+        later: they move while the arm runs a trajectory."""
+        ...
+
     def wait_for_sim_time(self, seconds: float) -> None: ...
 
     def joints(self) -> tuple[list[str], list[float]]:

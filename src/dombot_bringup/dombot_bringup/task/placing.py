@@ -15,6 +15,7 @@ from dombot_bringup.task import ahead
 from dombot_bringup.task.cell import (
     CellError,
     GripperEvent,
+    Later,
     PlaceRequest,
     Pose,
     Seen,
@@ -30,6 +31,7 @@ BACK_OUT_LEAD = 0.5  # s to get from where a failed approach stopped back onto i
 LET_GO_OPENING = 0.04  # m the fingers open to, around a 24 mm domino, to let go of it
 # ends straight above the slot, where the hold is looked at (a regrasp's own is prefixed)
 HOLD_CHECK_SEGMENT = "transfer"
+OPEN_SEGMENT = "open_gripper"  # the fingers open for the approach that follows
 PLACE_SEGMENT = "place"  # the fingers let go of the domino on its slot once it ends
 REGRASP_PREFIX = "regrasp_"  # the planner's turn in place before the pick proper
 # What the in-hand check says when it cannot measure the held domino.
@@ -83,39 +85,47 @@ def execute(
 ) -> Execution:
     """Run the segments and their gripper events.
 
-    A close that should hold a domino is checked by where the fingers stopped (the strike
-    closes them on nothing). When a grasp fails, the arm backs out the way it came before
-    anything else is tried. With a ``hold``, the domino is looked at in the hand where
-    "transfer" ends above its slot (``in_hand``), and ``hold.let_go`` is told where the
-    plan ends as the fingers let go of it on the slot. Any motion drops what was planned
-    ahead (``ahead.drop``) and the look at the pile made while placing.
+    The fingers open for a grasp while the approach moves, when they are nearly open
+    (``opens_while_moving``). A close that should hold a domino is checked by where the
+    fingers stopped (the strike closes them on nothing). When a grasp fails, the arm
+    backs out the way it came before anything else is tried. With a ``hold``, the domino
+    is looked at in the hand where "transfer" ends above its slot (``in_hand``), and
+    ``hold.let_go`` is told where the plan ends as the fingers let go of it on the slot.
+    Any motion drops what was planned ahead (``ahead.drop``) and the look at the pile
+    made while placing.
     """
     ahead.drop(job, "the arm moves before the turn")
     job.still_since = job.let_go_at = job.pile_look = None
     cell = job.cell
-    for segment in segments:
+    opening: Later[float] | None = None  # the fingers opening while the approach moves
+    for index, segment in enumerate(segments):
         approach = is_approach(segment)
         if hold is not None and segment.label == PLACE_SEGMENT and pile_in_view(job, hold.index):
             look_while_placing(job)
         if len(segment.trajectory.times):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             motion = cell.execute(segment.trajectory, tolerance)
+            if opening is not None:
+                job.fingers, opening = opening(), None
             if not motion.ok:
                 if approach:
                     back_out(job, segment)
                 return Execution(Ran.FAILED, f"{segment.label}: {motion.error}")
         if segment.gripper_after == GripperEvent.CLOSE:
-            opening = cell.gripper(segment.gripper_position, segment.gripper_max_effort)
-            problem = grasp_problem(job, opening)
+            stopped = grip(job, segment.gripper_position, segment.gripper_max_effort)
+            problem = grasp_problem(job, stopped)
             if holds_domino and problem:
                 back_out(job, segment)
                 return Execution(
                     Ran.FAILED,
                     f"{segment.label}: grasp {problem} (fingers stopped at "
-                    f"{opening * 1e3:.1f} mm, domino {DOMINO_SIZE[1] * 1e3:.0f} mm)",
+                    f"{stopped * 1e3:.1f} mm, domino {DOMINO_SIZE[1] * 1e3:.0f} mm)",
                 )
         elif segment.gripper_after == GripperEvent.OPEN:
-            cell.gripper(segment.gripper_position, 0.0)
+            if opens_while_moving(job, segment, segments[index + 1 : index + 2]):
+                opening = cell.gripper_later(segment.gripper_position, 0.0)
+            else:
+                grip(job, segment.gripper_position, 0.0)
             if segment.label == PLACE_SEGMENT:
                 job.let_go_at = cell.sim_time
                 if hold is not None and hold.let_go is not None:
@@ -128,6 +138,25 @@ def execute(
             if verdict.again:
                 return execute(job, verdict.again)
     return Execution(Ran.DONE)
+
+
+def opens_while_moving(job: Job, segment: Segment, following: Sequence[Segment]) -> bool:
+    """Whether ``segment``'s open, the fingers' for a grasp before ``following``'s approach
+    (the planner's ``open_gripper``, where the arm stands), runs while that approach moves:
+    when the fingers stand within ``open_while_moving`` of the opening. The approach was
+    planned with them open all the way: a pad that far inside where the plan has it
+    stays clear on its coarse move, and they open within ~0.07 s (7 mm at 0.1 m/s),
+    the coarse move lasting ~1 s before its line down to the grasp."""
+    goal, fingers = segment.gripper_position, job.fingers
+    return (
+        segment.label.endswith(OPEN_SEGMENT)
+        and segment.trajectory.duration == 0.0  # where the arm stands (one point, or none)
+        and bool(following)
+        and is_approach(following[0])
+        and following[0].trajectory.duration > 0.0
+        and fingers is not None
+        and abs(fingers - goal) <= job.settings.open_while_moving
+    )
 
 
 def in_hand(job: Job, hold: Hold) -> InHand:
@@ -202,6 +231,12 @@ def look_while_placing(job: Job) -> None:
         log(f"perception while placing: {error}")
 
 
+def grip(job: Job, position: float, max_effort: float) -> float:
+    """``cell.gripper``, remembering where the fingers stopped (``job.fingers``)."""
+    job.fingers = job.cell.gripper(position, max_effort)
+    return job.fingers
+
+
 def put_back(job: Job, transfer: Segment) -> None:
     """Carry the held domino back along ``transfer`` to above where it was picked (the way
     it came, with this hold), let it drop onto the pile from there, and go back along
@@ -209,7 +244,7 @@ def put_back(job: Job, transfer: Segment) -> None:
     next plan starts as after a placement."""
     log("put back on the pile: carrying it back to where it was picked and letting it drop")
     move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
-    job.cell.gripper(LET_GO_OPENING, 0.0)
+    grip(job, LET_GO_OPENING, 0.0)
     move(job, transfer.trajectory, "leaving the pile")
 
 
@@ -229,7 +264,7 @@ def back_out(job: Job, segment: Segment) -> None:
     The way in was collision-free, so the way back is too, and it takes the arm out of
     the cameras' view of the pile before perception looks again.
     """
-    job.cell.gripper(segment.gripper_position + LET_GO_OPENING, 0.0)
+    grip(job, segment.gripper_position + LET_GO_OPENING, 0.0)
     if len(segment.trajectory.times):
         move(job, segment.trajectory.reversed(BACK_OUT_LEAD), "backing out")
 

@@ -88,6 +88,9 @@ class Job:
     # next pick: nothing touches the pile between (any other motion drops it).
     pile_look: Later[Detections] | None = None
     pile_seen_at: float = 0.0  # simulated time of the last look's frames (not_before)
+    # The finger opening [m] where the job's last gripper command stopped (None: not
+    # commanded yet, e.g. as poured at the start).
+    fingers: float | None = None
     # The slot whose turn comes next if the one being built stands (``loop.build``), and
     # its first request sent as the fingers let go or after the retreat (``ahead``).
     upcoming: int | None = None
