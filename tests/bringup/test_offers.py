@@ -24,12 +24,12 @@ PILE = [  # in perception's order (best grasp first)
 ]
 
 
-def test_with_the_pile_flat_before_leaning_scored_first_in_perceptions_order() -> None:
+def test_with_the_pile_scored_ones_come_first_in_perceptions_order_flat_before_leaning() -> None:
     assert [s.name for s in with_pile_first(PILE)] == [
         "scored, flat, tight",
+        "scored, leaning",
         "flat, 10 mm room",
         "flat, 2 mm room",
-        "scored, leaning",
         "leaning, 20 mm room",
     ]
 

@@ -53,21 +53,12 @@ def roomiest_first(candidates: Sequence[OfferT]) -> list[OfferT]:
 
 
 def with_pile_first(candidates: Sequence[OfferT]) -> list[OfferT]:
-    """The order of the offers planned with their pile: the flat ones, then the leaning
-    ones; in each, those perception scored (in its order, best grasp first), then the
-    others with the most room for the fingers.
-
-    Every leaning one after every flat one: a leaning one that plans is not picked as it
-    leans but pushed over flat first, or a flat one offered after it is picked instead
-    (``task.attempts``): planned first, it cost a request for nothing (the default job,
-    seed 0: at three slots a leaning one planned, both its pushes were refused and a flat
-    one was picked), refused (its grasps leaning with it beyond the arm's reach) a refused
-    request. Picked, a fifth of the picks in the benchmark logs leaned and gave 3 of the 6
-    grasps that closed on nothing."""
-    ranked = [c for c in candidates if c.scored] + [
-        c for c in sorted(candidates, key=lambda c: -c.clearance) if not c.scored
-    ]
-    return sorted(ranked, key=lambda c: c.leaning)
+    """The order of the offers planned with their pile: those perception scored (in its
+    order, best grasp first), then the others with the most room for the fingers; flat
+    before leaning in each (in the benchmark logs a fifth of the picks leaned and gave 3
+    of the 6 grasps that closed on nothing; they placed about as often, 64 of 69)."""
+    scored = sorted((c for c in candidates if c.scored), key=lambda c: c.leaning)
+    return scored + [c for c in roomiest_first(candidates) if not c.scored]
 
 
 def pile_cores(centre: np.ndarray, neighbours: Sequence[np.ndarray], shrink: float) -> np.ndarray:
