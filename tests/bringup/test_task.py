@@ -44,6 +44,7 @@ from dombot_bringup.task.records import (
     add_spent,
     nearest_truth,
     pick_record,
+    record_truth,
     truth,
     write_pick_record,
 )
@@ -530,6 +531,31 @@ def test_flat_dominoes_are_offered_before_leaning_ones() -> None:
     cell.pile[0] = flat(0.50, posture=Posture.TILTED)
     attempt(job(cell), 0, [], ignore_pile=True)
     assert [offer[0] for offer in offered(cell)] == [0.55, 0.50] * 3
+
+
+def test_after_the_strike_each_slot_reports_its_own_domino_not_the_nearest() -> None:
+    """The first domino falls ~25 mm forward, next to the second slot's target: the
+    second slot is reported with the second domino, where it fell (a new user's run drew
+    the first one's cross at both slots)."""
+
+    def at(y: float, tilt_deg: float) -> np.ndarray:
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_euler("x", -tilt_deg, degrees=True).as_matrix()
+        pose[:3, 3] = (0.45, y, 0.02)
+        return pose
+
+    cell = ScriptedCell()
+    run_job = job(cell, count=2)
+    cell.dominoes = [("domino_a", at(0.0, 0.0)), ("domino_b", at(0.0288, 0.0))]
+    record_truth(run_job, before_strike=True)
+    for outcome in run_job.report.dominoes:
+        outcome.placed = True
+    run_job.report.struck = True
+    cell.dominoes = [("domino_a", at(0.0255, 75.0)), ("domino_b", at(0.0508, 75.0))]
+    record_truth(run_job, before_strike=False)
+    first, second = (d.truth_after_strike for d in run_job.report.dominoes)
+    assert first.y == pytest.approx(0.0255) and second.y == pytest.approx(0.0508)
+    assert second.error_mm == pytest.approx(22.0) and run_job.report.toppled_by_truth
 
 
 def test_the_summary_counts_dominoes_the_simulator_had_within_3_mm_and_3_degrees() -> None:

@@ -47,20 +47,28 @@ def take_picture(job: Job, name: str, not_before: float) -> None:
 
 
 def record_truth(job: Job, before_strike: bool) -> None:
-    """Ground truth for the report: the simulator domino nearest each target (after the
-    strike, each placed one's only)."""
-    poses = [matrix for _, matrix in truth(job)]
-    if not poses:
+    """Ground truth for the report: before the strike the simulator domino nearest each
+    target (``job.built_bodies``); after it, each placed one's own (the nearest only where
+    none stood there: a fallen domino lies nearer the next slot than its own)."""
+    dominoes = truth(job)
+    if not dominoes:
         return
+    names = [name for name, _ in dominoes]
+    poses = [matrix for _, matrix in dominoes]
     report = job.report
     centres = np.array([p[:2, 3] for p in poses])
     down = 0
     standing = 0
-    for outcome, target in zip(report.dominoes, job.layout, strict=True):
+    for index, (outcome, target) in enumerate(zip(report.dominoes, job.layout, strict=True)):
         distances = np.linalg.norm(centres - [target.x, target.y], axis=1)
         nearest = int(np.argmin(distances))
-        if distances[nearest] > (0.02 if before_strike else DOMINO_LENGTH):
+        built = job.built_bodies.get(index)
+        if not before_strike and built in names:
+            nearest = names.index(built)
+        elif distances[nearest] > (0.02 if before_strike else DOMINO_LENGTH):
             continue
+        if before_strike:
+            job.built_bodies[index] = names[nearest]
         pose = poses[nearest]
         tilt = math.degrees(tilt_from_vertical(pose))
         along = pose[:3, 2]

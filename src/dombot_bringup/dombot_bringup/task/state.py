@@ -96,6 +96,9 @@ class Job:
     upcoming: int | None = None
     ahead: PlanAhead | None = None
     pictures: dict[str, np.ndarray] = field(default_factory=dict)  # for the report
+    # the simulator's domino standing at each slot before the strike (report only): after
+    # it each slot's own, not the nearest, which may be the one before it that fell there
+    built_bodies: dict[int, str] = field(default_factory=dict)
     picks_recorded: int = 0  # files in settings.record_picks
 
     @classmethod
