@@ -16,7 +16,7 @@ import numpy as np
 import rclpy
 from tf2_msgs.msg import TFMessage
 
-from dombot_sim.sim_node import tf_message
+from dombot_sim.sim_messages import tf_message
 from dombot_sim.world import CellWorld, WorldConfig
 
 DOMINOES = 30

@@ -12,7 +12,7 @@ from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.parameter import parameter_value_to_python
 
-from dombot_sim.sim_node import SimParameters
+from dombot_sim.sim_parameters import SimParameters
 from support.ros_processes import call_service, installed_node, spin_until
 
 pytestmark = pytest.mark.slow  # starts every node

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from dombot_sim.sim_node import SimParameters
+from dombot_sim.sim_parameters import SimParameters
 from dombot_sim.world import CellWorld, WorldConfig
 
 

@@ -18,7 +18,6 @@ Frames, as robot_state_publisher and a calibrated camera mount would give them: 
 
 from __future__ import annotations
 
-import math
 import os
 import queue
 import sys
@@ -26,16 +25,12 @@ import threading
 import time
 from collections.abc import Callable, Iterator, MutableMapping
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
-import numpy as np
 import rclpy
 from ament_index_python.packages import get_package_share_directory
 from control_msgs.action import FollowJointTrajectory, GripperCommand
-from geometry_msgs.msg import Quaternion, Transform, TransformStamped, Twist, Vector3
-from pydrake.math import RigidTransform
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -47,10 +42,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
-from trajectory_msgs.msg import JointTrajectoryPoint
 
 from dombot_adapters.node_shutdown import DrainingExecutor, stop_quietly_on_shutdown
-from dombot_adapters.parameters import DataclassParameters, described
+from dombot_adapters.parameters import DataclassParameters
 from dombot_adapters.pose_messages import pose_message, seconds_of, time_message
 from dombot_description.allocator import release_memory, set_mmap_threshold, tune_allocator
 from dombot_description.robot_description import robot_urdf
@@ -59,23 +53,30 @@ from dombot_msgs.srv import ResetSim
 from dombot_sim.cameras import CameraFrame, cameras_due
 from dombot_sim.frames import FrameTransform, camera_transforms
 from dombot_sim.goal_monitor import (
-    DEFAULT_GOAL_TOLERANCE,
-    GOAL_SETTLE_TIME,
     GripperMonitor,
     Outcome,
-    Tolerances,
     TrajectoryMonitor,
-    joint_tolerances,
     tracking_summary,
 )
 from dombot_sim.motion_watch import describe_motion, take_snapshot
 from dombot_sim.pacing import Pacer
+from dombot_sim.sim_messages import (
+    all_have,
+    camera_info,
+    check_no_multi_dof,
+    feedback_message,
+    goal_tolerances,
+    gripper_feedback,
+    gripper_result,
+    tf_message,
+    twist_message,
+)
+from dombot_sim.sim_parameters import MAX_DOMINOES, SimParameters
 from dombot_sim.sleeping import SleepSettings
-from dombot_sim.trajectory import INVALID_JOINTS, TrajectoryError, build_trajectory
-from dombot_sim.world import CONTACT_APPROXIMATIONS, CellWorld, WorldConfig
+from dombot_sim.trajectory import TrajectoryError, build_trajectory
+from dombot_sim.world import CellWorld, WorldConfig
 
 T = TypeVar("T")
-MAX_DOMINOES = 200
 # ros2_control's names: joint_trajectory_controller "arm_controller", gripper action
 # controller "gripper_controller".
 TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
@@ -99,7 +100,6 @@ RESTART_PARAMETERS = (
     "meshcat_recording_path",
     "sleeping",
 )
-RATES = ("joint_state_rate", "camera_rate", "ground_truth_rate", "tf_rate", "domino_tf_rate")
 # Images and camera_info: RELIABLE keep-last 5 (sensor data's depth). A reliable writer
 # serves reliable readers and best-effort ones (perception's `image_reliability`
 # best_effort, as for a best-effort camera driver; its default is reliable); a best-effort
@@ -146,71 +146,6 @@ class WorldLock:
 
     def __exit__(self, *exc) -> None:
         self._lock.release()
-
-
-@dataclass(frozen=True)
-class SimParameters:
-    """sim_node's parameters (RESTART_PARAMETERS are read at start-up only)."""
-
-    scenario: str = described("", "scenario file; empty: dombot_description's default")
-    domino_count: int = described(30, f"dominoes poured into the pile, 0..{MAX_DOMINOES}")
-    seed: int = described(0, "seed of the pile pour (>= 0)")
-    time_step: float = described(0.001, "physics time step [s], (0, 0.01]")
-    contact_approximation: str = described("similar", "Drake's contact approximation")
-    real_time_factor: float = described(1.0, "simulated per wall second; 0: as fast as it can")
-    joint_state_rate: float = described(100.0, "/joint_states rate [Hz]: the simulation tick")
-    camera_rate: float = described(2.0, "camera image rate [Hz]; 0: none")
-    ground_truth_rate: float = described(2.0, "/sim/domino_ground_truth rate [Hz]; 0: none")
-    tf_rate: float = described(100.0, "/tf rate of the robot links [Hz], at most one per tick")
-    domino_tf_rate: float = described(2.0, "/tf rate of the domino_N frames [Hz]; 0: none")
-    cameras: bool = described(True, "render the cameras")
-    meshcat: bool = described(False, "serve Meshcat")
-    meshcat_recording_path: str = described(
-        "", "with meshcat: record what Meshcat shows, written here as HTML on shutdown"
-    )
-    sleeping: bool = described(True, "dominoes at rest sleep (docs/SIM.md)")
-    skip_still: bool = described(
-        True, "while nothing moves, advance the clock without physics steps (docs/SIM.md)"
-    )
-    log_moved_mm: float = described(
-        1.0, "log the dominoes that moved this far [mm] during a goal; 0: no log"
-    )
-
-    def __post_init__(self) -> None:
-        problems = parameter_problems(self)
-        if problems:
-            raise ValueError("; ".join(problems))
-
-
-def parameter_problems(values: SimParameters) -> list[str]:
-    """What is wrong with ``values``, one phrase each (none: they are good)."""
-    problems = []
-    for name in RATES:
-        rate = getattr(values, name)
-        if not (rate >= 0.0 and math.isfinite(rate)):
-            problems.append(f"{name} must be a finite rate >= 0 Hz, got {rate}")
-    if not values.joint_state_rate > 0.0:
-        problems.append("joint_state_rate must be > 0 Hz (it is the simulation tick)")
-    if not values.real_time_factor >= 0.0:
-        problems.append(
-            f"real_time_factor must be >= 0 (0: as fast as possible), got {values.real_time_factor}"
-        )
-    if not 0.0 < values.time_step <= 0.01:
-        problems.append(f"time_step must be in (0, 0.01] s, got {values.time_step}")
-    if values.contact_approximation not in CONTACT_APPROXIMATIONS:
-        problems.append(
-            f"contact_approximation must be one of {sorted(CONTACT_APPROXIMATIONS)}, "
-            f"got {values.contact_approximation!r}"
-        )
-    if not 0.0 <= values.log_moved_mm < math.inf:
-        problems.append(f"log_moved_mm must be a finite distance >= 0, got {values.log_moved_mm}")
-    if values.meshcat_recording_path and not values.meshcat:
-        problems.append("meshcat_recording_path needs meshcat:=true")
-    if not 0 <= values.domino_count <= MAX_DOMINOES:
-        problems.append(f"domino_count must be 0..{MAX_DOMINOES}, got {values.domino_count}")
-    if values.seed < 0:
-        problems.append(f"seed must be >= 0, got {values.seed}")
-    return problems
 
 
 class SimNode(Node):
@@ -543,13 +478,13 @@ class SimNode(Node):
         refusal = None
         with self._lock:
             try:
-                _check_no_multi_dof(goal.multi_dof_trajectory.joint_names)
+                check_no_multi_dof(goal.multi_dof_trajectory.joint_names)
                 spline = build_trajectory(
                     goal.trajectory.joint_names,
                     [seconds_of(p.time_from_start) for p in points],
                     [list(p.positions) for p in points],
                     [list(p.velocities) for p in points]
-                    if _all_have(points, "velocities")
+                    if all_have(points, "velocities")
                     else None,
                     self.world.joint_state().position[:7],
                     self.world.arm_limits(),
@@ -673,107 +608,6 @@ class SimNode(Node):
                     + (" (stalled on an object)" if stalled else "")
                 )
                 return gripper_result(state, reached, stalled)
-
-
-# ---------------------------------------------------------------------- conversions
-def _check_no_multi_dof(names) -> None:
-    if names:
-        raise TrajectoryError(
-            INVALID_JOINTS,
-            f"multi_dof_trajectory names {list(names)}; the arm has single-axis joints only",
-        )
-
-
-def _all_have(points, field_name: str) -> bool:
-    return bool(points) and all(len(getattr(p, field_name)) > 0 for p in points)
-
-
-def goal_tolerances(goal: FollowJointTrajectory.Goal, names: list[str]) -> Tolerances:
-    """The goal's JointTolerance entries and goal_time_tolerance as monitor tolerances."""
-    path = [(entry.name, entry.position) for entry in goal.path_tolerance]
-    end = [(entry.name, entry.position) for entry in goal.goal_tolerance]
-    return Tolerances(
-        path=joint_tolerances(path, names, default=-1.0),
-        goal=joint_tolerances(end, names, default=DEFAULT_GOAL_TOLERANCE),
-        settle=seconds_of(goal.goal_time_tolerance) or GOAL_SETTLE_TIME,
-    )
-
-
-def twist_message(velocity: np.ndarray) -> Twist:
-    twist = Twist()
-    twist.angular.x, twist.angular.y, twist.angular.z = (float(v) for v in velocity[:3])
-    twist.linear.x, twist.linear.y, twist.linear.z = (float(v) for v in velocity[3:])
-    return twist
-
-
-def tf_message(now: float, frames: list[FrameTransform]) -> TFMessage:
-    stamp = time_message(now)
-    return TFMessage(
-        transforms=[
-            TransformStamped(
-                header=Header(stamp=stamp, frame_id=frame.parent),
-                child_frame_id=frame.child,
-                transform=transform_message(frame.X_PC),
-            )
-            for frame in frames
-        ]
-    )
-
-
-def transform_message(pose: RigidTransform) -> Transform:
-    """With Drake's quaternion: scipy's conversion cost ~20x more per frame (bench_tf)."""
-    x, y, z = pose.translation()
-    q = pose.rotation().ToQuaternion()
-    return Transform(
-        translation=Vector3(x=x, y=y, z=z), rotation=Quaternion(x=q.x(), y=q.y(), z=q.z(), w=q.w())
-    )
-
-
-def camera_info(frame: CameraFrame, header: Header) -> CameraInfo:
-    height, width = frame.depth.shape
-    intrinsics = frame.K
-    return CameraInfo(
-        header=header,
-        height=height,
-        width=width,
-        distortion_model="plumb_bob",
-        d=[0.0] * 5,
-        k=intrinsics.ravel().tolist(),
-        r=np.eye(3).ravel().tolist(),
-        p=np.hstack([intrinsics, np.zeros((3, 1))]).ravel().tolist(),
-    )
-
-
-def feedback_message(names, now, desired_state, state) -> FollowJointTrajectory.Feedback:
-    desired, velocity, acceleration = desired_state
-    feedback = FollowJointTrajectory.Feedback()
-    feedback.header.stamp = time_message(now)
-    feedback.joint_names = names
-    feedback.desired = JointTrajectoryPoint(
-        positions=desired.tolist(),
-        velocities=velocity.tolist(),
-        accelerations=acceleration.tolist(),
-    )
-    feedback.actual = JointTrajectoryPoint(
-        positions=state.position[:7].tolist(), velocities=state.velocity[:7].tolist()
-    )
-    feedback.error = JointTrajectoryPoint(
-        positions=(state.position[:7] - desired).tolist(),
-        velocities=(state.velocity[:7] - velocity).tolist(),
-    )
-    return feedback
-
-
-def gripper_result(state, reached: bool, stalled: bool) -> GripperCommand.Result:
-    return GripperCommand.Result(
-        position=state.opening, effort=abs(state.force), stalled=stalled, reached_goal=reached
-    )
-
-
-def gripper_feedback(state, reached: bool, stalled: bool) -> GripperCommand.Feedback:
-    return GripperCommand.Feedback(
-        position=state.opening, effort=abs(state.force), stalled=stalled, reached_goal=reached
-    )
 
 
 def spin_forever(executor: DrainingExecutor, node: Node) -> None:
