@@ -83,21 +83,27 @@ def test_the_struck_arcs_lie_shingled(struck_arcs) -> None:
         assert max(feet) < PlacementConfig().search_radius + DOMINO_SIZE[0] / 2
 
 
-def test_most_toppled_dominoes_of_struck_arcs_are_located(struck_arcs, pipeline) -> None:
+def test_the_toppled_dominoes_of_struck_arcs_are_located(struck_arcs, pipeline) -> None:
     """The segmentation cuts a shingled domino's face, seen over its whole length, into
     pieces of about half that: fitted from such a piece and set right by the depth check,
-    it is located
-    within a few millimetres, where the pile's coverage filter (85 % of the length) drops
-    it. Measured: 24 of the 40 located, 23 within 5 mm (the worst 7.6 mm off); with the
+    it is located within a few millimetres, where the pile's coverage filter (85 % of the
+    length) drops it. A place left without a pose is fitted from where its domino must lie
+    (tipped over its foot, ``lying_leans``). Measured: 40 of the 40 located, 39 within
+    5 mm (the worst 7.6 mm off); from the detections alone 24 (23 within 5 mm), with the
     pile's filter 7."""
-    strict = replace(PlacementConfig(), min_lying_coverage=0.85)
-    errors, strictly = [], []
+    detections_only = replace(PlacementConfig(), lying_leans=())
+    strict = replace(detections_only, min_lying_coverage=0.85)
+    errors, alone, strictly = [], [], []
     for targets, truth, views in struck_arcs:
         results = check_placements(targets, views, pipeline, PlacementConfig())
         assert all(r.status != STANDING for r in results)
         errors += located(results, targets, truth)
+        alone += located(
+            check_placements(targets, views, pipeline, detections_only), targets, truth
+        )
         strictly += located(check_placements(targets, views, pipeline, strict), targets, truth)
     total = COUNT * len(SEEDS)
-    assert sum(e < 0.005 for e in errors) >= 0.4 * total, errors
+    assert sum(e < 0.005 for e in errors) >= 0.9 * total, errors
     assert max(errors) < DOMINO_SIZE[1] / 2, errors  # never the neighbour's centre
-    assert 2 * len(strictly) <= len(errors), (strictly, errors)
+    assert len(alone) < 0.75 * total, alone
+    assert 2 * len(strictly) <= len(alone), (strictly, alone)
