@@ -35,9 +35,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.spatial.transform import Rotation
 
-from dombot_description import tilt_from_vertical
+from dombot_description import tilt_from_vertical, tipped_pose
 from dombot_perception.backprojection import WorkRegion, organised_cloud
 from dombot_perception.box_fit import BoxFitConfig, fit_statistics, refine_pose
 from dombot_perception.depth_check import DepthCheckConfig, correct_box, depth_evidence
@@ -171,7 +170,7 @@ def _tipped_fit(
     expected: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
 ) -> np.ndarray | None:
     """The box of a domino that stood at ``expected`` and fell, fitted to ``points`` from
-    each of ``_tipped``'s poses (forward and back, each of ``lying_leans``): the fit with
+    each of its ``tipped_pose``s (forward and back, each of ``lying_leans``): the fit with
     the most points on it that has ``min_points``, spans ``min_lying_coverage`` of its
     length, keeps its foot within ``search_radius`` of the place and is seen through on
     at most ``max_see_through`` of its pixels (the depth check sets it right first, as
@@ -180,7 +179,7 @@ def _tipped_fit(
     best, best_count = None, 0
     for forward in (1.0, -1.0):
         for lean in config.lying_leans:
-            seed = _tipped(expected, forward, lean)
+            seed = tipped_pose(expected, lean, forward)
             near = points[_around_box(points, seed, config.fit_margin)]
             if near.shape[0] < config.min_points:
                 continue
@@ -203,19 +202,6 @@ def _tipped_fit(
             ):
                 best, best_count = pose, int(on.sum())
     return best
-
-
-def _tipped(expected: np.ndarray, forward: float, lean: float) -> np.ndarray:
-    """The domino standing at ``expected`` tipped ``lean`` rad over the edge of its foot
-    ``forward`` (+1: along its thickness axis z, the way a run falls; -1: back)."""
-    up = expected[:3, 0] * np.sign(expected[2, 0])
-    ahead = forward * expected[:3, 2]
-    edge = expected[:3, 3] + ahead * HALF_SIZE[2] - up * HALF_SIZE[0]
-    turn = Rotation.from_rotvec(np.cross(up, ahead) * lean).as_matrix()
-    pose = np.eye(4)
-    pose[:3, :3] = turn @ expected[:3, :3]
-    pose[:3, 3] = edge + turn @ (expected[:3, 3] - edge)
-    return pose
 
 
 def _on(pose: np.ndarray, points: np.ndarray, distance: float) -> np.ndarray:
