@@ -19,7 +19,12 @@ from dombot_description.grasp import upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_perception.frames import CameraView
 from dombot_perception.pipeline import build_pipeline
-from dombot_perception.placement_check import STANDING, PlacementConfig, check_placements
+from dombot_perception.placement_check import (
+    MISSING,
+    STANDING,
+    PlacementConfig,
+    check_placements,
+)
 
 COUNT = 10
 
@@ -107,3 +112,34 @@ def test_the_toppled_dominoes_of_struck_arcs_are_located(struck_arcs, pipeline) 
     assert max(errors) < DOMINO_SIZE[1] / 2, errors  # never the neighbour's centre
     assert len(alone) < 0.75 * total, alone
     assert 2 * len(strictly) <= len(alone), (strictly, alone)
+
+
+def test_toppled_dominoes_looked_at_again_where_they_were_seen_are_refitted(
+    struck_arcs, pipeline
+) -> None:
+    """The next cycle's look at toppled dominoes after something near them moved: each
+    expected where the strike's check located it, or slid 10 mm along its length (moved
+    a little since), is found again; one expected 44 mm across the run from where it
+    lies (cycle 3 of the arc's seed 1 had poses that stale) is not (MISSING: nothing
+    there), rather than a neighbour fitted in its stead. Measured: 39 and 37 of 40
+    within 5 mm, none across."""
+    again, slid, across = [], [], []
+    for targets, truth, views in struck_arcs:
+        seen = [r.measured for r in check_placements(targets, views, pipeline, PlacementConfig())]
+        moved = [shifted(pose, pose[:3, 0], 0.010) for pose in seen]
+        away = [shifted(pose, pose[:3, 1], 0.044) for pose in seen]
+        again += located(check_placements(seen, views, pipeline, PlacementConfig()), seen, truth)
+        slid += located(check_placements(moved, views, pipeline, PlacementConfig()), moved, truth)
+        results = check_placements(away, views, pipeline, PlacementConfig())
+        across += [r.status for r in results if r.status != MISSING]
+    total = COUNT * len(SEEDS)
+    assert sum(e < 0.005 for e in again) >= 0.95 * total, again
+    assert sum(e < 0.005 for e in slid) >= 0.85 * total, slid
+    assert max(again + slid) < DOMINO_SIZE[1] / 2
+    assert across == []
+
+
+def shifted(pose: np.ndarray, direction: np.ndarray, distance: float) -> np.ndarray:
+    moved = pose.copy()
+    moved[:3, 3] += distance * direction
+    return moved
