@@ -355,6 +355,7 @@ def carried_away(job: Job, candidate: Candidate) -> None:
 
     state.fallen = {k: pose for k, pose in state.fallen.items() if not there(pose)}
     state.toppled = [pose for pose in state.toppled if not there(pose)]
+    state.unfitted = [pose for pose in state.unfitted if not there(pose)]
 
 
 def keep_if_standing(job: Job, index: int, run_index: int, why: str, spot: np.ndarray) -> Attempt:
