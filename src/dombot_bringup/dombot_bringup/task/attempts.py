@@ -315,6 +315,8 @@ def pick(
     write_pick_record(job, record, execution.why or ("turned in place only" if look_again else ""))
     if execution.ran is not Ran.FAILED:
         carried_away(job, candidate)
+        if candidate.toppled:
+            state.toppled_picked += 1
     if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
         return Attempt(Outcome.NOT_PLACED, execution.why)
     if execution.ran is Ran.FAILED:  # blocked or missed: unless it moved, it would recur

@@ -48,16 +48,18 @@ def run_cycles(
         job = Job.new(cell, layout, name, settings)
         if jobs:
             job.state.toppled, job.state.unfitted = left_lying(jobs[-1].state)
+            unfitted = len(job.state.unfitted)
             log(
                 f"cycle {number}/{len(layouts)}: building '{name}' ({len(layout)} dominoes) "
                 f"from {len(job.state.toppled)} toppled dominoes seen lying and the pile"
-                + (f", {len(job.state.unfitted)} unfitted in the way" if job.state.unfitted else "")
+                + (f", {unfitted} more seen down but not fitted" if unfitted else "")
             )
-        found = len(job.state.toppled)
+        found = len(job.state.toppled) + len(job.state.unfitted)
         job.report.cycles = list(outcomes)  # the report of a cycle cut short has the others
         started(job)
         report = run(job, pour=not jobs)
-        outcomes.append(cycle_outcome(number, report, found, len(job.state.toppled), memory()))
+        picked = job.state.toppled_picked
+        outcomes.append(cycle_outcome(number, report, found, picked, memory()))
         report.cycles = list(outcomes)
         jobs.append(job)
         if len(layouts) > 1:
@@ -77,10 +79,10 @@ def left_lying(state: BuildState) -> tuple[list[Pose], list[Pose]]:
 
 
 def cycle_outcome(
-    number: int, report: RunReport, found: int, left: int, rss: Mapping[str, float]
+    number: int, report: RunReport, found: int, picked: int, rss: Mapping[str, float]
 ) -> CycleOutcome:
-    """What cycle ``number`` did: ``found`` toppled dominoes at its start, ``left`` of them
-    never picked up."""
+    """What cycle ``number`` did: ``found`` toppled dominoes at its start (unfitted ones
+    too), ``picked`` of them picked up."""
     summary = report.summary()
     return CycleOutcome(
         cycle=number,
@@ -89,7 +91,7 @@ def cycle_outcome(
         placed=summary["placed"],
         placed_first_attempt=summary["placed_first_attempt"],
         toppled_found=found,
-        toppled_picked=found - left,
+        toppled_picked=picked,
         empty_slots=summary["empty_slots"],
         toppled_by_perception=sum(s.toppled_by_perception for s in report.sections),
         toppled_by_truth=report.toppled_by_truth,

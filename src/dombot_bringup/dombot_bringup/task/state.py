@@ -39,6 +39,7 @@ class BuildState:
     # (x, y) where something moved (a pick, a push, a fall) since the toppled dominoes
     # were last seen: those near it are looked at again before one is picked
     disturbed: list[np.ndarray] = field(default_factory=list)
+    toppled_picked: int = 0  # toppled dominoes picked up (the report's count)
     # (x, y) of dominoes no grasp reaches or whose pick failed: not offered again
     unpickable: list[np.ndarray] = field(default_factory=list)
     stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
