@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 from ament_index_python.packages import get_package_prefix
 
+from dombot_bringup.bringup import parse_args
+
 CASES = {
     "arc10": ["--layout", "arc", "--count", "10", "--pile", "30"],
     # the perpetual cycle: the arc built, knocked down and built again from its own
@@ -67,16 +69,23 @@ CASES = {
 }
 DEFAULT_CASES = ("arc10", "arc10_cycles5", "s_curve20")
 SEEDS = (1, 2, 3)
-RUN_TIMEOUT = 3600.0  # s of wall time per run
+CYCLE_TIMEOUT = 3600.0  # s of wall time per cycle (a --cycles run has as many)
+
+
+def run_timeout(arguments: list[str]) -> float:
+    """Wall time [s] a bring-up with ``arguments`` may take: CYCLE_TIMEOUT per cycle
+    (``--cycles`` as bringup reads it). arc10_cycles5 at load 9-18 took 770-1633 s a cycle
+    and was cut off in its fourth by a limit of 3600 s a run."""
+    return CYCLE_TIMEOUT * parse_args(arguments).cycles
 
 
 def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def run_logged(command: list[str], log_path: Path, name: str) -> tuple[int, str]:
+def run_logged(command: list[str], log_path: Path, name: str, timeout: float) -> tuple[int, str]:
     """Run the bring-up, its output into ``log_path`` and its own progress lines (not the
-    nodes') onto stderr as they come; killed after RUN_TIMEOUT. Exit code and last lines."""
+    nodes') onto stderr as they come; killed after ``timeout`` s. Exit code and last lines."""
     lines: list[str] = []
     with (
         log_path.open("w") as log_file,
@@ -84,7 +93,7 @@ def run_logged(command: list[str], log_path: Path, name: str) -> tuple[int, str]
             command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
         ) as process,
     ):
-        watchdog = threading.Timer(RUN_TIMEOUT, process.kill)
+        watchdog = threading.Timer(timeout, process.kill)
         watchdog.start()
         for line in process.stdout:
             log_file.write(line)
@@ -129,7 +138,8 @@ def bring_up(
         *(["--record-picks"] if record else []),
     ]
     started = time.monotonic()
-    exit_code, tail = run_logged(command, out / f"{name}_seed{seed}.log", f"{name} seed {seed}")
+    log_path, timeout = out / f"{name}_seed{seed}.log", run_timeout(arguments)
+    exit_code, tail = run_logged(command, log_path, f"{name} seed {seed}", timeout)
     wall = time.monotonic() - started
     report_path = folder / "run_report.json"
     if not report_path.exists():

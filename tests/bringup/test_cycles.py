@@ -19,12 +19,14 @@ from dombot_bringup.process_group import resident_mb
 from dombot_bringup.sections import EXIT_FAILED, EXIT_PARTIAL, EXIT_SUCCESS, worst_status
 from dombot_bringup.task.attempts import carried_away
 from dombot_bringup.task.cell import PlacementCheck, Pose, Seen
+from dombot_bringup.task.checks import look_again
 from dombot_bringup.task.cycles import cycle_line, run_cycles
-from dombot_bringup.task.geometry import distinct, in_the_way, placement_pose, spot_of
+from dombot_bringup.task.geometry import distinct, in_the_way, near, placement_pose, spot_of
 from dombot_bringup.task.loop import Turn, place_slot
 from dombot_bringup.task.picking import Candidate, in_its_way, toppled_candidates
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
+from dombot_description import tilt_from_vertical, tipped_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode
 from support.scripted_cell import ScriptedCell, flat, lying, planned, refused
@@ -38,26 +40,24 @@ PILE_Y = -0.3
 def toppling_cell(fallen_y: Sequence[float] = FALLEN_Y) -> ScriptedCell:
     """A cell where every placement stands and every strike topples the run: its
     dominoes are then seen lying at ``fallen_y`` along the line (perception answers them
-    in slot order)."""
+    in slot order). A domino looked for lying (``checks.look_again``) lies where it was
+    seen."""
     cell = ScriptedCell(pile=[flat(0.50), flat(0.60)], place=lambda request: planned("place"))
     cell.strike = lambda request: planned("strike")
 
     def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
         struck = cell.executed and cell.executed[-1].joint_names == ("strike",)
-        count = len(expected)
-        if not struck:
-            return PlacementCheck(
-                True,
-                "",
-                (Seen.STANDING,) * count,
-                tuple(expected),
-                (0.001,) * count,
-                (0.0,) * count,
-            )
-        lie = tuple(lying(0.45, y) for y in fallen_y[:count])
-        return PlacementCheck(
-            True, "", (Seen.FALLEN,) * count, lie, (0.02,) * count, (math.radians(85.0),) * count
-        )
+        upright = [pose for pose in expected if tilt_from_vertical(pose) < math.radians(15.0)]
+        fell = iter(fallen_y)
+        answers = [
+            (Seen.FALLEN, pose, 0.0, tilt_from_vertical(pose))
+            if not any(pose is u for u in upright)
+            else (Seen.FALLEN, lying(0.45, next(fell)), 0.02, math.radians(85.0))
+            if struck
+            else (Seen.STANDING, pose, 0.001, 0.0)
+            for pose in expected
+        ]
+        return PlacementCheck(True, "", *(tuple(column) for column in zip(*answers, strict=True)))
 
     cell.placements = placements
     return cell
@@ -313,3 +313,69 @@ def test_of_two_toppled_dominoes_in_a_slots_way_one_is_swept_and_one_becomes_its
     (left,) = job.state.toppled  # the swept one, out of the way; the other placed
     assert cell.place_requests[0].domino is not sweep.domino
     assert left[0, 3] != pytest.approx(0.45) and in_its_way(job, 0) == []
+
+
+def test_a_struck_domino_seen_down_but_not_fitted_is_an_obstacle_swept_never_picked() -> None:
+    """After the strike perception sees slot 2's domino down but fits no box to it (its
+    own target answered, tilt 0), and looked at again it stays unfitted: the next cycle
+    takes it to lie flat over slot 2's front edge, i.e. in slot 3's way: kept clear of,
+    swept out of the way (across the run), never picked."""
+    cell = toppling_cell()
+    toppled, presumed = cell.placements, tipped_pose(placement_pose(LINE[1]), math.pi / 2)
+
+    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
+        answer = toppled(expected, in_hand)
+        unfitted = [
+            (k, pose)
+            for k, pose in enumerate(expected)
+            if (k == 1 and len(expected) == 3 and answer.status == (Seen.FALLEN,) * 3)
+            or pose[1, 3] == pytest.approx(presumed[1, 3])  # the strike's look, or again
+        ]
+        columns = [list(answer.measured), list(answer.position_error), list(answer.tilt)]
+        for k, pose in unfitted:
+            columns[0][k], columns[1][k], columns[2][k] = pose, 0.0, 0.0
+        return PlacementCheck(True, "", answer.status, *(tuple(c) for c in columns))
+
+    cell.placements = placements
+    jobs = run_cycles(cell, [("line", LINE)] * 2, ArmJobSettings(pile=8))
+    (unfitted,) = jobs[0].state.unfitted
+    assert spot_of(unfitted) == pytest.approx(spot_of(presumed))
+    second = cell.place_requests[3:]
+    assert all(r.domino[1, 3] != pytest.approx(presumed[1, 3]) for r in second)
+    kept_clear = [*second[0].standing, *second[0].pile]  # the pick beside it: its pile
+    assert any(near(spot_of(p), spot_of(presumed), 1e-6) for p in kept_clear)
+    swept = cell.strike_requests[1]  # after the first cycle's strike
+    assert spot_of(swept.domino) == pytest.approx(spot_of(presumed))
+    second_cycle = jobs[1].report.cycles[1]  # the unfitted one found, never picked
+    assert (second_cycle.toppled_found, second_cycle.toppled_picked) == (3, 2)
+
+
+def test_toppled_dominoes_near_where_something_moved_are_looked_at_again() -> None:
+    """Where they were seen: one found moved lies where perception measured it now, one
+    down but not fitted is an obstacle only, one gone is forgotten; one far from what
+    moved is not asked about."""
+    moved, gone, unfit = lying(0.45, 0.020), lying(0.45, 0.049), lying(0.47, 0.035)
+    far = lying(0.45, 0.20)
+    now = lying(0.45, 0.035)
+
+    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
+        answers = {
+            id(moved): (Seen.FALLEN, now, 0.015, math.radians(85.0)),
+            id(gone): (Seen.MISSING, gone, 0.0, 0.0),
+            id(unfit): (Seen.FALLEN, unfit, 0.0, 0.0),
+        }
+        columns = zip(*(answers[id(pose)] for pose in expected), strict=True)
+        return PlacementCheck(True, "", *(tuple(column) for column in columns))
+
+    cell = ScriptedCell(placements=placements)
+    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    job.state.toppled = [moved, gone, far]
+    job.state.unfitted = [unfit]
+    look_again(job)
+    assert cell.checks == []  # nothing moved
+    job.state.forget_refusals_near(spot_of(lying(0.45, 0.03)))  # a pick there
+    look_again(job)
+    ((asked, _, _),) = cell.checks
+    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit)]
+    assert job.state.toppled == [far, now] and job.state.unfitted == [unfit]
+    assert job.state.disturbed == []

@@ -19,7 +19,12 @@ from dombot_description.grasp import upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_perception.frames import CameraView
 from dombot_perception.pipeline import build_pipeline
-from dombot_perception.placement_check import STANDING, PlacementConfig, check_placements
+from dombot_perception.placement_check import (
+    MISSING,
+    STANDING,
+    PlacementConfig,
+    check_placements,
+)
 
 COUNT = 10
 
@@ -83,21 +88,58 @@ def test_the_struck_arcs_lie_shingled(struck_arcs) -> None:
         assert max(feet) < PlacementConfig().search_radius + DOMINO_SIZE[0] / 2
 
 
-def test_most_toppled_dominoes_of_struck_arcs_are_located(struck_arcs, pipeline) -> None:
+def test_the_toppled_dominoes_of_struck_arcs_are_located(struck_arcs, pipeline) -> None:
     """The segmentation cuts a shingled domino's face, seen over its whole length, into
     pieces of about half that: fitted from such a piece and set right by the depth check,
-    it is located
-    within a few millimetres, where the pile's coverage filter (85 % of the length) drops
-    it. Measured: 24 of the 40 located, 23 within 5 mm (the worst 7.6 mm off); with the
+    it is located within a few millimetres, where the pile's coverage filter (85 % of the
+    length) drops it. A place left without a pose is fitted from where its domino must lie
+    (tipped over its foot, ``lying_leans``). Measured: 40 of the 40 located, 39 within
+    5 mm (the worst 7.6 mm off); from the detections alone 24 (23 within 5 mm), with the
     pile's filter 7."""
-    strict = replace(PlacementConfig(), min_lying_coverage=0.85)
-    errors, strictly = [], []
+    detections_only = replace(PlacementConfig(), lying_leans=())
+    strict = replace(detections_only, min_lying_coverage=0.85)
+    errors, alone, strictly = [], [], []
     for targets, truth, views in struck_arcs:
         results = check_placements(targets, views, pipeline, PlacementConfig())
         assert all(r.status != STANDING for r in results)
         errors += located(results, targets, truth)
+        alone += located(
+            check_placements(targets, views, pipeline, detections_only), targets, truth
+        )
         strictly += located(check_placements(targets, views, pipeline, strict), targets, truth)
     total = COUNT * len(SEEDS)
-    assert sum(e < 0.005 for e in errors) >= 0.4 * total, errors
+    assert sum(e < 0.005 for e in errors) >= 0.9 * total, errors
     assert max(errors) < DOMINO_SIZE[1] / 2, errors  # never the neighbour's centre
-    assert 2 * len(strictly) <= len(errors), (strictly, errors)
+    assert len(alone) < 0.75 * total, alone
+    assert 2 * len(strictly) <= len(alone), (strictly, alone)
+
+
+def test_toppled_dominoes_looked_at_again_where_they_were_seen_are_refitted(
+    struck_arcs, pipeline
+) -> None:
+    """The next cycle's look at toppled dominoes after something near them moved: each
+    expected where the strike's check located it, or slid 10 mm along its length (moved
+    a little since), is found again; one expected 44 mm across the run from where it
+    lies (cycle 3 of the arc's seed 1 had poses that stale) is not (MISSING: nothing
+    there), rather than a neighbour fitted in its stead. Measured: 39 and 37 of 40
+    within 5 mm, none across."""
+    again, slid, across = [], [], []
+    for targets, truth, views in struck_arcs:
+        seen = [r.measured for r in check_placements(targets, views, pipeline, PlacementConfig())]
+        moved = [shifted(pose, pose[:3, 0], 0.010) for pose in seen]
+        away = [shifted(pose, pose[:3, 1], 0.044) for pose in seen]
+        again += located(check_placements(seen, views, pipeline, PlacementConfig()), seen, truth)
+        slid += located(check_placements(moved, views, pipeline, PlacementConfig()), moved, truth)
+        results = check_placements(away, views, pipeline, PlacementConfig())
+        across += [r.status for r in results if r.status != MISSING]
+    total = COUNT * len(SEEDS)
+    assert sum(e < 0.005 for e in again) >= 0.95 * total, again
+    assert sum(e < 0.005 for e in slid) >= 0.85 * total, slid
+    assert max(again + slid) < DOMINO_SIZE[1] / 2
+    assert across == []
+
+
+def shifted(pose: np.ndarray, direction: np.ndarray, distance: float) -> np.ndarray:
+    moved = pose.copy()
+    moved[:3, 3] += distance * direction
+    return moved

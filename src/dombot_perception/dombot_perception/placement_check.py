@@ -12,6 +12,19 @@ MISSING when the cameras see almost nothing above the table there, FALLEN otherw
 unless something in front hides most of the place from every camera (the arm, just
 after placing a domino nearby): then NOT_SEEN, no evidence either way.
 
+A place left FALLEN or MISSING without a pose is fitted once more from where a domino
+that stood there must lie (``_tipped_fit``): tipped over an edge of its foot, forward or
+back, leaning on the next (``lying_leans``) or flat, the box fitted from there to the
+points no pose explains yet. A struck run lies shingled and the segmentation cuts a
+domino into pieces no detection keeps: on struck arcs this located 40 of 40 toppled
+dominoes instead of 24.
+
+An expected pose that is not upright is a domino seen lying there before (the next
+cycle's look at what a strike left, after something near it moved): refitted from that
+pose, FALLEN where it is found within ``search_radius``; else NOT_SEEN when hidden,
+FALLEN without a pose while something no pose explains lies on its footprint, else
+MISSING.
+
 In hand (``PlacementConfig.in_hand``) the domino is checked before the fingers let go,
 anywhere up to above its slot: the pads pinch its top (their lower edges ~29-31 mm above
 its foot at the place grasp) and the gripper leans over it, so only its points lower than
@@ -29,10 +42,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from dombot_description import tilt_from_vertical
+from dombot_description import tilt_from_vertical, tipped_pose
 from dombot_perception.backprojection import WorkRegion, organised_cloud
-from dombot_perception.box_fit import BoxFitConfig, refine_pose
-from dombot_perception.depth_check import DepthCheckConfig, depth_evidence
+from dombot_perception.box_fit import BoxFitConfig, fit_statistics, refine_pose
+from dombot_perception.depth_check import DepthCheckConfig, correct_box, depth_evidence
 from dombot_perception.domino_model import DOMINO_SIZE, HALF_SIZE, box_signed_distance
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline
@@ -65,6 +78,9 @@ class PlacementConfig:
     # (camera_2) fits with 20-25 mm were within 0.21° and 1.1 mm; below 18 mm up to 4.4° off
     in_hand_min_turn_support: float = 0.020
     in_hand_iterations: int = 100  # of the box fit: a short visible part converges slowly
+    # rad from vertical, where a place's domino is sought when nothing else located it
+    # (``_tipped_fit``): a struck run's lean on the next (~75°), and flat (the last)
+    lying_leans: tuple[float, ...] = (np.radians(75.0), np.radians(90.0))
 
     @property
     def fitted_length(self) -> float:
@@ -102,12 +118,16 @@ def check_placements(
     seen = [c.valid_points() for c in clouds if c is not None]
     points = np.concatenate(seen) if seen else np.zeros((0, 3))
     owner = _nearest_expected(points, expected)
+    upright = [i for i, pose in enumerate(expected) if tilt_from_vertical(pose) <= config.max_tilt]
     detections: list[Detection] | None = None
     claimed: dict[int, int] = {}  # expected place -> the detection of its domino
     results = []
     for index, pose in enumerate(expected):
         if not any(_in_view(pose, view) for view in views):
             results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
+            continue
+        if index not in upright:  # seen lying there: refitted below (``_fit_unlocated``)
+            results.append(Placement(MISSING, pose, 0.0, 0.0))
             continue
         near = _around_box(points, pose, config.fit_margin) & (owner == index)
         fitted = _local_fit(pose, points[near], views, config)
@@ -118,13 +138,120 @@ def check_placements(
             filtering = replace(pipeline.config.filtering, min_coverage=config.min_lying_coverage)
             local = replace(pipeline.config, region=region, filtering=filtering)
             detections = PerceptionPipeline(pipeline.segmenter, local).run(views).detections
-            claimed = _claim(detections, expected, config.search_radius)
+            found = _claim(detections, [expected[i] for i in upright], config.search_radius)
+            claimed = {upright[place]: k for place, k in found.items()}
         mine = detections[claimed[index]] if index in claimed else None
         if mine is None and _hidden(pose, views, config):
             results.append(Placement(NOT_SEEN, pose, 0.0, 0.0))
             continue
         results.append(_from_detections(pose, mine, detections, points, config))
+    return _fit_unlocated(expected, results, points, views, config)
+
+
+def _fit_unlocated(
+    expected: list[np.ndarray],
+    results: list[Placement],
+    points: np.ndarray,
+    views: list[CameraView],
+    config: PlacementConfig,
+) -> list[Placement]:
+    """``results`` with each place left FALLEN or MISSING without a pose fitted in the
+    points no pose explains (those of the places fitted so far, in order, left out): an
+    upright place from where its domino must lie (``_tipped_fit``), a lying one from its
+    pose (the domino seen there before, looked at again), else ``_unfitted``."""
+    unlocated = [
+        i
+        for i, r in enumerate(results)
+        if r.status in (FALLEN, MISSING) and r.measured is expected[i]
+    ]
+    if not unlocated:
+        return results
+    rest = points
+    for pose, result in zip(expected, results, strict=True):
+        if result.measured is not pose:  # a measured pose (else the expected one)
+            rest = rest[~_on(result.measured, rest, config.inlier_distance)]
+    for i in unlocated:
+        pose = expected[i]
+        if tilt_from_vertical(pose) <= config.max_tilt:
+            fitted = _tipped_fit(pose, rest, views, config)
+        else:
+            fitted, _ = _lying_fit(pose, rest, views, config)
+            if fitted is not None and _horizontal(fitted, pose) > config.search_radius:
+                fitted = None
+            if fitted is None:
+                results[i] = _unfitted(pose, rest, views, config)
+        if fitted is not None:
+            results[i] = _placement(FALLEN, fitted, pose)
+            rest = rest[~_on(fitted, rest, config.inlier_distance)]
     return results
+
+
+def _unfitted(
+    expected: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
+) -> Placement:
+    """A lying domino not found where it was seen: NOT_SEEN when most of it is hidden,
+    FALLEN (pose unknown) while ``min_points`` of ``points`` lie on its footprint, else
+    MISSING."""
+    if _hidden(expected, views, config):
+        return Placement(NOT_SEEN, expected, 0.0, 0.0)
+    footprint = points[_near(points, expected, HALF_SIZE[1])].shape[0]
+    return Placement(FALLEN if footprint >= config.min_points else MISSING, expected, 0.0, 0.0)
+
+
+def _tipped_fit(
+    expected: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
+) -> np.ndarray | None:
+    """The box of a domino that stood at ``expected`` and fell, fitted to ``points`` from
+    each of its ``tipped_pose``s (forward and back, each of ``lying_leans``): of the
+    ``_lying_fit``s with their foot within ``search_radius`` of the place, the one with
+    the most points on it."""
+    best, best_count = None, 0
+    for forward in (1.0, -1.0):
+        for lean in config.lying_leans:
+            pose, count = _lying_fit(tipped_pose(expected, lean, forward), points, views, config)
+            if (
+                pose is not None
+                and count > best_count
+                and _foot_distance(pose, expected) <= config.search_radius
+            ):
+                best, best_count = pose, count
+    return best
+
+
+def _lying_fit(
+    seed: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
+) -> tuple[np.ndarray | None, int]:
+    """The box of a domino lying near ``seed`` fitted to the ``points`` around it, and how
+    many of them lie on it: set right by the depth check (as the pipeline's detections
+    are), with ``min_points`` on it spanning ``min_lying_coverage`` of its length, seen
+    through on at most ``max_see_through`` of its pixels, and down (past ``max_tilt``);
+    else None."""
+    fit_config = BoxFitConfig()
+    near = points[_around_box(points, seed, config.fit_margin)]
+    if near.shape[0] < config.min_points:
+        return None, 0
+    pose = refine_pose(seed, near, fit_config)
+    on = _on(pose, near, config.inlier_distance)
+    if on.sum() < config.min_points:
+        return None, 0
+    pose = refine_pose(pose, near[on], fit_config)
+    fit = fit_statistics(pose, near, _on(pose, near, config.inlier_distance))
+    fit, evidence = correct_box(fit, near, views, config.depth_check, fit_config)
+    on = _on(fit.X_WD, near, config.inlier_distance)
+    lengthwise = (near[on] - fit.X_WD[:3, 3]) @ fit.X_WD[:3, 0]
+    if (
+        on.sum() < config.min_points
+        or np.ptp(lengthwise) < config.min_lying_coverage * DOMINO_SIZE[0]
+        or evidence.see_through_fraction > config.max_see_through
+        or tilt_from_vertical(fit.X_WD) <= config.max_tilt
+    ):
+        return None, 0
+    return fit.X_WD, int(on.sum())
+
+
+def _on(pose: np.ndarray, points: np.ndarray, distance: float) -> np.ndarray:
+    """Points within ``distance`` of the box at ``pose``'s surface."""
+    return np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3])) < distance
 
 
 def _held(

@@ -315,6 +315,8 @@ def pick(
     write_pick_record(job, record, execution.why or ("turned in place only" if look_again else ""))
     if execution.ran is not Ran.FAILED:
         carried_away(job, candidate)
+        if candidate.toppled:
+            state.toppled_picked += 1
     if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
         return Attempt(Outcome.NOT_PLACED, execution.why)
     if execution.ran is Ran.FAILED:  # blocked or missed: unless it moved, it would recur
@@ -355,6 +357,7 @@ def carried_away(job: Job, candidate: Candidate) -> None:
 
     state.fallen = {k: pose for k, pose in state.fallen.items() if not there(pose)}
     state.toppled = [pose for pose in state.toppled if not there(pose)]
+    state.unfitted = [pose for pose in state.unfitted if not there(pose)]
 
 
 def keep_if_standing(job: Job, index: int, run_index: int, why: str, spot: np.ndarray) -> Attempt:

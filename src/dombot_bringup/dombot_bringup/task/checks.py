@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from dombot_bringup.task.cell import Pose, Seen
-from dombot_bringup.task.geometry import near, spot_of
-from dombot_bringup.task.state import Job, log
+from dombot_bringup.task.geometry import SAME_SPOT, near, spot_of
+from dombot_bringup.task.state import DISTURBED_RADIUS, Job, log
 
 
 def settle(job: Job, seconds: float = 0.0) -> float:
@@ -82,6 +84,7 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
             state.standing[i] = where  # for the planner to keep clear of
         else:
             state.standing.pop(i, None)
+            state.disturbed.append(spot_of(job.targets[i]))  # it fell there, or went
             if remember_fallen(job, i, status, measured, tilt):
                 log(f"domino {i + 1} fell where perception cannot fit it; left where it lies")
             if i != index:
@@ -103,6 +106,51 @@ def remember_fallen(job: Job, index: int, status: Seen, measured: Pose, tilt: fl
         job.state.fallen.pop(index, None)
         return True
     return False
+
+
+def look_again(job: Job) -> None:
+    """The toppled and unfitted dominoes within DISTURBED_RADIUS of where something moved
+    since they were seen (``BuildState.disturbed``) looked at again where they were seen
+    (perception refits a lying expected pose; the standing run asked too, to keep its
+    points): one found there lies where perception measured it now, one seen down but not
+    fitted is unfitted (an obstacle, not picked), one gone (MISSING) is forgotten. A
+    toppled pose gone stale (up to 44 mm off after the build's falls, arc cycle 3) made
+    picks close on nothing."""
+    state = job.state
+    disturbed, state.disturbed = state.disturbed, []
+    again = [
+        pose
+        for pose in [*state.toppled, *state.unfitted]
+        if any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in disturbed)
+    ]
+    if not again:
+        return
+    standing = list(state.standing.values())
+    fresh = settle(job) if job.still_since is None else job.still_since
+    answer = job.cell.check_placement([*standing, *again], not_before=fresh)
+    if not answer.success:
+        log(f"looking again at {len(again)} toppled dominoes failed: {answer.message}")
+        return
+    first = len(standing)
+    seen = zip(answer.status[first:], answer.measured[first:], answer.tilt[first:], strict=True)
+    toppled, unfitted = list(state.toppled), list(state.unfitted)
+    for pose, (status, measured, tilt) in zip(again, seen, strict=True):
+        if status in (Seen.STANDING, Seen.NOT_SEEN):
+            continue  # no word on it: as it was
+        toppled = [p for p in toppled if p is not pose]
+        unfitted = [p for p in unfitted if p is not pose]
+        where = f"toppled domino at {spot_of(pose).round(3).tolist()}"
+        if status == Seen.MISSING:
+            log(f"{where}: no longer there; forgotten")
+        elif tilt <= job.settings.place_tilt_tolerance:  # down, no box fits it (tilt 0)
+            log(f"{where}: something lies there that perception cannot fit; not picked")
+            unfitted.append(pose)
+        else:
+            moved = float(np.linalg.norm(spot_of(measured) - spot_of(pose)))
+            if moved >= SAME_SPOT:
+                log(f"{where} moved {moved * 1e3:.0f} mm since it was seen")
+            toppled.append(measured)
+    state.toppled, state.unfitted = toppled, unfitted
 
 
 def check_words(status: Seen, error: float, tilt: float) -> str:

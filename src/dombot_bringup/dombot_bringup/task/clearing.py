@@ -24,19 +24,19 @@ SPREAD_TRIES = 2  # pushes of one pile domino offered to the planner (the shorte
 
 def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
     """Push aside a fallen or toppled domino within a domino length of slot ``index``
-    that no grasp reached (refused, or its pick failed), or one of two or more in its way
-    (``picking.in_its_way``): those no grasp reached first, nearest the slot first, out of
-    the slot's way; True once one was pushed (or the push failed after the arm moved)."""
+    that no grasp reached (refused, or its pick failed; an unfitted one, never offered),
+    or one of two or more in its way (``picking.in_its_way``): those no grasp reached
+    first, nearest the slot first, out of the slot's way; True once one was pushed (or the
+    push failed after the arm moved)."""
     state, settings = job.state, job.settings
     place, avoid = spot_of(job.releases[index]), failed + state.unpickable
     way = in_its_way(job, index)
     known = state.lying()  # a domino remembered twice is swept once
-    lying = [
-        (k, pose)
-        for k, pose in [*state.fallen.items(), *((None, pose) for pose in state.toppled)]
-        if is_among(pose, known)
+    earlier = [(None, pose) for pose in [*state.toppled, *state.unfitted]]
+    lying = [(k, pose) for k, pose in [*state.fallen.items(), *earlier] if is_among(pose, known)]
+    refused = [
+        near_any(spot_of(pose), avoid) or is_among(pose, state.unfitted) for _, pose in lying
     ]
-    refused = [near_any(spot_of(pose), avoid) for _, pose in lying]
     debris = sorted(
         (not refused[n], float(np.linalg.norm(spot_of(pose) - place)), n)
         for n, (_, pose) in enumerate(lying)
@@ -57,9 +57,10 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
             job.report.dominoes[index].sweeps.append(swept)
             log(f"{job.domino(index)}: {swept}")
             if k is None:  # not a slot perception checks: taken to lie where it was pushed
-                moved = pose.copy()
+                moved = pose.copy()  # (until looked at again, ``checks.look_again``)
                 moved[:2, 3] += distance * np.asarray(direction)[:2]
                 state.toppled = [moved if p is pose else p for p in state.toppled]
+                state.unfitted = [moved if p is pose else p for p in state.unfitted]
             else:
                 state.fallen.pop(k)
                 check(job, k, just_placed=False)  # still there (fallen again) or gone

@@ -7,7 +7,10 @@ The pile is poured once. After each strike perception says where the run's domin
 (one measured twice, once): offered for each slot before the pile's, one in the slot's
 way first (it is cleared by becoming its domino; nothing else is placed there while one
 lies in its way, ``attempts.clear_the_way``), then the nearest the slot, and obstacles
-for every carry and placement until picked up. A cycle that failed (a strike refused,
+for every carry and placement until picked up; looked at again where something moved
+near them (``checks.look_again``). Those seen down but not fitted are taken to lie
+tipped over their slot's front edge (``BuildState.unfitted``): obstacles, swept out of a
+slot's way, never picked. A cycle that failed (a strike refused,
 or dominoes left standing) ends the cycles: what stands where the next layout goes is
 nothing the next cycle knows.
 """
@@ -19,10 +22,11 @@ from collections.abc import Callable, Mapping, Sequence
 from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.run_report import CycleOutcome, RunReport
 from dombot_bringup.sections import EXIT_FAILED, VERDICTS
-from dombot_bringup.task.cell import Cell
+from dombot_bringup.task.cell import Cell, Pose
 from dombot_bringup.task.loop import run
+from dombot_bringup.task.picking import is_among
 from dombot_bringup.task.settings import ArmJobSettings
-from dombot_bringup.task.state import Job, log
+from dombot_bringup.task.state import BuildState, Job, log
 
 Layout = tuple[str, Sequence[DominoPlacement]]  # a layout's name and its dominoes
 
@@ -43,16 +47,19 @@ def run_cycles(
     for number, (name, layout) in enumerate(layouts, 1):
         job = Job.new(cell, layout, name, settings)
         if jobs:
-            job.state.toppled = jobs[-1].state.lying()
+            job.state.toppled, job.state.unfitted = left_lying(jobs[-1].state)
+            unfitted = len(job.state.unfitted)
             log(
                 f"cycle {number}/{len(layouts)}: building '{name}' ({len(layout)} dominoes) "
                 f"from {len(job.state.toppled)} toppled dominoes seen lying and the pile"
+                + (f", {unfitted} more seen down but not fitted" if unfitted else "")
             )
-        found = len(job.state.toppled)
+        found = len(job.state.toppled) + len(job.state.unfitted)
         job.report.cycles = list(outcomes)  # the report of a cycle cut short has the others
         started(job)
         report = run(job, pour=not jobs)
-        outcomes.append(cycle_outcome(number, report, found, len(job.state.toppled), memory()))
+        picked = job.state.toppled_picked
+        outcomes.append(cycle_outcome(number, report, found, picked, memory()))
         report.cycles = list(outcomes)
         jobs.append(job)
         if len(layouts) > 1:
@@ -63,11 +70,19 @@ def run_cycles(
     return jobs
 
 
+def left_lying(state: BuildState) -> tuple[list[Pose], list[Pose]]:
+    """What a cycle leaves lying for the next: the dominoes located (to pick up) and
+    those seen down but not fitted (obstacles where they presumably lie), each once."""
+    lying = state.lying()
+    unfitted = [pose for pose in lying if is_among(pose, state.unfitted)]
+    return [pose for pose in lying if not is_among(pose, unfitted)], unfitted
+
+
 def cycle_outcome(
-    number: int, report: RunReport, found: int, left: int, rss: Mapping[str, float]
+    number: int, report: RunReport, found: int, picked: int, rss: Mapping[str, float]
 ) -> CycleOutcome:
-    """What cycle ``number`` did: ``found`` toppled dominoes at its start, ``left`` of them
-    never picked up."""
+    """What cycle ``number`` did: ``found`` toppled dominoes at its start (unfitted ones
+    too), ``picked`` of them picked up."""
     summary = report.summary()
     return CycleOutcome(
         cycle=number,
@@ -76,7 +91,7 @@ def cycle_outcome(
         placed=summary["placed"],
         placed_first_attempt=summary["placed_first_attempt"],
         toppled_found=found,
-        toppled_picked=found - left,
+        toppled_picked=picked,
         empty_slots=summary["empty_slots"],
         toppled_by_perception=sum(s.toppled_by_perception for s in report.sections),
         toppled_by_truth=report.toppled_by_truth,

@@ -22,7 +22,7 @@ from dombot_bringup.task.cell import (
     Pose,
     Posture,
 )
-from dombot_bringup.task.checks import settle
+from dombot_bringup.task.checks import look_again, settle
 from dombot_bringup.task.geometry import (
     in_the_way,
     near,
@@ -120,12 +120,14 @@ def candidates(
     job: Job, failed: list[np.ndarray], index: int
 ) -> tuple[list[Candidate], list[Candidate]]:
     """What to offer: fallen run dominoes first (they block the run), then those an
-    earlier cycle toppled (``toppled_candidates``), then the pile's detections in
+    earlier cycle toppled (``toppled_candidates``; looked at again first where
+    something moved near them, ``checks.look_again``), then the pile's detections in
     perception's order (best grasp first); none where an attempt failed or no grasp
     reaches. And the pile dominoes no grasp takes as they lie, for
     ``clearing.lay_flat``: on their edge first (no grasp of the family holds them),
     then those refused even ignoring their pile (or whose pick failed), and leaning ones
     refused for this slot (a hold leaning with the domino may have no place pose)."""
+    look_again(job)  # toppled dominoes near what moved since they were seen
     unpickable = job.state.unpickable
     avoid = failed + unpickable
     fallen, lying, way = job.state.fallen, job.state.lying(), in_its_way(job, index)

@@ -171,6 +171,10 @@ class ArmJobSettings:
     # placement beside a toppled domino knocked three standing ones down (arc, cycle 3).
     clear_margin: float = 0.008  # m
     clear_pads: float = 0.013  # m
+    # A struck domino perception sees down but cannot fit is taken to lie tipped this far
+    # over the front edge of its foot (``tipped_pose``; flat: the farthest it reaches
+    # ahead): an obstacle and in the way of the slots it covers, swept, never picked.
+    unfitted_lean: float = math.pi / 2  # rad from vertical
     real_time_factor: float = 1.0
     camera_rate: float = 2.0
     meshcat: bool = False  # show the cell in Meshcat; keep it up at the end until Enter

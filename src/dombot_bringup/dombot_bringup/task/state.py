@@ -33,6 +33,13 @@ class BuildState:
     # dominoes an earlier cycle knocked down (``task.cycles``), where perception saw them
     # lie: picked for this run's slots before the pile's, obstacles until then
     toppled: list[Pose] = field(default_factory=list)
+    # struck dominoes perception saw down but could not fit, where they presumably lie
+    # (``strike``; settings.unfitted_lean): obstacles, swept out of a slot's way, not picked
+    unfitted: list[Pose] = field(default_factory=list)
+    # (x, y) where something moved (a pick, a push, a fall) since the toppled dominoes
+    # were last seen: those near it are looked at again before one is picked
+    disturbed: list[np.ndarray] = field(default_factory=list)
+    toppled_picked: int = 0  # toppled dominoes picked up (the report's count)
     # (x, y) of dominoes no grasp reaches or whose pick failed: not offered again
     unpickable: list[np.ndarray] = field(default_factory=list)
     stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
@@ -45,12 +52,14 @@ class BuildState:
     reasons: list[tuple[np.ndarray, str]] = field(default_factory=list)
 
     def lying(self) -> list[Pose]:
-        """Every domino known to lie in the build area: the run's fallen, the toppled; one
-        remembered twice (within SAME_SPOT) once."""
-        return distinct([*self.fallen.values(), *self.toppled])
+        """Every domino known to lie in the build area: the run's fallen, the toppled, the
+        unfitted; one remembered twice (within SAME_SPOT) once."""
+        return distinct([*self.fallen.values(), *self.toppled, *self.unfitted])
 
     def forget_refusals_near(self, spot: np.ndarray) -> None:
-        """A pick or push at ``spot`` moved the dominoes around it: offer them again."""
+        """A pick or push at ``spot`` moved the dominoes around it: offer them again, and
+        look at the toppled ones there again before picking one."""
+        self.disturbed.append(spot)
         self.unpickable = [u for u in self.unpickable if not near(u, spot, DISTURBED_RADIUS)]
         self.crowded = [u for u in self.crowded if not near(u, spot, DISTURBED_RADIUS)]
         self.cored = [u for u in self.cored if not near(u, spot, DISTURBED_RADIUS)]

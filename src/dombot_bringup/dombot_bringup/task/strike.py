@@ -13,6 +13,7 @@ from dombot_bringup.task.checks import remember_fallen, settle
 from dombot_bringup.task.placing import execute
 from dombot_bringup.task.records import take_picture
 from dombot_bringup.task.state import Job, log
+from dombot_description import tipped_pose
 
 
 def strike(job: Job, standing: Sequence[int]) -> None:
@@ -51,10 +52,13 @@ def strike(job: Job, standing: Sequence[int]) -> None:
             status, tilt = answer.status[position], answer.tilt[position]
             if remember_fallen(job, i, status, answer.measured[position], tilt):
                 unfitted.append(str(i + 1))
+                lean = job.settings.unfitted_lean
+                job.state.unfitted.append(tipped_pose(job.targets[i], lean))
     if unfitted:
         log(
             f"{len(unfitted)} toppled dominoes lie where perception cannot fit them "
-            f"({', '.join(unfitted)}): left where they lie"
+            f"({', '.join(unfitted)}): taken to lie tipped over their slots' front edge, "
+            "obstacles to sweep out of a slot's way"
         )
 
 
