@@ -50,10 +50,11 @@ def gap_slots(job: Job) -> list[int]:
     or dropped as the planner can fill its last slot (``decide``). Asks for the first
     look at the pile, which the first turn then uses."""
     gaps = safety_gaps(job.layout, job.settings.section)
-    dominoes = flat_pile_dominoes(job) if gaps and job.settings.gap_probe_dominoes else []
+    asked = job.settings.gap_probe_dominoes
+    dominoes = flat_pile_dominoes(job)[:asked] if gaps and asked else []
     if gaps and dominoes:
         gaps = decide(job, gaps, dominoes)
-    elif gaps and job.settings.gap_probe_dominoes:
+    elif gaps and asked:
         log("safety gaps: no flat pile domino seen to ask the planner with; kept as laid out")
     return [i for gap in gaps for i in gap]
 
@@ -82,12 +83,12 @@ def decide(job: Job, gaps: list[range], dominoes: list[Candidate]) -> list[range
         later = {i for other in gaps[number + 1 :] for i in other}
         low = decided[-1].stop + 1 if decided else 1
         high = gaps[number + 1].start if number + 1 < len(gaps) else len(job.layout)
-        asked = probe(job, gap, later, dominoes)
+        asked = probe(job, gap[-1], others_standing(job, gap, later), dominoes)
         plans, now = asked.plans, gap
         if asked.fill is Fill.REFUSED:
             now = None
             for other in moves(job, gap, low, high):
-                tried = probe(job, other, later, dominoes)
+                tried = probe(job, other[-1], others_standing(job, other, later), dominoes)
                 plans += tried.plans
                 if tried.fill is Fill.PLANS:
                     now = other
@@ -115,16 +116,21 @@ def moves(job: Job, gap: range, low: int, high: int) -> list[range]:
     return others
 
 
-def probe(job: Job, gap: range, later: Collection[int], dominoes: list[Candidate]) -> Probe:
-    """Whether the planner places a flat pile domino at ``gap``'s last slot with every
-    other slot standing but those of ``later`` gaps (as the build leaves the run then),
-    ignoring the domino's pile (only the place is in question); the next domino when its
-    grasp is refused."""
-    slot = gap[-1]
-    standing = tuple(job.targets[i] for i in range(len(job.layout)) if i != slot and i not in later)
+def others_standing(job: Job, gap: range, later: Collection[int]) -> list[int]:
+    """The slots standing when ``gap``'s last slot comes: every other but those of
+    ``later`` gaps."""
+    return [i for i in range(len(job.layout)) if i != gap[-1] and i not in later]
+
+
+def probe(job: Job, slot: int, standing: Collection[int], dominoes: list[Candidate]) -> Probe:
+    """Whether the planner places a flat pile domino (the first of ``dominoes``) at
+    ``slot`` with the slots ``standing`` standing (as the build leaves the run then),
+    ignoring the domino's pile and any debris (only the place is in question); the next
+    domino when its grasp is refused."""
+    targets = tuple(job.targets[i] for i in sorted(standing))
     plans, why = 0, ""
-    for candidate in dominoes[: job.settings.gap_probe_dominoes]:
-        request = replace(place_request(job, slot, candidate, PILE_IGNORED), standing=standing)
+    for candidate in dominoes:
+        request = replace(place_request(job, slot, candidate, PILE_IGNORED), standing=targets)
         try:
             plan = job.cell.plan_place(request)
         except CellError as error:
@@ -133,7 +139,7 @@ def probe(job: Job, gap: range, later: Collection[int], dominoes: list[Candidate
         if plan.success:
             return Probe(Fill.PLANS, "", plans)
         why = plan.message.split(" (")[0]
-        log(f"safety gap: {job.domino(slot)} between its neighbours refused: {why}")
+        log(f"{job.domino(slot)} between its neighbours refused: {why}")
         if plan.error in PLACE_REFUSALS:
             return Probe(Fill.REFUSED, why, plans)
         if plan.error != ErrorCode.GRASP_UNREACHABLE:

@@ -21,6 +21,7 @@ from dombot_bringup.sections import empty_message, empty_reason
 from dombot_bringup.task.attempts import Attempt, Outcome, attempt
 from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.clearing import sweep_debris
+from dombot_bringup.task.enclosure import enclosed
 from dombot_bringup.task.gaps import gap_slots
 from dombot_bringup.task.picking import Refusal
 from dombot_bringup.task.records import add_spent, record_truth, take_picture
@@ -63,8 +64,10 @@ def run(
 def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
     """Give slots turns, safety gaps (``settings.section``, where the planner can fill
     them: ``gaps.gap_slots``) last, until every slot stands or was given up (FAILED:
-    recorded in ``report.empty_slots``, not queued again); how each slot's last turn
-    ended."""
+    recorded in ``report.empty_slots``, not queued again); a slot put off goes back
+    behind another, unless its next turn would then come between two standing neighbours
+    and the planner refuses it there: that turn, its last, comes before the second
+    (``enclosure.enclosed``). How each slot's last turn ended."""
     gaps = gap_slots(job)
     queue = [i for i in range(len(job.layout)) if i not in gaps] + gaps
     if gaps:
@@ -72,8 +75,12 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
         log(f"safety gaps at dominoes {numbers}: built once the rest stands")
     standing, ended = job.state.standing, {}
     deferred: set[int] = set()  # slots put off since the last placement
+    # slots put off whose next turn is their last: refused between their neighbours
+    # (``enclosure``), why
+    last_turns: dict[int, str] = {}
     while queue:
         index = queue.pop(0)
+        enclosure = last_turns.pop(index, "")
         if index in standing:
             continue  # kept standing where it was (see attempts.keep_if_standing)
         # Only slots still to build count: a standing one left behind in the queue kept two
@@ -81,20 +88,27 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
         settled = deferred | set(standing)  # no turn to wait for
         if_placed = {*standing, index}
         job.upcoming = next((i for i in requeue(job, queue, if_placed) if i not in if_placed), None)
-        ended[index] = turn(job, index, any(i not in settled for i in queue))
+        ended[index] = turn(job, index, not enclosure and any(i not in settled for i in queue))
         if ended[index] is Turn.DEFERRED:
             deferred.add(index)
             # before the safety gaps (filled last), but after at least one other slot that
             # was not put off (its turn may free this one): behind only gaps it came
             # straight back (S-curve 4); behind a slot put off too, the two took turns for
-            # ever while a gap behind them never had one (S-curve 3)
+            # ever while a gap behind them never had one (S-curve 3). Unless that would
+            # leave it between two standing neighbours where nothing plans: its last turn
+            # then comes before the second is built (it cannot be put off again).
             first_open = next((k for k, i in enumerate(queue) if i not in settled), len(queue) - 1)
             first_gap = next((k for k, i in enumerate(queue) if i in gaps), len(queue))
-            queue.insert(max(first_gap, first_open + 1), index)
+            at = max(first_gap, first_open + 1)
+            if enclosed_there := enclosed(job, index, queue[:at]):
+                at, last_turns[index] = enclosed_there.before, enclosed_there.why
+            queue.insert(at, index)
             continue
         if ended[index] is Turn.FAILED:  # given up: left empty, the run is built around it
             outcome = job.report.dominoes[index]
             reason = empty_reason(outcome.failures, outcome.deferrals, outcome.refusals)
+            if enclosure:
+                reason += f"; not put off again: refused between its neighbours ({enclosure})"
             job.report.empty_slots.append(EmptySlot(index + 1, reason))
             log(empty_message(index, reason))
         else:

@@ -90,6 +90,12 @@ class ArmJobSettings:
     # with one neighbour) and left all four empty.
     gap_probe_dominoes: int = 3
     gap_moves: int = 1
+    # A slot put off whose next turn would come between two standing neighbours: the
+    # planner is asked the same with at most this many flat dominoes (``task.enclosure``);
+    # refused, the slot's last turn comes before its second neighbour is built (0: not
+    # asked, put off as any other: s_curve30's first 10 at 22 mm put slot 3 off, built the
+    # 4th, then spent a turn behind each later slot on a place refused between the two).
+    enclosure_probe_dominoes: int = 3
     plan_budget: float = 5.0  # s of planning per request
     # s simulated from letting go to checking a placement: in the simulator's truth
     # released dominoes were at rest (asleep) 0.01-0.17 s after the fingers let go (4 of
