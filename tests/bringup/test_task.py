@@ -533,6 +533,27 @@ def test_flat_dominoes_are_offered_before_leaning_ones() -> None:
     assert [offer[0] for offer in offered(cell)] == [0.55, 0.50] * 3
 
 
+def test_a_pick_whose_pads_meet_the_pile_at_every_grasp_is_refused_without_asking() -> None:
+    """Three dominoes side by side 4 mm apart: every grasp's pads reach beyond pile_nudge
+    into a neighbour (the planner's own test, before any IK), so none of them is asked
+    for with its pile's boxes; the report counts those refusals apart. Without
+    foresee_refusals the planner is asked first for the one perception ranked first."""
+    gap = DOMINO_SIZE[1] + 0.004
+    pile = [flat(0.60), flat(0.60, -0.3 - gap), flat(0.60, -0.3 + gap), flat(0.75)]
+    for foresee in (True, False):
+        cell = ScriptedCell(pile=list(pile))
+        run_job = job(cell, foresee_refusals=foresee)
+        attempt(run_job, 0, [], ignore_pile=True)
+        with_boxes = [r for r in cell.place_requests if r.pile and not r.pads_into_pile]
+        refusals = run_job.report.dominoes[0].refusals
+        if foresee:
+            assert [x_of(r.domino) for r in with_boxes] == [0.75]
+            assert refusals["GRASP_UNREACHABLE (foreseen)"] >= 3
+        else:
+            assert [x_of(r.domino) for r in with_boxes] == [0.60, 0.60, 0.60, 0.75]
+            assert "GRASP_UNREACHABLE (foreseen)" not in refusals
+
+
 def test_after_the_strike_each_slot_reports_its_own_domino_not_the_nearest() -> None:
     """The first domino falls ~25 mm forward, next to the second slot's target: the
     second slot is reported with the second domino, where it fell (a new user's run drew

@@ -218,6 +218,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "planner plans it while the arm retreats and perception checks)",
     )
     cell.add_argument(
+        "--no-foresee-refusals",
+        dest="foresee_refusals",
+        action="store_false",
+        help="ask the planner for every offered pick (default: a pick whose every grasp "
+        "the planner refuses before any IK, its pads in the pile, is taken as refused "
+        "without asking)",
+    )
+    cell.add_argument(
         "--visual",
         action="store_true",
         help="show the cell in Meshcat (URL in the log); on a terminal the page stays up "
@@ -347,6 +355,7 @@ def run_arm(args: argparse.Namespace) -> int:
         real_time_factor=args.real_time_factor,
         plan_budget=args.plan_budget,
         plan_ahead=args.plan_ahead,
+        foresee_refusals=args.foresee_refusals,
         meshcat=args.visual,
         record=args.record,
         record_image_rate=args.record_image_rate,

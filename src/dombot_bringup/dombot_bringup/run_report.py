@@ -44,7 +44,8 @@ class DominoOutcome:
     attempts: int = 0
     failures: list[str] = field(default_factory=list)
     deferrals: list[str] = field(default_factory=list)  # turns put off: nothing planned
-    refusals: dict[str, int] = field(default_factory=dict)  # the planner's, by error code
+    # the planner's, by error code; those told without asking it: "CODE (foreseen)"
+    refusals: dict[str, int] = field(default_factory=dict)
     check: str = ""  # perception's verdict after placing
     measured_error_mm: float | None = None
     measured_tilt_deg: float | None = None

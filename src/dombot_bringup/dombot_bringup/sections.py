@@ -98,12 +98,14 @@ def strike_order(sections: Sequence[Section], layout: Sequence[DominoPlacement])
     return order
 
 
-def count_refusal(refusals: dict[str, int], code: int) -> None:
-    """Count a /plan_place refusal under its error code's name."""
+def count_refusal(refusals: dict[str, int], code: int, foreseen: bool = False) -> None:
+    """Count a /plan_place refusal under its error code's name (``foreseen``: told without
+    asking the planner, under the name and " (foreseen)")."""
     try:
         name = ErrorCode(code).name
     except ValueError:  # a newer planner's
         name = str(code)
+    name += " (foreseen)" if foreseen else ""
     refusals[name] = refusals.get(name, 0) + 1
 
 

@@ -34,6 +34,7 @@ from dombot_bringup.task.cell import (
     Segment,
     StrikeRequest,
     Trajectory,
+    planner_request,
 )
 from dombot_perception.frames import CameraView
 from dombot_perception.pipeline import PerceptionPipeline
@@ -42,8 +43,8 @@ from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
 from dombot_planner.motion import Plan as PlannerPlan
 from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
-from dombot_planner.request import PickPlaceRequest, arm_positions, finger_opening
 from dombot_planner.request import StrikeRequest as PlannerStrikeRequest
+from dombot_planner.request import arm_positions, finger_opening
 from dombot_planner.strike import StrikePlanner
 from dombot_sim.goal_monitor import (
     DEFAULT_GOAL_TOLERANCE,
@@ -193,20 +194,7 @@ class SimCell:
 
     def plan_place(self, request: PlaceRequest) -> Plan:
         def planned() -> PickPlacePlan:
-            return self.planner.plan(
-                PickPlaceRequest(
-                    domino_pose=RigidTransform(request.domino),
-                    place_pose=RigidTransform(request.place),
-                    start=self._start(request.start)[0],
-                    grasp_pose=None if request.grasp is None else RigidTransform(request.grasp),
-                    standing=tuple(RigidTransform(p) for p in request.standing),
-                    pile=tuple(RigidTransform(p) for p in request.pile),
-                    pile_points=request.pile_points.reshape(-1, 3),
-                    pads_into_pile=request.pads_into_pile,
-                    time_budget=request.time_budget,
-                    holding=request.holding,
-                )
-            )
+            return self.planner.plan(planner_request(request, self._start(request.start)[0]))
 
         return self._plan("place", planned)
 

@@ -92,6 +92,23 @@ class OrientedBox:
         rotation = self.pose.rotation().matrix()
         return np.concatenate(faces) @ rotation.T + self.pose.translation()
 
+    def overlaps(self, other: OrientedBox, tolerance: float = 0.0) -> bool:
+        """Separating-axis test of two boxes; overlaps shallower than ``tolerance`` (along
+        the separating axes) pass."""
+        axes_a, axes_b = self.pose.rotation().matrix(), other.pose.rotation().matrix()
+        offset = other.pose.translation() - self.pose.translation()
+        half_a, half_b = self.size / 2.0, other.size / 2.0
+        candidates = [*axes_a.T, *axes_b.T] + [np.cross(u, v) for u in axes_a.T for v in axes_b.T]
+        for axis in candidates:
+            norm = np.linalg.norm(axis)
+            if norm < 1e-9:
+                continue
+            axis = axis / norm
+            reach = half_a @ np.abs(axes_a.T @ axis) + half_b @ np.abs(axes_b.T @ axis)
+            if abs(offset @ axis) >= reach - tolerance:
+                return False
+        return True
+
     def swept(self, translation: np.ndarray) -> OrientedBox:
         """The box of the same orientation covering this one moved along ``translation``
         (world): exactly the swept volume when the move is along one of its axes."""

@@ -43,7 +43,6 @@ from dombot_description.grasp import (
     canonical_grasp,
     comes_from_above,
     domino_in_tcp,
-    nearest_distance,
     pick_grasps,
     place_grasps,
     pregrasp_opening,
@@ -64,6 +63,7 @@ from dombot_planner.motion import (
     Segment,
     reasons,
 )
+from dombot_planner.pads import pads_in_pile, pads_path_meets_points
 from dombot_planner.request import GRASP_REACH, PickPlaceRequest, check_request, invalid, near_pick
 from dombot_planner.scene import (
     ARM,
@@ -77,6 +77,7 @@ from dombot_planner.scene import (
     ClearanceRules,
     Scene,
 )
+from dombot_planner.settings import PlannerSettings
 from dombot_planner.timing import TimedPath
 
 FREE_SIDE_RADIUS = 0.1  # m: standing dominoes this close decide the free side
@@ -84,6 +85,9 @@ OWN_POINTS = 0.003  # m: pile points this close to the picked domino's box are i
 # Where the pads and the held domino are depends only on the TCP pose: when one of these
 # pairs is too close at an IK solution, it is at every other one.
 TCP_FIXED_PAIRS = tuple(f"{moving}–{other}" for moving in (PADS, HELD) for other in OBSTACLES)
+# why a grasp failed before any IK (the pads' place and path depend on the TCP pose alone)
+PATH_MEETS_POINTS = "pads' path meets pile points"
+PADS_IN_PILE = "pads beyond pile_nudge into a pile domino"
 
 
 @dataclass(kw_only=True)
@@ -166,6 +170,119 @@ def flatter_grasps(domino_pose: RigidTransform, turn: float, shift: float) -> li
             domino_pose, tcp_in_domino=canonical_grasp(part * turn, part * shift)
         )
     ]
+
+
+def ranked_grasps(
+    request: PickPlaceRequest, settings: PlannerSettings
+) -> tuple[list[RigidTransform], tuple[list[RigidTransform], list[RigidTransform]]]:
+    """The request's grasp and its finger-swapped twin (the same gripper placement),
+    then dombot_description.grasp's ranked grasps; only those coming from above.
+
+    A request's grasp (e.g. perception's, which cleared its point cloud, undetected
+    dominoes included) is preferred, not required: the pile the planner knows is only
+    what perception detected. Also returned, for when none of them can be used
+    (``RequestPlanning._grasps``): the steeper grasps, turned towards a vertical approach,
+    and the flatter ones, whose holds stand more upright at place.
+    """
+    domino, given = request.domino_pose, request.grasp_pose
+    first = [] if given is None else [given, given @ FINGER_SWAP]
+
+    def others(poses: list[RigidTransform]) -> list[RigidTransform]:
+        return [
+            g
+            for g in poses
+            if comes_from_above(g) and not any(g.IsNearlyEqualTo(f, 1e-6) for f in first)
+        ]
+
+    canonical = others([g.pose for g in pick_grasps(domino)])
+    steeper = others(steeper_grasps(domino, settings.steeper_grasp_turn))
+    flatter = others(
+        flatter_grasps(domino, settings.flatter_grasp_turn, settings.flatter_grasp_shift)
+    )
+    return [g for g in first if comes_from_above(g)] + canonical, (steeper, flatter)
+
+
+def finger_openings(request: PickPlaceRequest) -> dict[str, float]:
+    """The finger openings of ``request``'s pick: approaching, closed on it, letting go."""
+    closed = request.grasp_width or DOMINO_SIZE[1]
+    return {
+        "pregrasp": pregrasp_opening(closed),
+        "closed": closed,
+        "release": release_opening(closed),
+    }
+
+
+def pile_points(request: PickPlaceRequest) -> np.ndarray:
+    """``request``'s pile points but those within OWN_POINTS of the domino to pick."""
+    target = OrientedBox(request.domino_pose, np.asarray(DOMINO_SIZE))
+    points = request.pile_points
+    return points[target.signed_distance(points) > OWN_POINTS]
+
+
+def regrasp_requests(request: PickPlaceRequest) -> tuple[PickPlaceRequest, PickPlaceRequest]:
+    """The regrasp's two picks: the domino turned a quarter turn in place, then picked
+    from there (the planner's grasps; its start: where the first ends)."""
+    domino = request.domino_pose
+    turned = RigidTransform(
+        RotationMatrix.MakeZRotation(math.pi / 2) @ domino.rotation(), domino.translation()
+    )
+    return replace(request, place_pose=turned), replace(
+        request, domino_pose=turned, grasp_pose=None
+    )
+
+
+def regrasp_grasp(domino: RigidTransform) -> RigidTransform:
+    """The TCP pose that turns ``domino`` in place: the top grasp."""
+    return pick_grasps(domino, tcp_in_domino=top_grasp())[0].pose
+
+
+def foreseen_refusal(request: PickPlaceRequest, settings: PlannerSettings) -> str:
+    """Why the planner will refuse ``request`` with GRASP_UNREACHABLE whatever its IK finds,
+    or "" when it may not: every grasp it would try, in every tier and in the regrasp's
+    two picks, fails before any IK (``PATH_MEETS_POINTS``, ``PADS_IN_PILE``; the tests of
+    ``RequestPlanning._ends``). A few milliseconds a grasp, no plant: the bring-up asks
+    before it sends a pick (docs/PLANNER.md, *Refusals told before planning*)."""
+    request = near_pick(request)
+    if request.holding:
+        return ""
+    grasps, (steeper, flatter) = ranked_grasps(request, settings)
+    failures = Counter()
+    if not pads_fail(request, settings, grasps + steeper + flatter, failures):
+        return ""
+    if settings.allow_regrasp:
+        turn, pick_again = regrasp_requests(request)
+        again, _ = ranked_grasps(pick_again, settings)
+        top = [regrasp_grasp(request.domino_pose)]
+        if not (pads_fail(turn, settings, top) or pads_fail(pick_again, settings, again)):
+            return ""
+    return f"every grasp's pads meet the pile before any IK ({reasons(failures)})"
+
+
+def pads_fail(
+    request: PickPlaceRequest,
+    settings: PlannerSettings,
+    grasps: list[RigidTransform],
+    failures: Counter | None = None,
+) -> bool:
+    """Whether every one of ``grasps`` of ``request`` fails the pads' tests that need no
+    IK (``failures`` counts why)."""
+    failures = Counter() if failures is None else failures
+    openings, points = finger_openings(request), pile_points(request)
+    for pose in grasps:
+        grasp = Grasp(pose, openings["closed"], openings["pregrasp"])
+        lifts = lift_directions(pose)
+        if all(
+            pads_path_meets_points(
+                grasp, settings.pick_approach_distance, lift, points, settings.pile_point_clearance
+            )
+            for lift in lifts
+        ):
+            failures[PATH_MEETS_POINTS] += 1
+        elif not request.pads_into_pile and pads_in_pile(grasp, request.pile, settings.pile_nudge):
+            failures[PADS_IN_PILE] += 1
+        else:
+            return False
+    return True
 
 
 def fallback_failed(error: PlanningError, fallback: PlanningError, how: str) -> PlanningError:
@@ -387,17 +504,11 @@ class PickPlacePlanner(ArmPlanner):
         the radius it is reachable. A quarter turn is the only distinct one (a half turn is
         a symmetry of the box).
         """
-        domino = request.domino_pose
-        turned = RigidTransform(
-            RotationMatrix.MakeZRotation(math.pi / 2) @ domino.rotation(), domino.translation()
-        )
-        top = pick_grasps(domino, tcp_in_domino=top_grasp())[0].pose
+        turn, pick_again = regrasp_requests(request)
+        top = regrasp_grasp(request.domino_pose)
         try:
-            turn = replace(request, place_pose=turned)
             first = RequestPlanning(self, turn, deadline, shared, grasps=[top]).plan()
-            pick_again = replace(
-                request, domino_pose=turned, grasp_pose=None, start=first.final_positions()
-            )
+            pick_again = replace(pick_again, start=first.final_positions())
             second = RequestPlanning(self, pick_again, deadline, shared).plan()
         except PlanningError as regrasp_error:
             raise fallback_failed(error, regrasp_error, "turning it first") from None
@@ -437,17 +548,12 @@ class RequestPlanning(RequestMotions):
         self.request, self.shared = request, shared
         self.nudge = nudge
         given = grasps is not None
-        self.grasps, self.turned = (grasps, ([], [])) if given else self._ranked_grasps()
-        closed = request.grasp_width or DOMINO_SIZE[1]
-        self.openings = {
-            "pregrasp": pregrasp_opening(closed),
-            "closed": closed,
-            "release": release_opening(closed),
-        }
+        self.grasps, self.turned = (
+            (grasps, ([], [])) if given else ranked_grasps(request, self.settings)
+        )
+        self.openings = finger_openings(request)
         self.approach = self._scene("pregrasp", target=request.domino_pose)
-        target = OrientedBox(request.domino_pose, np.asarray(DOMINO_SIZE))
-        points = request.pile_points
-        self.pile_points = points[target.signed_distance(points) > OWN_POINTS]
+        self.pile_points = pile_points(request)
         self.retreat = self._scene("release", target=request.place_pose)
         deadline.check("scene")  # building the scenes counts against the budget
         self.search = EndSearch()
@@ -455,36 +561,6 @@ class RequestPlanning(RequestMotions):
 
     def _scene(self, opening: str, **dominoes) -> Scene:
         return self.shared.scene(self.openings[opening], self.request, **dominoes)
-
-    def _ranked_grasps(
-        self,
-    ) -> tuple[list[RigidTransform], tuple[list[RigidTransform], list[RigidTransform]]]:
-        """The request's grasp and its finger-swapped twin (the same gripper placement),
-        then dombot_description.grasp's ranked grasps; only those coming from above.
-
-        A request's grasp (e.g. perception's, which cleared its point cloud, undetected
-        dominoes included) is preferred, not required: the pile the planner knows is only
-        what perception detected. Also returned, for when none of them can be used
-        (``_grasps``): the steeper grasps, turned towards a vertical approach, and the
-        flatter ones, whose holds stand more upright at place.
-        """
-        domino, given = self.request.domino_pose, self.request.grasp_pose
-        first = [] if given is None else [given, given @ FINGER_SWAP]
-
-        def others(poses: list[RigidTransform]) -> list[RigidTransform]:
-            return [
-                g
-                for g in poses
-                if comes_from_above(g) and not any(g.IsNearlyEqualTo(f, 1e-6) for f in first)
-            ]
-
-        settings = self.settings
-        canonical = others([g.pose for g in pick_grasps(domino)])
-        steeper = others(steeper_grasps(domino, settings.steeper_grasp_turn))
-        flatter = others(
-            flatter_grasps(domino, settings.flatter_grasp_turn, settings.flatter_grasp_shift)
-        )
-        return [g for g in first if comes_from_above(g)] + canonical, (steeper, flatter)
 
     def _grasps(self) -> Iterator[tuple[RigidTransform, bool]]:
         """Each grasp to try and whether it is a turned one: the ranked grasps, then (only
@@ -583,7 +659,12 @@ class RequestPlanning(RequestMotions):
             self.search.grasp_candidates += 1
             lifts = [d for d in lift_directions(grasp) if not self._pads_meet_pile_points(grasp, d)]
             if not lifts:
-                self.search.grasp_failures["pads' path meets pile points"] += 1
+                self.search.grasp_failures[PATH_MEETS_POINTS] += 1
+                continue
+            # drawn before the pads' test, as when IK told it: the same seeds for the rest
+            seeds = self.seeds([request.start], grasp.translation())
+            if self._pads_in_pile(grasp):
+                self.search.grasp_failures[PADS_IN_PILE] += 1
                 continue
             held = domino_in_tcp(grasp, request.domino_pose)
             transfer = self._scene("closed", held_in_tcp=held)
@@ -593,7 +674,7 @@ class RequestPlanning(RequestMotions):
                 lifts,
                 [self.approach, transfer],
                 self.planner.fine_rules(True, self.nudge, request.pads_into_pile),
-                self.seeds([request.start], grasp.translation()),
+                seeds,
                 self.search.grasp_failures,
             )
             if pick is None:
@@ -616,12 +697,27 @@ class RequestPlanning(RequestMotions):
         return self.shared.remember(key, lambda: self._pads_path_near_points(grasp, lift))
 
     def _pads_path_near_points(self, grasp: RigidTransform, lift: np.ndarray) -> bool:
-        openings = self.openings
-        paths = Grasp(grasp, openings["closed"], openings["pregrasp"]).pad_paths(
-            self.settings.pick_approach_distance, lift
+        settings, openings = self.settings, self.openings
+        return pads_path_meets_points(
+            Grasp(grasp, openings["closed"], openings["pregrasp"]),
+            settings.pick_approach_distance,
+            lift,
+            self.pile_points,
+            settings.pile_point_clearance,
         )
-        clearance = self.settings.pile_point_clearance
-        return nearest_distance(paths, self.pile_points, cap=clearance) < clearance
+
+    def _pads_in_pile(self, grasp: RigidTransform) -> bool:
+        """Whether a pad at ``grasp`` reaches more than pile_nudge into a pile domino
+        (``pads.pads_in_pile``): no IK solution passes the pads–pile rule of either tier
+        then. Never with ``pads_into_pile``."""
+        if self.request.pads_into_pile:
+            return False
+        openings = self.openings
+        return pads_in_pile(
+            Grasp(grasp, openings["closed"], openings["pregrasp"]),
+            self.request.pile,
+            self.settings.pile_nudge,
+        )
 
     def _place_ends(
         self, places: list[RigidTransform], transfer: Scene, seeds: list[np.ndarray]

@@ -17,7 +17,7 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_description import DOMINO_SIZE, domino_corners, tilt_from_vertical
-from dombot_description.grasp import gripper_geometry, pregrasp_opening
+from dombot_description.grasp import OrientedBox, gripper_geometry, pregrasp_opening
 from dombot_description.pusher import MAX_SWEEP_DISTANCE
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.settings import PlannerSettings
@@ -348,19 +348,8 @@ def box_corners(pose: RigidTransform) -> np.ndarray:
 
 def dominoes_overlap(a: RigidTransform, b: RigidTransform, tolerance: float) -> bool:
     """Separating-axis test of two domino boxes; overlaps shallower than ``tolerance`` pass."""
-    half = np.array(DOMINO_SIZE) / 2
-    axes_a, axes_b = a.rotation().matrix(), b.rotation().matrix()
-    offset = b.translation() - a.translation()
-    candidates = [*axes_a.T, *axes_b.T] + [np.cross(u, v) for u in axes_a.T for v in axes_b.T]
-    for axis in candidates:
-        norm = np.linalg.norm(axis)
-        if norm < 1e-9:
-            continue
-        axis = axis / norm
-        reach = half @ np.abs(axes_a.T @ axis) + half @ np.abs(axes_b.T @ axis)
-        if abs(offset @ axis) >= reach - tolerance:
-            return False
-    return True
+    size = np.array(DOMINO_SIZE)
+    return OrientedBox(a, size).overlaps(OrientedBox(b, size), tolerance)
 
 
 def check_place_is_free(

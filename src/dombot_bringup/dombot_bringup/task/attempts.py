@@ -32,6 +32,7 @@ from dombot_bringup.task.picking import (
     Refusal,
     candidates,
     first_plan,
+    foreseen,
     in_its_way,
     is_among,
     place_request,
@@ -188,7 +189,8 @@ def last_resort(job: Job, found: Sequence[Candidate]) -> list[Candidate]:
 
 def first_request(job: Job, index: int) -> PlaceRequest | None:
     """The request a new turn at slot ``index`` makes first, from the look at the pile
-    made while the arm placed (``job.pile_look``, kept for that turn); None without one."""
+    made while the arm placed (``job.pile_look``, kept for that turn): its first offer
+    whose refusal is not foreseen (``picking.foreseen``); None without one."""
     early = job.pile_look
     if early is None:
         return None
@@ -201,8 +203,8 @@ def first_request(job: Job, index: int) -> PlaceRequest | None:
         return None
     found, _ = candidates(job, [], index)
     job.pile_look = Later(lambda: seen)
-    offers = offers_with_pile(job, found)
-    return place_request(job, index, *offers[0]) if offers else None
+    requests = (place_request(job, index, *offer) for offer in offers_with_pile(job, found))
+    return next((r for r in requests if foreseen(job, r) is None), None)
 
 
 def flat_instead(

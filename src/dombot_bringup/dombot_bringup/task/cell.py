@@ -15,8 +15,10 @@ from enum import IntEnum
 from typing import Generic, Protocol, TypeVar
 
 import numpy as np
+from pydrake.math import RigidTransform
 
 from dombot_planner.errors import ErrorCode
+from dombot_planner.request import PickPlaceRequest
 
 Pose = np.ndarray  # 4x4, world frame
 T = TypeVar("T")
@@ -146,6 +148,7 @@ class Plan:
     message: str = ""
     segments: tuple[Segment, ...] = ()
     held_above_place: Pose | None = None  # the hold where "transfer" ends, as planned
+    foreseen: bool = False  # a refusal told without asking the planner (task.picking)
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,6 +167,23 @@ class PlaceRequest:
     # the arm's joints (name → rad) the plan starts from; None: where the arm stands when
     # the planner takes the request
     start: Mapping[str, float] | None = None
+
+
+def planner_request(request: PlaceRequest, start: np.ndarray) -> PickPlaceRequest:
+    """``request`` as the planner's ``PickPlaceRequest``, planned from ``start`` (the arm's
+    joint positions)."""
+    return PickPlaceRequest(
+        domino_pose=RigidTransform(request.domino),
+        place_pose=RigidTransform(request.place),
+        start=start,
+        grasp_pose=None if request.grasp is None else RigidTransform(request.grasp),
+        standing=tuple(RigidTransform(p) for p in request.standing),
+        pile=tuple(RigidTransform(p) for p in request.pile),
+        pile_points=request.pile_points.reshape(-1, 3),
+        pads_into_pile=request.pads_into_pile,
+        time_budget=request.time_budget,
+        holding=request.holding,
+    )
 
 
 @dataclass(frozen=True, eq=False)

@@ -81,6 +81,11 @@ class ArmJobSettings:
     # planner then plans on the other core while the arm retreats and perception checks the
     # placement. False: asked once the check has answered.
     plan_ahead: bool = True
+    # A pick whose every grasp the planner would refuse before any IK (the pads' path on
+    # seen points, or the pads beyond its pile_nudge in a pile domino: the planner's own
+    # tests, ``planner.foreseen_refusal``) is taken as refused without asking it
+    # (``picking.foreseen``), and not asked ahead. False: every offer is asked.
+    foresee_refusals: bool = True
     section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
     # Before the build, the planner is asked to place a flat pile domino at each safety
     # gap's last slot between its standing neighbours (``task.gaps``), with at most this

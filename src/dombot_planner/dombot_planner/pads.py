@@ -1,0 +1,56 @@
+"""Whether a grasp's pads pass the pile, told from the TCP pose alone, before any IK (no ROS).
+
+Where the pads are at a grasp, and the space they sweep down its approach line and closing
+onto the domino, depend only on the TCP pose and the line, not on the arm configuration
+that reaches it. A grasp whose pads meet the pile so fails at every IK solution: the
+planner tells it before solving any (``planner.RequestPlanning``), and the bring-up before
+it asks for a pick whose every grasp fails so (``planner.foreseen_refusal``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import Grasp, OrientedBox, nearest_distance
+
+# m: SceneGraph's penetration depth of two boxes is found to a tolerance (GJK/EPA)
+DEPTH_MARGIN = 1e-4
+
+
+def pads_in_pile(grasp: Grasp, pile: Sequence[RigidTransform], depth: float) -> bool:
+    """Whether a pad at ``grasp``, open (pre-grasp) or closed on the domino, reaches more
+    than ``depth`` (+ DEPTH_MARGIN) into a pile domino's box. Two boxes' penetration depth
+    (the shortest move that parts them, which SceneGraph's signed distance gives and the
+    planner's clearance rules judge) is their least overlap along the 15 separating-axis
+    candidates, the face normals of their Minkowski difference among them
+    (``OrientedBox.overlaps``): the test never fails a grasp that those rules pass."""
+    if not len(pile):
+        return False
+    size = np.asarray(DOMINO_SIZE, dtype=float)
+    pads = grasp.pad_boxes(grasp.pregrasp_opening) + grasp.pad_boxes()
+    domino_radius = float(np.linalg.norm(size)) / 2.0
+    for pad in pads:
+        reach = domino_radius + float(np.linalg.norm(pad.size)) / 2.0
+        centre = pad.pose.translation()
+        for pose in pile:
+            if np.linalg.norm(pose.translation() - centre) < reach and pad.overlaps(
+                OrientedBox(pose, size), depth + DEPTH_MARGIN
+            ):
+                return True
+    return False
+
+
+def pads_path_meets_points(
+    grasp: Grasp, approach_distance: float, lift: np.ndarray, points: np.ndarray, clearance: float
+) -> bool:
+    """Whether the pads' path to ``grasp`` (open, down the approach line
+    ``approach_distance`` long along ``lift``, then closing on the domino:
+    ``Grasp.pad_paths``) comes within ``clearance`` of one of ``points`` (N×3, world)."""
+    if not len(points):
+        return False
+    paths = grasp.pad_paths(approach_distance, lift)
+    return nearest_distance(paths, points, cap=clearance) < clearance

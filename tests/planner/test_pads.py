@@ -1,0 +1,96 @@
+"""Refusals told before any IK: the pads' place and path against the pile
+(dombot_planner.pads, planner.foreseen_refusal) agree with the planner's answers."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RotationMatrix
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import OrientedBox, flat_pose, pick_grasps, upright_pose
+from dombot_description.scenario import load_scenario
+from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.pads import pads_in_pile
+from dombot_planner.planner import PickPlacePlanner, foreseen_refusal
+from dombot_planner.request import PickPlaceRequest
+from dombot_planner.settings import PlannerSettings
+from support.planning_clock import UNHURRIED
+
+SCENARIO = load_scenario()
+SETTINGS = PlannerSettings(default_time_budget=UNHURRIED)
+DOMINO = flat_pose(0.60, -0.28, 0.4)
+SIZE = np.asarray(DOMINO_SIZE)
+
+
+@pytest.fixture(scope="module")
+def planner() -> PickPlacePlanner:
+    return PickPlacePlanner(SCENARIO, SETTINGS)
+
+
+def beside(gap: float) -> tuple[RigidTransform, ...]:
+    """Pile dominoes along both long faces of DOMINO, ``gap`` from them."""
+    return tuple(DOMINO @ RigidTransform([0.0, side * (SIZE[1] + gap), 0.0]) for side in (-1, 1))
+
+
+def pick(**changes) -> PickPlaceRequest:
+    return dataclasses.replace(
+        PickPlaceRequest(
+            domino_pose=DOMINO,
+            place_pose=upright_pose(0.55, 0.15, 0.3),
+            start=SCENARIO.home_position,
+        ),
+        **changes,
+    )
+
+
+def test_overlap_beyond_a_depth_is_the_penetration_depth() -> None:
+    """Two boxes 3 mm into each other along x overlap beyond 2 mm, not beyond 4 mm; turned
+    a box turned 45° about z with a corner 3 mm into its end face leaves it by 3 mm."""
+    a = OrientedBox(RigidTransform(), SIZE)
+    b = OrientedBox(RigidTransform([SIZE[0] - 0.003, 0.0, 0.0]), SIZE)
+    assert a.overlaps(b, 0.002) and not a.overlaps(b, 0.004)
+    turned = RotationMatrix.MakeZRotation(-np.pi / 4)  # its edges ±45° from x
+    corner = np.array([SIZE[0] / 2 - 0.003, 0.0, 0.0])  # c's corner 3 mm inside a's end
+    c = OrientedBox(RigidTransform(turned, corner + turned @ (SIZE * [0.5, 0.5, 0.0])), SIZE)
+    assert a.overlaps(c, 0.0029) and not a.overlaps(c, 0.0031)
+
+
+def test_pads_in_pile_at_the_canonical_grasp() -> None:
+    """Neighbours 4 mm beside the long faces take in the open pads (8 mm a side) beyond
+    pile_nudge; 14 mm beside them they do not."""
+    grasp = pick_grasps(DOMINO)[0]
+    assert pads_in_pile(grasp, beside(0.004), SETTINGS.pile_nudge)
+    assert not pads_in_pile(grasp, beside(0.014), SETTINGS.pile_nudge)
+    assert not pads_in_pile(grasp, (), SETTINGS.pile_nudge)
+
+
+@pytest.mark.parametrize(
+    ("changes", "foreseen"),
+    [
+        ({"pile": beside(0.004)}, True),  # boxed in: no pad fits, tilted or from the top
+        ({"pile": beside(0.014)}, False),  # the pads nudge them: it plans
+        ({"pile": beside(0.004), "pads_into_pile": True}, False),  # the pads may reach in
+        ({}, False),
+    ],
+)
+def test_a_foreseen_refusal_is_the_planners(planner, changes: dict, foreseen: bool) -> None:
+    """``foreseen_refusal`` says why only where the planner refuses the grasp."""
+    request = pick(**changes)
+    why = foreseen_refusal(request, SETTINGS)
+    assert bool(why) == foreseen
+    if foreseen:
+        with pytest.raises(PlanningError) as refused:
+            planner.plan(request)
+        assert refused.value.code == ErrorCode.GRASP_UNREACHABLE
+
+
+def test_the_pads_path_among_seen_points_is_foreseen() -> None:
+    """Seen points filling the space around the domino (but its own) meet every grasp's
+    pads' path, the regrasp's too."""
+    grid = np.stack(np.meshgrid(*[np.arange(-0.05, 0.0501, 0.004)] * 2, [0.002]), -1)
+    points = grid.reshape(-1, 3) + DOMINO.translation() * [1, 1, 0]
+    why = foreseen_refusal(pick(pile_points=points), SETTINGS)
+    assert "pads' path meets pile points" in why
