@@ -175,14 +175,20 @@ def bring_up(
 
 
 def commit() -> str:
-    """The workspace's commit (``-dirty`` with uncommitted changes), for the ledger."""
-    described = subprocess.run(
-        ["git", "-C", str(Path(__file__).resolve().parent), "describe", "--always", "--dirty"],
+    """The workspace's commit, ``-dirty`` with uncommitted changes outside docs/ (the
+    ledger there changes with every run and changes no run), for the ledger."""
+    repo = str(Path(__file__).resolve().parent)
+    head = subprocess.run(
+        ["git", "-C", repo, "rev-parse", "--short", "HEAD"],
         capture_output=True,
         text=True,
         check=False,
-    )
-    return described.stdout.strip() or "unknown"
+    ).stdout.strip()
+    code_changed = subprocess.run(
+        ["git", "-C", repo, "diff", "--quiet", "HEAD", "--", ":/", ":(exclude,top)docs"],
+        check=False,
+    ).returncode
+    return f"{head}-dirty" if head and code_changed else head or "unknown"
 
 
 def ledger_key(run: dict) -> tuple:
