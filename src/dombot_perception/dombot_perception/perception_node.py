@@ -408,11 +408,10 @@ class PerceptionNode(Node):
         self, request: DetectDominoes.Request, response: DetectDominoes.Response
     ) -> DetectDominoes.Response:
         names = list(request.cameras) or list(self.settings.detect_cameras)
-        unknown = [name for name in names if name not in self.inputs]
-        if unknown:
-            response.success = False
-            response.message = f"unknown cameras {unknown}; configured: {self.camera_names}"
-            self.get_logger().error(response.message)
+        problem = self._unknown_cameras(names)
+        if problem:
+            response.success, response.message = False, problem
+            self.get_logger().error(problem)
             return response
         result, message = self._detect(names, not_before_of(request))
         response.success = result is not None
@@ -429,7 +428,7 @@ class PerceptionNode(Node):
     ) -> CheckPlacement.Response:
         default = "in_hand_cameras" if request.in_hand else "placement_cameras"
         names = list(request.cameras) or list(getattr(self.settings, default))
-        problem = self._placement_request_problem(request, names)
+        problem = self._unknown_cameras(names) or expected_poses_problem(request)
         if problem:
             response.success, response.message = False, problem
             held = " (in hand)" if request.in_hand else ""
@@ -463,13 +462,9 @@ class PerceptionNode(Node):
         )
         return response
 
-    def _placement_request_problem(
-        self, request: CheckPlacement.Request, names: list[str]
-    ) -> str | None:
+    def _unknown_cameras(self, names: list[str]) -> str | None:
         unknown = [name for name in names if name not in self.inputs]
-        if unknown:
-            return f"unknown cameras {unknown}; configured: {self.camera_names}"
-        return expected_poses_problem(request)
+        return f"unknown cameras {unknown}; configured: {self.camera_names}" if unknown else None
 
     def _detect(
         self, names: list[str], not_before: float = -math.inf
