@@ -89,7 +89,7 @@ class WorldRobot:
         plus its joint PD, the fingers' forces, clamped to the limits as the plant clamps
         them. The plant's net actuation port gave the last step's (its PD is implicit, so
         they differ by the command's change over one step, ~3 N·m on joint 1 in a fast
-        swing); with live output ports (``_build``) evaluating it solves a step again."""
+        swing); with live output ports (``add_cell_plant``) evaluating it solves a step again."""
         feedforward, fingers = (port.Eval(self._plant_context) for port in self._actuation_inputs)
         desired = self._arm_source.desired_state_port.Eval(
             self._arm_source.split.GetMyContextFromRoot(self._root)
