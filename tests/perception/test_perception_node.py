@@ -21,7 +21,7 @@ from dombot_description.grasp import upright_pose
 from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.domino_model import orientation_error
-from dombot_perception.perception_node import CameraInput
+from dombot_perception.perception_messages import CameraInput
 from support.camera_messages import image_messages
 from support.perception_scenes import PILE_CENTRE, flat
 from support.ros_processes import call_service, installed_node, spin_until

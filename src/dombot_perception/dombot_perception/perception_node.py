@@ -15,7 +15,9 @@ driver) then renders nothing while nobody looks, and a streaming camera serves j
 same. Missing, stale or malformed images give an empty result and a warning; the node
 keeps serving.
 ``/perception/check_placement`` looks at where the dominoes of a run should stand
-(``placement_check``), with the build-area camera by default.
+(``placement_check``), with the build-area camera by default. The parameters and the
+pipeline they configure are in ``perception_parameters``, the conversions to and from
+messages in ``perception_messages``.
 """
 
 from __future__ import annotations
@@ -24,44 +26,57 @@ import math
 import threading
 import time
 import traceback
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import Point, PoseArray, Vector3
+from geometry_msgs.msg import Point, PoseArray
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from scipy.spatial.transform import Rotation
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
 
 from dombot_adapters.node_shutdown import spin_until_shutdown
-from dombot_adapters.parameters import DataclassParameters, described
-from dombot_adapters.pose_messages import pose_matrix, pose_message
-from dombot_description import tilt_from_vertical
+from dombot_adapters.parameters import DataclassParameters
+from dombot_adapters.pose_messages import pose_matrix
 from dombot_description.allocator import tune_allocator
 from dombot_description.scenario import ScenarioError, load_scenario
-from dombot_msgs.msg import DominoDetection, DominoDetectionArray
+from dombot_msgs.msg import DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
-from dombot_perception.debug_image import draw_detections, mask_overlay
 from dombot_perception.frames import CameraView, Detection
-from dombot_perception.pipeline import PerceptionPipeline, PipelineResult, build_pipeline
-from dombot_perception.placement_check import PlacementConfig, check_placements
+from dombot_perception.perception_messages import (
+    WORLD_FRAME,
+    CameraInput,
+    debug_image,
+    depth_array,
+    detection_array,
+    expected_poses_problem,
+    fill_placement_response,
+    not_before_of,
+    placement_config,
+    rgb_array,
+    stamp_seconds,
+)
+from dombot_perception.perception_parameters import (
+    IMAGE_QOS,
+    START_UP_PARAMETERS,
+    PerceptionParameters,
+    configured_pipeline,
+    optical_pose,
+)
+from dombot_perception.pipeline import PipelineResult, build_pipeline
+from dombot_perception.placement_check import check_placements
 from dombot_perception.repeat_filter import RepeatFilter
 from dombot_perception.segmentation import SegmenterError
 from dombot_perception.transforms import TransformBuffer
 
-DEFAULT_SEARCH_RADIUS = PlacementConfig().search_radius
-MAX_IN_HAND_TILT = math.degrees(PlacementConfig().max_tilt)  # expected poses when in_hand
-SYNC_BUFFER = 5  # messages kept per stream to find matching colour/depth stamps
 SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one stream late
 # s (wall) to wait for a camera's first frames after subscribing (discovery, first render)
 FIRST_FRAME_WAIT = 10.0
@@ -70,101 +85,12 @@ FIRST_FRAME_WAIT = 10.0
 # come (a stale frame from before a placement once made a standing domino MISSING)
 FRESH_WAIT = 10.0
 WARNING_REPEAT = 10.0  # s: a warning repeated request after request is logged once per this
-STAMP_SLACK = 1e-3  # s: stamps this much before not_before still count (rounding)
-MAX_EXPECTED = 500  # poses a placement check takes (a run in the build area has < 200)
 # s a request's not_before may lie after the newest frame; later ones are refused at once
 # (a frame that far ahead does not come within FRESH_WAIT, even from a fast simulation)
 MAX_NOT_BEFORE_AHEAD = 60.0
-DEPTH_ENCODINGS = {"32FC1": (np.float32, 1.0), "16UC1": (np.uint16, 0.001)}  # → metres
-WORLD_FRAME = "world"
 # tf2_ros's listener QoS: /tf reliable, volatile; /tf_static reliable, transient local
 TF_QOS = QoSProfile(depth=100)
 TF_STATIC_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-START_UP_PARAMETERS = ("cameras", "scenario", "extrinsics_from_tf", "image_reliability")
-IMAGE_QOS = {
-    "reliable": QoSProfile(depth=qos_profile_sensor_data.depth),
-    "best_effort": qos_profile_sensor_data,
-}
-
-
-@dataclass
-class CameraInput:
-    """The last few messages of one camera and when a colour image last arrived."""
-
-    colors: deque = field(default_factory=lambda: deque(maxlen=SYNC_BUFFER))
-    depths: deque = field(default_factory=lambda: deque(maxlen=SYNC_BUFFER))
-    info: CameraInfo | None = None
-    received: float = -math.inf
-
-    def latest_pair(
-        self, tolerance: float, not_before: float = -math.inf
-    ) -> tuple[Image, Image] | None:
-        """The newest colour and depth images whose stamps agree within ``tolerance`` s,
-        stamped at or after ``not_before``."""
-        for color in reversed(self.colors):
-            stamp = _seconds(color.header.stamp)
-            if stamp < not_before - STAMP_SLACK:
-                return None
-            for depth in reversed(self.depths):
-                if abs(_seconds(depth.header.stamp) - stamp) <= tolerance:
-                    return color, depth
-        return None
-
-
-@dataclass(frozen=True)
-class PerceptionParameters:
-    """perception_node's parameters (START_UP_PARAMETERS are read at start-up only); the
-    pipeline checks the values when it is built from them."""
-
-    scenario: str = described("", "scenario file; empty: dombot_description's default")
-    cameras: tuple[str, ...] = described(
-        ("camera_0", "camera_1", "camera_2"), "cameras to subscribe (/<name>/...)"
-    )
-    detect_cameras: tuple[str, ...] = described(
-        ("camera_0", "camera_1"), "cameras that watch the pile"
-    )
-    placement_cameras: tuple[str, ...] = described(
-        ("camera_2",), "cameras that watch the build area"
-    )
-    in_hand_cameras: tuple[str, ...] = described(
-        ("camera_0", "camera_1", "camera_2"),
-        "cameras of in_hand placement checks (each fitted alone; the gripper hides the held "
-        "domino from some)",
-    )
-    backend: str = described("geometric", "segmentation backend: geometric | sam")
-    sam_checkpoint: str = described("", "path of a SAM checkpoint (.pth), needed by backend sam")
-    sam_model_type: str = described(
-        "vit_b", "SAM model type of the checkpoint: vit_b | vit_l | vit_h"
-    )
-    sam_points_per_side: int = described(32, "SAM prompt grid: points per image side")
-    continuous: bool = described(True, "process new frames at 'rate' without being asked")
-    rate: float = described(1.0, "continuous processing rate [Hz]")
-    max_frame_age: float = described(5.0, "frames older than this [s] count as a stopped camera")
-    sync_tolerance: float = described(0.05, "colour and depth stamps may differ by this [s]")
-    max_fit_error: float = described(
-        0.0015, "reject boxes whose RMS point distance exceeds this [m]"
-    )
-    min_coverage: float = described(0.85, "fraction of a large face that must be seen")
-    min_clearance: float = described(
-        0.0015, "finger clearance below this predicts a failed grasp [m]"
-    )
-    work_region_center: tuple[float, float] = described(
-        (0.0, 0.0), "region centre [x y] in world; [0 0]: the pile's"
-    )
-    work_region_radius: float = described(
-        0.0, "region radius [m]; 0: scenario pile radius + margin"
-    )
-    publish_debug_image: bool = described(True, "publish /perception/debug_image")
-    image_reliability: str = described(
-        "reliable",
-        "image and camera_info subscriptions: reliable | best_effort (sensor-data QoS, for "
-        "a best-effort camera driver); read at start-up",
-    )
-    extrinsics_from_tf: bool = described(
-        False,
-        "camera poses from /tf and /tf_static (world → the images' frame_id) instead of the "
-        "scenario; read at start-up",
-    )
 
 
 class PerceptionNode(Node):
@@ -189,7 +115,7 @@ class PerceptionNode(Node):
         self._streaming = False  # all cameras held for continuous processing
         self._inputs_group = ReentrantCallbackGroup()
         try:
-            self.pipeline = self._build_pipeline(self.settings)
+            self.pipeline = configured_pipeline(self.scenario, self.settings)
         except (ValueError, SegmenterError, OSError, RuntimeError) as error:
             self.get_logger().error(f"bad parameters ({error}); using the default settings")
             self.pipeline = build_pipeline(self.scenario)
@@ -229,47 +155,6 @@ class PerceptionNode(Node):
         )
 
     # ------------------------------------------------------------------ parameters
-    def _build_pipeline(self, values: PerceptionParameters) -> PerceptionPipeline:
-        """A pipeline for these parameter values; raises ValueError naming a bad one."""
-        if values.image_reliability not in IMAGE_QOS:
-            raise ValueError(
-                f"image_reliability must be one of {sorted(IMAGE_QOS)}, "
-                f"got {values.image_reliability!r}"
-            )
-        for name in ("rate", "max_frame_age", "sync_tolerance", "max_fit_error", "min_coverage"):
-            value = getattr(values, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
-        if not 0 < values.min_coverage <= 1:
-            raise ValueError(f"min_coverage must be in (0, 1], got {values.min_coverage}")
-        pipeline = build_pipeline(
-            self.scenario,
-            backend=values.backend,
-            sam_checkpoint=values.sam_checkpoint,
-            sam_model_type=values.sam_model_type,
-            sam_points_per_side=int(values.sam_points_per_side),
-        )
-        config = pipeline.config
-        region = config.region
-        centre = [float(v) for v in values.work_region_center]
-        if len(centre) != 2 or not np.all(np.isfinite(centre)):
-            raise ValueError(f"work_region_center needs two finite numbers, got {centre}")
-        if any(centre):
-            region = replace(region, center=(centre[0], centre[1]))
-        if values.work_region_radius > 0:
-            region = replace(region, radius=float(values.work_region_radius))
-        pipeline.config = replace(
-            config,
-            region=region,
-            filtering=replace(
-                config.filtering,
-                max_fit_error=float(values.max_fit_error),
-                min_coverage=float(values.min_coverage),
-            ),
-            scoring=replace(config.scoring, min_clearance=float(values.min_clearance)),
-        )
-        return pipeline
-
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         changed = {p.name: p.value for p in parameters}
         fixed = [name for name in START_UP_PARAMETERS if name in changed]
@@ -279,7 +164,7 @@ class PerceptionNode(Node):
             return SetParametersResult(successful=False, reason=reason)
         try:
             settings = self.parameters.read(parameters)
-            pipeline = self._build_pipeline(settings)
+            pipeline = configured_pipeline(self.scenario, settings)
         except (ValueError, TypeError, SegmenterError, OSError, RuntimeError) as error:
             self.get_logger().error(f"rejected parameter update: {error}")
             return SetParametersResult(successful=False, reason=str(error))
@@ -451,7 +336,7 @@ class PerceptionNode(Node):
         return "no colour, depth and camera_info received yet"
 
     def _view(self, name: str, camera: CameraInput, not_before: float) -> CameraView:
-        ahead = not_before - _seconds(camera.colors[-1].header.stamp)
+        ahead = not_before - stamp_seconds(camera.colors[-1].header.stamp)
         if ahead > MAX_NOT_BEFORE_AHEAD:
             raise ValueError(
                 f"not_before is {ahead:.3g} s after the newest frame "
@@ -487,15 +372,7 @@ class PerceptionNode(Node):
         except ParameterUninitializedException:
             values = None
         if values is not None and len(values) > 0:
-            if len(values) != 7 or not np.all(np.isfinite(values)):
-                raise ValueError(f"{name}.optical_pose needs 7 finite numbers [x y z qx qy qz qw]")
-            quaternion = np.asarray(values[3:], dtype=float)
-            if abs(np.linalg.norm(quaternion) - 1.0) > 1e-3:
-                raise ValueError(f"{name}.optical_pose quaternion is not unit length")
-            pose = np.eye(4)
-            pose[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
-            pose[:3, 3] = values[:3]
-            return pose
+            return optical_pose(name, values)
         if self.settings.extrinsics_from_tf:
             try:
                 return self.transforms.lookup(WORLD_FRAME, frame_id)
@@ -513,7 +390,7 @@ class PerceptionNode(Node):
             return
         names = self._known(self.settings.detect_cameras)
         fresh = {
-            name: _seconds(self.inputs[name].colors[-1].header.stamp)
+            name: stamp_seconds(self.inputs[name].colors[-1].header.stamp)
             for name in names
             if self.inputs[name].colors
         }
@@ -531,11 +408,10 @@ class PerceptionNode(Node):
         self, request: DetectDominoes.Request, response: DetectDominoes.Response
     ) -> DetectDominoes.Response:
         names = list(request.cameras) or list(self.settings.detect_cameras)
-        unknown = [name for name in names if name not in self.inputs]
-        if unknown:
-            response.success = False
-            response.message = f"unknown cameras {unknown}; configured: {self.camera_names}"
-            self.get_logger().error(response.message)
+        problem = self._unknown_cameras(names)
+        if problem:
+            response.success, response.message = False, problem
+            self.get_logger().error(problem)
             return response
         result, message = self._detect(names, not_before_of(request))
         response.success = result is not None
@@ -552,15 +428,13 @@ class PerceptionNode(Node):
     ) -> CheckPlacement.Response:
         default = "in_hand_cameras" if request.in_hand else "placement_cameras"
         names = list(request.cameras) or list(getattr(self.settings, default))
-        problem = self._placement_request_problem(request, names)
+        problem = self._unknown_cameras(names) or expected_poses_problem(request)
         if problem:
             response.success, response.message = False, problem
             held = " (in hand)" if request.in_hand else ""
             self.get_logger().error(f"check_placement{held} rejected: {problem}")
             return response
-        config = PlacementConfig(
-            search_radius=request.search_radius or DEFAULT_SEARCH_RADIUS, in_hand=request.in_hand
-        )
+        config = placement_config(request)
         expected = [pose_matrix(pose) for pose in request.expected]
         started = time.perf_counter()
         framed = started
@@ -578,19 +452,7 @@ class PerceptionNode(Node):
             response.success = False
             response.message = "; ".join(["no usable camera for the placement check", *warnings])
             return response
-        response.success = True
-        response.status = [p.status for p in placements]
-        response.measured = [pose_message(p.measured) for p in placements]
-        response.position_error = [p.position_error for p in placements]
-        response.tilt = [p.tilt for p in placements]
-        counts = np.bincount(response.status, minlength=4)
-        response.message = "; ".join(
-            [
-                f"{counts[0]} standing, {counts[1]} fallen, {counts[2]} missing, "
-                f"{counts[3]} not seen",
-                *warnings,
-            ]
-        )
+        fill_placement_response(response, placements, warnings)
         held = " held in the gripper" if request.in_hand else ""
         # where its wall time went: waiting for the frames (subscribing, the render, the
         # transfer) and the fits
@@ -600,31 +462,9 @@ class PerceptionNode(Node):
         )
         return response
 
-    def _placement_request_problem(
-        self, request: CheckPlacement.Request, names: list[str]
-    ) -> str | None:
+    def _unknown_cameras(self, names: list[str]) -> str | None:
         unknown = [name for name in names if name not in self.inputs]
-        if unknown:
-            return f"unknown cameras {unknown}; configured: {self.camera_names}"
-        if not math.isfinite(request.search_radius) or request.search_radius < 0:
-            return f"search_radius must be >= 0, got {request.search_radius}"
-        if len(request.expected) > MAX_EXPECTED:
-            return f"{len(request.expected)} expected poses, at most {MAX_EXPECTED} are checked"
-        for index, pose in enumerate(request.expected):
-            q = pose.orientation
-            values = [pose.position.x, pose.position.y, pose.position.z, q.x, q.y, q.z, q.w]
-            if not all(math.isfinite(v) for v in values):
-                return f"expected pose {index} is not finite"
-            if abs(math.sqrt(q.x**2 + q.y**2 + q.z**2 + q.w**2) - 1.0) > 1e-3:
-                return f"expected pose {index}: quaternion is not unit length (within 1e-3)"
-            if request.in_hand:  # fitted from the expected foot up to below the pads
-                tilt = math.degrees(tilt_from_vertical(pose_matrix(pose)))
-                if tilt > MAX_IN_HAND_TILT:
-                    return (
-                        f"in_hand: expected pose {index} is not upright "
-                        f"(body x {tilt:.0f}° from vertical)"
-                    )
-        return None
+        return f"unknown cameras {unknown}; configured: {self.camera_names}" if unknown else None
 
     def _detect(
         self, names: list[str], not_before: float = -math.inf
@@ -655,7 +495,7 @@ class PerceptionNode(Node):
         detections = result.detections if result else []
         self._publish(detections)
         if result is not None and self.settings.publish_debug_image:
-            self.debug_pub.publish(self._debug_image(views, result))
+            self.debug_pub.publish(debug_image(views, result, self.get_clock().now().to_msg()))
         summary = f"{len(detections)} dominoes found"
         return result, "; ".join([summary, *warnings])
 
@@ -667,89 +507,7 @@ class PerceptionNode(Node):
         self.detections_pub.publish(array)
 
     def _detection_array(self, detections: list[Detection]) -> DominoDetectionArray:
-        array = DominoDetectionArray()
-        array.header.frame_id = "world"
-        array.header.stamp = self.get_clock().now().to_msg()
-        array.detections = [detection_message(i, d) for i, d in enumerate(detections)]
-        return array
-
-    def _debug_image(self, views: list[CameraView], result: PipelineResult) -> Image:
-        tiles = [
-            draw_detections(
-                mask_overlay(view, result.masks.get(view.name, [])), view, result.detections
-            )
-            for view in views
-        ]
-        height = max(tile.shape[0] for tile in tiles)
-        tiles = [np.pad(t, ((0, height - t.shape[0]), (0, 0), (0, 0))) for t in tiles]
-        picture = np.concatenate(tiles, axis=1)
-        message = Image(height=picture.shape[0], width=picture.shape[1], encoding="rgb8")
-        message.header.frame_id = "world"
-        message.header.stamp = self.get_clock().now().to_msg()
-        message.step = picture.shape[1] * 3
-        message.data = picture.tobytes()
-        return message
-
-
-def _seconds(stamp) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
-def not_before_of(request) -> float:
-    """A request's not_before [s]; zero (unset): any frame, the latest."""
-    return _seconds(request.not_before) or -math.inf
-
-
-def rgb_array(message: Image) -> np.ndarray:
-    if message.encoding not in ("rgb8", "bgr8"):
-        raise ValueError(f"colour encoding {message.encoding!r} is not rgb8 or bgr8")
-    rows = _rows(message, np.uint8, 3)
-    return rows[:, :, ::-1] if message.encoding == "bgr8" else rows
-
-
-def depth_array(message: Image) -> np.ndarray:
-    """Depth in metres (float32); 16UC1 millimetres are converted, 0 becomes NaN."""
-    if message.encoding not in DEPTH_ENCODINGS:
-        raise ValueError(f"depth encoding {message.encoding!r} is not 32FC1 or 16UC1")
-    dtype, scale = DEPTH_ENCODINGS[message.encoding]
-    depth = _rows(message, dtype, 1)[:, :, 0].astype(np.float32) * np.float32(scale)
-    depth[depth <= 0] = np.nan
-    return depth
-
-
-def _rows(message: Image, dtype: type, channels: int) -> np.ndarray:
-    """The image as an HxWxC array, honouring the row step; ValueError when inconsistent."""
-    item = np.dtype(dtype).itemsize * channels
-    if message.height == 0 or message.width == 0:
-        raise ValueError("empty image")
-    if message.step < message.width * item or len(message.data) < message.step * message.height:
-        raise ValueError(
-            f"{message.width}x{message.height} {message.encoding} image has step "
-            f"{message.step} and {len(message.data)} bytes"
-        )
-    data = np.frombuffer(bytes(message.data), dtype=np.uint8).reshape(message.height, -1)
-    row_bytes = data[:, : message.width * item].copy()
-    return row_bytes.view(dtype).reshape(message.height, message.width, channels)
-
-
-def detection_message(index: int, detection: Detection) -> DominoDetection:
-    return DominoDetection(
-        id=index,
-        pose=pose_message(detection.X_WD),
-        size=_vector(detection.size),
-        posture=detection.posture,
-        score=float(detection.score),
-        fit_error=float(detection.fit_error),
-        clearance=float(detection.clearance),
-        num_points=int(detection.num_points),
-        num_cameras=len(detection.cameras),
-        grasp_pose=pose_message(detection.grasp_pose),
-        grasp_width=float(detection.grasp_width),
-    )
-
-
-def _vector(values: np.ndarray) -> Vector3:
-    return Vector3(x=float(values[0]), y=float(values[1]), z=float(values[2]))
+        return detection_array(detections, self.get_clock().now().to_msg())
 
 
 def main(args: list[str] | None = None) -> None:

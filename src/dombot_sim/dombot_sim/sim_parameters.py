@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 
 from dombot_adapters.parameters import described
-from dombot_sim.world import CONTACT_APPROXIMATIONS
+from dombot_sim.world_config import CONTACT_APPROXIMATIONS
 
 MAX_DOMINOES = 200
 RATES = ("joint_state_rate", "camera_rate", "ground_truth_rate", "tf_rate", "domino_tf_rate")
