@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 
@@ -87,7 +88,7 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
         reading = Reading.of(answer, position)
         hidden = reading.status == Seen.NOT_SEEN and (just_placed or i != index)
         off_target = is_off_target(job, i, reading)
-        upright = hidden or off_target or (is_erect(job, reading) and not is_off(job, reading))
+        upright = hidden or off_target or on_target(job, reading)
         if i == index:
             outcome = job.report.dominoes[index]
             outcome.check = reading.words
@@ -113,6 +114,10 @@ def is_erect(job: Job, reading: Reading) -> bool:
 
 def is_off(job: Job, reading: Reading) -> bool:
     return reading.error > job.settings.place_tolerance
+
+
+def on_target(job: Job, reading: Reading) -> bool:
+    return is_erect(job, reading) and not is_off(job, reading)
 
 
 def stayed(job: Job, index: int, reading: Reading) -> bool:
@@ -188,9 +193,8 @@ def second_look(job: Job, again: Sequence[int]) -> None:
             log(f"looking again at domino {i + 1} failed ({answer.message}): as it was")
             continue
         reading = Reading.of(answer, position)
-        hidden = reading.status == Seen.NOT_SEEN
         off_target = is_off_target(job, i, reading)
-        if hidden or off_target or (is_erect(job, reading) and not is_off(job, reading)):
+        if reading.status == Seen.NOT_SEEN or off_target or on_target(job, reading):
             stands(job, i, reading, off_target, True)
         elif reading.status != Seen.STANDING:
             fell(job, i, -1, reading)
@@ -252,48 +256,81 @@ def remember_fallen(job: Job, index: int, status: Seen, measured: Pose, tilt: fl
 
 
 def look_again(job: Job) -> None:
-    """The toppled and unfitted dominoes within DISTURBED_RADIUS of where something moved
-    since they were seen (``BuildState.disturbed``) looked at again where they were seen
-    (perception refits a lying expected pose; the standing run asked too, to keep its
-    points): one found there lies where perception measured it now, one seen down but not
-    fitted is unfitted (an obstacle, not picked), one gone (MISSING) is forgotten. A
-    toppled pose gone stale (up to 44 mm off after the build's falls, arc cycle 3) made
-    picks close on nothing."""
+    """The toppled, unfitted and fallen run dominoes within DISTURBED_RADIUS of where
+    something moved since they were seen (``BuildState.disturbed``) looked at again where
+    they were seen (perception refits a lying expected pose; the standing run asked too,
+    to keep its points): each found there lies where perception measured it now
+    (``refit``), one seen down but not fitted is unfitted (an obstacle, not picked), one
+    gone (MISSING) is forgotten. A toppled pose gone stale (up to 44 mm off after the
+    build's falls, arc cycle 3) made picks close on nothing; so, presumably, did the
+    fallen run of circle30 seed 1 (1-18 lying shingled, picked one by one from poses
+    measured when they fell: many picks closed to 0.4 mm)."""
     state = job.state
     disturbed, state.disturbed = state.disturbed, []
-    again = [
-        pose
-        for pose in [*state.toppled, *state.unfitted]
-        if any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in disturbed)
-    ]
-    if not again:
+
+    def moved_near(pose: Pose) -> bool:
+        return any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in disturbed)
+
+    again = [pose for pose in [*state.toppled, *state.unfitted] if moved_near(pose)]
+    run = [k for k, pose in state.fallen.items() if moved_near(pose)]
+    if not again and not run:
         return
     standing = list(state.standing.values())
     fresh = settle(job) if job.still_since is None else job.still_since
-    answer = job.cell.check_placement([*standing, *again], not_before=fresh)
+    expected = [*standing, *again, *(state.fallen[k] for k in run)]
+    answer = job.cell.check_placement(expected, not_before=fresh)
     if not answer.success:
-        log(f"looking again at {len(again)} toppled dominoes failed: {answer.message}")
+        log(f"looking again at {len(again) + len(run)} lying dominoes failed: {answer.message}")
         return
     first = len(standing)
-    seen = zip(answer.status[first:], answer.measured[first:], answer.tilt[first:], strict=True)
+    seen = list(zip(answer.status, answer.measured, answer.tilt, strict=True))[first:]
     toppled, unfitted = list(state.toppled), list(state.unfitted)
-    for pose, (status, measured, tilt) in zip(again, seen, strict=True):
-        if status in (Seen.STANDING, Seen.NOT_SEEN):
-            continue  # no word on it: as it was
+    for pose, (status, measured, tilt) in zip(again, seen[: len(again)], strict=True):
+        where = f"toppled domino at {spot_of(pose).round(3).tolist()}"
+        found = refit(job, where, pose, status, measured, tilt)
+        if found is Found.AS_IT_WAS:
+            continue
         toppled = [p for p in toppled if p is not pose]
         unfitted = [p for p in unfitted if p is not pose]
-        where = f"toppled domino at {spot_of(pose).round(3).tolist()}"
-        if status == Seen.MISSING:
-            log(f"{where}: no longer there; forgotten")
-        elif tilt <= job.settings.place_tilt_tolerance:  # down, no box fits it (tilt 0)
-            log(f"{where}: something lies there that perception cannot fit; not picked")
+        if found is Found.UNFITTED:
             unfitted.append(pose)
-        else:
-            moved = float(np.linalg.norm(spot_of(measured) - spot_of(pose)))
-            if moved >= SAME_SPOT:
-                log(f"{where} moved {moved * 1e3:.0f} mm since it was seen")
+        elif found is Found.THERE:
             toppled.append(measured)
+    for k, (status, measured, tilt) in zip(run, seen[len(again) :], strict=True):
+        found = refit(job, f"fallen domino {k + 1}", state.fallen[k], status, measured, tilt)
+        if found is Found.THERE:
+            state.fallen[k] = measured
+        elif found is Found.UNFITTED:
+            unfitted.append(state.fallen.pop(k))
+        elif found is Found.GONE:
+            state.fallen.pop(k)
     state.toppled, state.unfitted = toppled, unfitted
+
+
+class Found(Enum):
+    """A lying domino looked at again (``refit``)."""
+
+    AS_IT_WAS = "as it was"  # STANDING or NOT_SEEN: no word on it
+    GONE = "gone"  # MISSING: forgotten
+    UNFITTED = "unfitted"  # down, no box fits it (tilt 0): an obstacle, not picked
+    THERE = "there"  # fitted: it lies where perception measured it now
+
+
+def refit(job: Job, where: str, pose: Pose, status: Seen, measured: Pose, tilt: float) -> Found:
+    """What perception's answer says of a lying domino expected at ``pose``; said in
+    the log (named ``where``) unless as it was."""
+    if status in (Seen.STANDING, Seen.NOT_SEEN):
+        return Found.AS_IT_WAS
+    if status == Seen.MISSING:
+        log(f"{where}: no longer there; forgotten")
+        return Found.GONE
+    if tilt <= job.settings.place_tilt_tolerance:
+        log(f"{where}: something lies there that perception cannot fit; not picked")
+        return Found.UNFITTED
+    moved = float(np.linalg.norm(spot_of(measured) - spot_of(pose)))
+    if moved >= SAME_SPOT:
+        log(f"{where} moved {moved * 1e3:.0f} mm since it was seen")
+    return Found.THERE
 
 
 def check_words(status: Seen, error: float, tilt: float) -> str:
