@@ -383,3 +383,30 @@ def test_toppled_dominoes_near_where_something_moved_are_looked_at_again() -> No
     assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit)]
     assert job.state.toppled == [far, now] and job.state.unfitted == [unfit]
     assert job.state.disturbed == []
+
+
+def test_fallen_run_dominoes_near_where_something_moved_are_looked_at_again() -> None:
+    """A run that fell lies shingled: picking one moves the ones leaning on it (circle30
+    seed 1's rebuild closed many picks on nothing). Those near a pick are refitted as the
+    toppled are: moved, gone (the slot built from elsewhere), unfitted (an obstacle)."""
+    moved, gone, unfit, far = (lying(0.45, y) for y in (0.020, 0.049, 0.035, 0.20))
+    now = lying(0.45, 0.028)
+
+    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
+        answers = {
+            id(moved): (Seen.FALLEN, now, 0.008, math.radians(74.0)),
+            id(gone): (Seen.MISSING, gone, 0.0, 0.0),
+            id(unfit): (Seen.FALLEN, unfit, 0.0, 0.0),
+        }
+        columns = zip(*(answers[id(pose)] for pose in expected), strict=True)
+        return PlacementCheck(True, "", *(tuple(column) for column in columns))
+
+    cell = ScriptedCell(placements=placements)
+    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    job.state.fallen = {0: moved, 1: gone, 2: unfit, 5: far}
+    job.state.forget_refusals_near(spot_of(lying(0.45, 0.03)))  # a pick there
+    look_again(job)
+    ((asked, _, _),) = cell.checks
+    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit)]
+    assert job.state.fallen == {0: now, 5: far}
+    assert job.state.unfitted == [unfit] and job.state.toppled == []

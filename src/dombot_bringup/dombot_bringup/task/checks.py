@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 
-from dombot_bringup.task.cell import Pose, Seen
+from dombot_bringup.task.cell import PlacementCheck, Pose, Seen
+from dombot_bringup.task.chain import at_risk, chain_breaks
 from dombot_bringup.task.geometry import SAME_SPOT, near, spot_of
 from dombot_bringup.task.state import DISTURBED_RADIUS, Job, log
 
@@ -33,6 +37,29 @@ def settle_left(job: Job) -> float:
     return max(0.0, settle - (job.cell.sim_time - job.let_go_at))
 
 
+@dataclass(frozen=True)
+class Reading:
+    """Perception's word on one expected domino."""
+
+    status: Seen
+    measured: Pose
+    error: float  # m from the target, horizontally
+    tilt: float  # rad from vertical
+
+    @classmethod
+    def of(cls, answer: PlacementCheck, position: int) -> Reading:
+        return cls(
+            answer.status[position],
+            answer.measured[position],
+            answer.position_error[position],
+            answer.tilt[position],
+        )
+
+    @property
+    def words(self) -> str:
+        return check_words(self.status, self.error, self.tilt)
+
+
 def check(job: Job, index: int, just_placed: bool = True) -> bool:
     """Perception looks at every domino placed so far and at slot ``index``; fallen ones
     are queued again. True: slot ``index`` stands.
@@ -43,9 +70,11 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
     run fell so). One upright but off target by up to keep_off_target is left standing
     where perception measured it, not picked up from within the run; so is one that stays
     within the tolerance of where it was left, and one whose pick-up again failed, up to
-    keep_when_stuck. A hidden ``index`` not ``just_placed`` (e.g. the slot a fallen
-    domino was swept out of) is not taken as standing."""
-    settings, state = job.settings, job.state
+    keep_when_stuck. A run domino other than ``index`` seen standing beyond those bounds
+    is looked at again before anything is done about it (``second_look``). A hidden
+    ``index`` not ``just_placed`` (e.g. the slot a fallen domino was swept out of) is not
+    taken as standing."""
+    state = job.state
     fresh = settle(job, settle_left(job))
     job.still_since = fresh
     indices = sorted(set(state.standing) | {index})
@@ -54,43 +83,161 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
         job.report.dominoes[index].check = f"placement check failed: {answer.message}"
         return False
     placed = False
-    tolerance, tilt_tolerance = settings.place_tolerance, settings.place_tilt_tolerance
+    again = []  # run dominoes seen standing off target: looked at again
     for position, i in enumerate(indices):
-        status = answer.status[position]
-        error, tilt = answer.position_error[position], answer.tilt[position]
-        hidden = status == Seen.NOT_SEEN and (just_placed or i != index)
-        measured, last = answer.measured[position], state.standing.get(i)
-        # within the tolerance of where it was last taken to stand: not moved (one left
-        # 6.0 mm off read 6.6 mm at the next check and was to be picked again)
-        stayed = last is not None and near(spot_of(measured), spot_of(last), tolerance)
-        erect = status == Seen.STANDING and tilt <= tilt_tolerance
-        keep = settings.keep_when_stuck if i in state.stuck else settings.keep_off_target
-        off_target = erect and error > tolerance and (error <= keep or stayed)
-        upright = hidden or off_target or (erect and error <= tolerance)
+        reading = Reading.of(answer, position)
+        hidden = reading.status == Seen.NOT_SEEN and (just_placed or i != index)
+        off_target = is_off_target(job, i, reading)
+        upright = hidden or off_target or on_target(job, reading)
         if i == index:
             outcome = job.report.dominoes[index]
-            outcome.check = check_words(status, error, tilt)
+            outcome.check = reading.words
             outcome.measured_error_mm, outcome.measured_tilt_deg = (
-                (None, None) if hidden else (error * 1e3, math.degrees(tilt))
+                (None, None) if hidden else (reading.error * 1e3, math.degrees(reading.tilt))
             )
             outcome.off_target = off_target
             placed = upright
         if upright:
-            moved = off_target and last is job.targets[i]
-            if i != index and (hidden or moved):
-                words = check_words(status, error, tilt)
-                log(f"domino {i + 1} moved ({words}); left standing" if moved else words)
-            where = (last if stayed else measured) if off_target else job.targets[i]
-            state.standing[i] = where  # for the planner to keep clear of
+            stands(job, i, reading, off_target, i != index)
+        elif i != index and reading.status == Seen.STANDING:
+            again.append(i)
         else:
-            state.standing.pop(i, None)
-            state.disturbed.append(spot_of(job.targets[i]))  # it fell there, or went
-            if remember_fallen(job, i, status, measured, tilt):
-                log(f"domino {i + 1} fell where perception cannot fit it; left where it lies")
-            if i != index:
-                job.report.dominoes[i].placed = False  # until it is built again
-                log(f"domino {i + 1} is no longer standing ({check_words(status, error, tilt)})")
+            fell(job, i, index, reading)
+    if again:
+        second_look(job, again)
     return placed
+
+
+def is_erect(job: Job, reading: Reading) -> bool:
+    return reading.status == Seen.STANDING and reading.tilt <= job.settings.place_tilt_tolerance
+
+
+def is_off(job: Job, reading: Reading) -> bool:
+    return reading.error > job.settings.place_tolerance
+
+
+def on_target(job: Job, reading: Reading) -> bool:
+    return is_erect(job, reading) and not is_off(job, reading)
+
+
+def stayed(job: Job, index: int, reading: Reading) -> bool:
+    """Within the tolerance of where domino ``index`` was last taken to stand: not moved
+    (one left 6.0 mm off read 6.6 mm at the next check and was to be picked again)."""
+    last = job.state.standing.get(index)
+    tolerance = job.settings.place_tolerance
+    return last is not None and near(spot_of(reading.measured), spot_of(last), tolerance)
+
+
+def is_off_target(job: Job, index: int, reading: Reading) -> bool:
+    """Domino ``index`` stands off target where it may stay: upright, up to
+    keep_off_target off (keep_when_stuck once its pick-up again failed) or where it was
+    left; or, left off target after a second look (``BuildState.left_off``), standing
+    where it was left."""
+    settings, state = job.settings, job.state
+    if index in state.left_off and reading.status == Seen.STANDING and stayed(job, index, reading):
+        return True
+    keep = settings.keep_when_stuck if index in state.stuck else settings.keep_off_target
+    return (
+        is_erect(job, reading)
+        and is_off(job, reading)
+        and (reading.error <= keep or stayed(job, index, reading))
+    )
+
+
+def stands(job: Job, index: int, reading: Reading, off_target: bool, tell: bool) -> None:
+    """Domino ``index`` is taken to stand: at its target, or off target where perception
+    measured it (where it was left, if it stayed there), for the planner to keep clear of;
+    ``tell``: hidden, or moved off its target, it is said so."""
+    state = job.state
+    last = state.standing.get(index)
+    moved = off_target and last is job.targets[index]
+    if tell and (reading.status == Seen.NOT_SEEN or moved):
+        words = reading.words
+        log(f"domino {index + 1} moved ({words}); left standing" if moved else words)
+    if not off_target:
+        state.standing[index] = job.targets[index]
+    elif last is not None and stayed(job, index, reading):
+        state.standing[index] = last
+    else:
+        state.standing[index] = reading.measured
+
+
+def fell(job: Job, index: int, placing: int, reading: Reading) -> None:
+    """Domino ``index`` no longer stands (``placing``: the slot being built): built again
+    from where it lies, or, where perception cannot fit it, left there."""
+    state = job.state
+    state.standing.pop(index, None)
+    state.left_off.discard(index)
+    state.disturbed.append(spot_of(job.targets[index]))  # it fell there, or went
+    if remember_fallen(job, index, reading.status, reading.measured, reading.tilt):
+        log(f"domino {index + 1} fell where perception cannot fit it; left where it lies")
+    if index != placing:
+        job.report.dominoes[index].placed = False  # until it is built again
+        log(f"domino {index + 1} is no longer standing ({reading.words})")
+
+
+def second_look(job: Job, again: Sequence[int]) -> None:
+    """Run dominoes ``again``, seen standing but off target beyond what ``check`` keeps,
+    looked at again from frames a camera period on (circle30 seed 1: one read 7.8 mm and
+    7.3° off while the arm stood over the run, 6 others hidden, was picked from between
+    its standing neighbours and the 18 before it fell). Upright within the bounds now, or
+    hidden: standing as before. Still off: left where it stands while the run topples
+    through it (``chain.chain_breaks``); else picked up again, unless more than
+    replace_risk standing dominoes stand with no empty slot between them and it
+    (``chain.at_risk``): left then too, the risk told. Down or gone: it fell."""
+    fresh = settle(job, 1.0 / job.settings.camera_rate)
+    job.still_since = fresh
+    answer = job.cell.check_placement([job.targets[i] for i in again], not_before=fresh)
+    for position, i in enumerate(again):
+        if not answer.success:
+            log(f"looking again at domino {i + 1} failed ({answer.message}): as it was")
+            continue
+        reading = Reading.of(answer, position)
+        off_target = is_off_target(job, i, reading)
+        if reading.status == Seen.NOT_SEEN or off_target or on_target(job, reading):
+            stands(job, i, reading, off_target, True)
+        elif reading.status != Seen.STANDING:
+            fell(job, i, -1, reading)
+        else:
+            standing_off(job, i, reading)
+
+
+def standing_off(job: Job, index: int, reading: Reading) -> None:
+    """Domino ``index``, seen twice standing off target: see ``second_look``."""
+    settings, state = job.settings, job.state
+    neighbours = {
+        k: state.standing.get(k, job.targets[k])  # an empty slot: where its domino will stand
+        for k in (index - 1, index + 1)
+        if 0 <= k < len(job.targets)
+    }
+    why = chain_breaks(index, reading.measured, reading.tilt, neighbours, settings)
+    risk = at_risk(index, state.standing)
+    said = f"domino {index + 1} standing off target ({reading.words})"
+    if why and len(risk) <= settings.replace_risk:
+        log(f"{said}: {why}; picked up again ({len(risk)} standing within its reach)")
+        fell(job, index, -1, reading)
+        return
+    if why:
+        log(
+            f"{said}: {why}; left standing all the same: lifting it out could fell the "
+            f"{len(risk)} standing with no empty slot between (dominoes {span(risk)})"
+        )
+    else:
+        log(f"{said}, the chain still runs; left standing")
+    state.standing[index] = reading.measured
+    state.left_off.add(index)
+    job.report.dominoes[index].off_target = True
+
+
+def span(indices: Sequence[int]) -> str:
+    """Layout indices as the log numbers them, runs joined: "1-18, 20-24"."""
+    runs: list[list[int]] = []
+    for i in indices:
+        if runs and runs[-1][-1] == i - 1:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    return ", ".join(f"{r[0] + 1}" if len(r) == 1 else f"{r[0] + 1}-{r[-1] + 1}" for r in runs)
 
 
 def remember_fallen(job: Job, index: int, status: Seen, measured: Pose, tilt: float) -> bool:
@@ -109,48 +256,81 @@ def remember_fallen(job: Job, index: int, status: Seen, measured: Pose, tilt: fl
 
 
 def look_again(job: Job) -> None:
-    """The toppled and unfitted dominoes within DISTURBED_RADIUS of where something moved
-    since they were seen (``BuildState.disturbed``) looked at again where they were seen
-    (perception refits a lying expected pose; the standing run asked too, to keep its
-    points): one found there lies where perception measured it now, one seen down but not
-    fitted is unfitted (an obstacle, not picked), one gone (MISSING) is forgotten. A
-    toppled pose gone stale (up to 44 mm off after the build's falls, arc cycle 3) made
-    picks close on nothing."""
+    """The toppled, unfitted and fallen run dominoes within DISTURBED_RADIUS of where
+    something moved since they were seen (``BuildState.disturbed``) looked at again where
+    they were seen (perception refits a lying expected pose; the standing run asked too,
+    to keep its points): each found there lies where perception measured it now
+    (``refit``), one seen down but not fitted is unfitted (an obstacle, not picked), one
+    gone (MISSING) is forgotten. A toppled pose gone stale (up to 44 mm off after the
+    build's falls, arc cycle 3) made picks close on nothing; so, presumably, did the
+    fallen run of circle30 seed 1 (1-18 lying shingled, picked one by one from poses
+    measured when they fell: many picks closed to 0.4 mm)."""
     state = job.state
     disturbed, state.disturbed = state.disturbed, []
-    again = [
-        pose
-        for pose in [*state.toppled, *state.unfitted]
-        if any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in disturbed)
-    ]
-    if not again:
+
+    def moved_near(pose: Pose) -> bool:
+        return any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in disturbed)
+
+    again = [pose for pose in [*state.toppled, *state.unfitted] if moved_near(pose)]
+    run = [k for k, pose in state.fallen.items() if moved_near(pose)]
+    if not again and not run:
         return
     standing = list(state.standing.values())
     fresh = settle(job) if job.still_since is None else job.still_since
-    answer = job.cell.check_placement([*standing, *again], not_before=fresh)
+    expected = [*standing, *again, *(state.fallen[k] for k in run)]
+    answer = job.cell.check_placement(expected, not_before=fresh)
     if not answer.success:
-        log(f"looking again at {len(again)} toppled dominoes failed: {answer.message}")
+        log(f"looking again at {len(again) + len(run)} lying dominoes failed: {answer.message}")
         return
     first = len(standing)
-    seen = zip(answer.status[first:], answer.measured[first:], answer.tilt[first:], strict=True)
+    seen = list(zip(answer.status, answer.measured, answer.tilt, strict=True))[first:]
     toppled, unfitted = list(state.toppled), list(state.unfitted)
-    for pose, (status, measured, tilt) in zip(again, seen, strict=True):
-        if status in (Seen.STANDING, Seen.NOT_SEEN):
-            continue  # no word on it: as it was
+    for pose, (status, measured, tilt) in zip(again, seen[: len(again)], strict=True):
+        where = f"toppled domino at {spot_of(pose).round(3).tolist()}"
+        found = refit(job, where, pose, status, measured, tilt)
+        if found is Found.AS_IT_WAS:
+            continue
         toppled = [p for p in toppled if p is not pose]
         unfitted = [p for p in unfitted if p is not pose]
-        where = f"toppled domino at {spot_of(pose).round(3).tolist()}"
-        if status == Seen.MISSING:
-            log(f"{where}: no longer there; forgotten")
-        elif tilt <= job.settings.place_tilt_tolerance:  # down, no box fits it (tilt 0)
-            log(f"{where}: something lies there that perception cannot fit; not picked")
+        if found is Found.UNFITTED:
             unfitted.append(pose)
-        else:
-            moved = float(np.linalg.norm(spot_of(measured) - spot_of(pose)))
-            if moved >= SAME_SPOT:
-                log(f"{where} moved {moved * 1e3:.0f} mm since it was seen")
+        elif found is Found.THERE:
             toppled.append(measured)
+    for k, (status, measured, tilt) in zip(run, seen[len(again) :], strict=True):
+        found = refit(job, f"fallen domino {k + 1}", state.fallen[k], status, measured, tilt)
+        if found is Found.THERE:
+            state.fallen[k] = measured
+        elif found is Found.UNFITTED:
+            unfitted.append(state.fallen.pop(k))
+        elif found is Found.GONE:
+            state.fallen.pop(k)
     state.toppled, state.unfitted = toppled, unfitted
+
+
+class Found(Enum):
+    """A lying domino looked at again (``refit``)."""
+
+    AS_IT_WAS = "as it was"  # STANDING or NOT_SEEN: no word on it
+    GONE = "gone"  # MISSING: forgotten
+    UNFITTED = "unfitted"  # down, no box fits it (tilt 0): an obstacle, not picked
+    THERE = "there"  # fitted: it lies where perception measured it now
+
+
+def refit(job: Job, where: str, pose: Pose, status: Seen, measured: Pose, tilt: float) -> Found:
+    """What perception's answer says of a lying domino expected at ``pose``; said in
+    the log (named ``where``) unless as it was."""
+    if status in (Seen.STANDING, Seen.NOT_SEEN):
+        return Found.AS_IT_WAS
+    if status == Seen.MISSING:
+        log(f"{where}: no longer there; forgotten")
+        return Found.GONE
+    if tilt <= job.settings.place_tilt_tolerance:
+        log(f"{where}: something lies there that perception cannot fit; not picked")
+        return Found.UNFITTED
+    moved = float(np.linalg.norm(spot_of(measured) - spot_of(pose)))
+    if moved >= SAME_SPOT:
+        log(f"{where} moved {moved * 1e3:.0f} mm since it was seen")
+    return Found.THERE
 
 
 def check_words(status: Seen, error: float, tilt: float) -> str:

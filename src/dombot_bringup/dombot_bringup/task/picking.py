@@ -33,6 +33,7 @@ from dombot_bringup.task.geometry import (
     spot_of,
 )
 from dombot_bringup.task.state import Job, log
+from dombot_description import tilt_from_vertical
 from dombot_planner.errors import ErrorCode
 from dombot_planner.planner import foreseen_refusal
 from dombot_planner.settings import PlannerSettings
@@ -68,7 +69,7 @@ class Candidate:
     pose: Pose
     run_index: int | None = None  # layout index of a fallen run domino; None: the pile
     neighbours: list[Pose] = field(default_factory=list)
-    posture: Posture | None = None  # None: a fallen run domino
+    posture: Posture | None = None  # None: a fallen run domino (``run_posture``)
     scored: bool = True  # perception found room for the fingers
     clearance: float = math.inf  # m beside the finger contact sides, as perception measured
     # Perception's grasp, clear of every point the cameras saw (undetected dominoes too);
@@ -138,7 +139,7 @@ def candidates(
     avoid = failed + unpickable
     fallen, lying, way = job.state.fallen, job.state.lying(), in_its_way(job, index)
     run = [
-        Candidate(pose, k, neighbours_of(pose, lying))
+        Candidate(pose, k, neighbours_of(pose, lying), posture=run_posture(pose))
         for k, pose in sorted(fallen.items(), key=lambda item: not is_among(item[1], way))
         if is_among(pose, lying) and not near_any(spot_of(pose), avoid)  # a twin once
     ]
@@ -153,6 +154,13 @@ def candidates(
         if near_any(c.spot(), unpickable) or (c.leaning and near_any(c.spot(), failed))
     ]
     return run + offers, stuck
+
+
+def run_posture(pose: Pose) -> Posture | None:
+    """How a run domino out of place is offered: UPRIGHT if perception saw it standing
+    (nearer vertical than lying; ``checks.second_look`` chose to pick it up again), named
+    so in the log, never as fallen; None (fallen: the planner chooses) otherwise."""
+    return Posture.UPRIGHT if tilt_from_vertical(pose) < math.pi / 4 else None
 
 
 def toppled_candidates(job: Job, index: int, avoid: list[np.ndarray]) -> list[Candidate]:

@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from dombot_bringup.layouts import MAX_SPACING_RATIO, MIN_SPACING_RATIO
 from dombot_description import DOMINO_SIZE
 
 
@@ -119,6 +120,25 @@ class ArmJobSettings:
     # (S-curve seed 4: one stood 8.9 mm off, both re-picks missed, and every place for its
     # slot was refused for ever). 12 mm off, the next still stands within the toppling range.
     keep_when_stuck: float = 0.012  # m
+    # A run domino (not the one just placed) seen still standing but beyond those bounds,
+    # or leaning more than place_tilt_tolerance, is looked at again (fresh frames, a
+    # camera period on); confirmed, it stays where it stands while the run still topples
+    # through it (``chain.chain_breaks``): the centres' spacing along the fall within
+    # chain_spacing of the height (the layouts' range: every simulated wave from 30 % to
+    # 90 % carried, docs/SIM_WAVE.md), the next's centre off the line of the fall by at
+    # most (1 - chain_min_overlap) of the width, their faces turned at most chain_max_yaw,
+    # and it leaning at most chain_max_tilt (beyond, it does not stand on its own foot).
+    # (circle30 seed 1: one read 7.8 mm and 7.3° off was picked as fallen from between
+    # two standing neighbours, and the 18 before it fell.)
+    chain_spacing: tuple[float, float] = (MIN_SPACING_RATIO, MAX_SPACING_RATIO)
+    chain_min_overlap: float = 0.5
+    chain_max_yaw: float = math.radians(30.0)
+    chain_max_tilt: float = math.atan2(DOMINO_SIZE[2], DOMINO_SIZE[0])
+    # ... and where the run would stop at it, it is picked up again only when at most this
+    # many standing dominoes stand with no empty slot between them and it (a fall would
+    # take them down: a section between open safety gaps has section - 1 others); in a
+    # longer stretch it is left standing, and the risk told (-1: always left).
+    replace_risk: int = 3
     # Released dominoes end up behind the pose they were released at, along the run: by
     # 0.75 mm on average in truth (sd 0.6-1.0 mm; 170 placements, arc and S-curve alike):
     # ~0.45 mm from the grasp, the rest as the pads let go. The arm releases them this much

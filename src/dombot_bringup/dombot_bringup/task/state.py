@@ -43,6 +43,9 @@ class BuildState:
     # (x, y) of dominoes no grasp reaches or whose pick failed: not offered again
     unpickable: list[np.ndarray] = field(default_factory=list)
     stuck: set[int] = field(default_factory=set)  # run dominoes whose pick-up again failed
+    # run dominoes seen standing off target and left there (``checks.second_look``): kept
+    # while they stay where they were left, without another look
+    left_off: set[int] = field(default_factory=set)
     crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
     cored: list[np.ndarray] = field(default_factory=list)  # ... and with its pile's cores
     # (x, y) of pile dominoes pushed to lay them flat, or whose pushes were all refused:
