@@ -23,6 +23,7 @@ from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.clearing import sweep_debris
 from dombot_bringup.task.enclosure import enclosed
 from dombot_bringup.task.gaps import gap_slots
+from dombot_bringup.task.order import build_order
 from dombot_bringup.task.picking import Refusal
 from dombot_bringup.task.records import add_spent, record_truth, take_picture
 from dombot_bringup.task.state import Job, log
@@ -69,7 +70,7 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
     and the planner refuses it there: that turn, its last, comes before the second
     (``enclosure.enclosed``). How each slot's last turn ended."""
     gaps = gap_slots(job)
-    queue = [i for i in range(len(job.layout)) if i not in gaps] + gaps
+    queue = build_order(job, [i for i in range(len(job.layout)) if i not in gaps]) + gaps
     if gaps:
         numbers = ", ".join(str(i + 1) for i in gaps)
         log(f"safety gaps at dominoes {numbers}: built once the rest stands")
