@@ -27,9 +27,11 @@ from collections.abc import Sequence
 from itertools import pairwise
 
 from dombot_bringup.run_report import StretchStart
-from dombot_bringup.task.gaps import Fill, flat_pile_dominoes, names, probe
+from dombot_bringup.task.gaps import Fill, flat_pile_dominoes, probe
 from dombot_bringup.task.picking import Candidate
 from dombot_bringup.task.state import Job, log
+
+BEHIND, AHEAD = "with the one behind standing", "with the one ahead standing"
 
 
 def stretches(slots: Sequence[int]) -> list[range]:
@@ -71,7 +73,10 @@ def build_order(job: Job, slots: Sequence[int]) -> list[int]:
         if dominoes and stretch in probed:
             decision = start_of(job, stretch, dominoes)
             job.report.build_order.append(decision)
-            log(f"build order: {names(stretch)} started at {decision.start}{decision.words()}")
+            log(
+                f"build order: dominoes {stretch.start + 1}-{stretch.stop} started at "
+                f"{decision.start}{decision.words()}"
+            )
             start = decision.start - 1
         order += from_start(stretch, start)
     return order
@@ -83,7 +88,7 @@ def start_of(job: Job, stretch: range, dominoes: list[Candidate]) -> StretchStar
     first, last = stretch.start + 1, stretch.stop
     plans, refused = 0, None
     for index in reversed(stretch[1:]):
-        behind = probe(job, index, [index - 1], dominoes)
+        behind = probe(job, index, [index - 1], dominoes, BEHIND)
         plans += behind.plans
         if behind.fill is Fill.REFUSED:
             refused = (index, behind.why)
@@ -92,7 +97,7 @@ def start_of(job: Job, stretch: range, dominoes: list[Candidate]) -> StretchStar
         return StretchStart(first, last, first, "", "", plans)
     start, why = refused
     for index in range(start - 1, stretch.start - 1, -1):
-        ahead = probe(job, index, [index + 1], dominoes)
+        ahead = probe(job, index, [index + 1], dominoes, AHEAD)
         plans += ahead.plans
         if ahead.fill is Fill.REFUSED:
             return StretchStart(
