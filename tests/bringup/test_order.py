@@ -119,3 +119,20 @@ def test_not_asked_at_ordinary_spacing() -> None:
     job.cell.place = reach(job, behind={1, 2, 3})
     assert build_order(job, range(8)) == list(range(8))
     assert job.cell.place_requests == [] and job.report.build_order == []
+
+
+def test_a_domino_whose_grasp_is_refused_is_not_asked_again() -> None:
+    """The first flat domino's grasp refused: the next answers, and is asked from then on."""
+    job = line_job(0.022, count=4)
+    place = reach(job, behind={1})
+
+    def grasp_refused_first(request: PlaceRequest) -> Plan:
+        if request.domino[0, 3] < 0.525:
+            return refused(ErrorCode.GRASP_UNREACHABLE, "GRASP_UNREACHABLE at grasp: no IK")
+        return place(request)
+
+    job.cell.place = grasp_refused_first
+    assert build_order(job, range(4)) == [1, 0, 2, 3]
+    asked = [(slot_of(job, r), round(r.domino[0, 3], 2)) for r in job.cell.place_requests]
+    assert asked == [(3, 0.5), (3, 0.55), (2, 0.55), (1, 0.55), (0, 0.55)]
+    assert job.report.build_order[0].plans == 5

@@ -16,8 +16,9 @@ check asks (``gaps.probe``: a flat pile domino, its pile ignored) whether each s
 plans with the one behind standing, from the stretch's last slot backwards until one is
 refused. That one starts the stretch when every slot before it plans with the one ahead
 standing (asked too); else the stretch is built in run order (a slot refused then is put
-off: ``enclosure``). A grasp refusal says nothing of a slot (``Fill.UNKNOWN``): taken
-as planned.
+off: ``enclosure``). A grasp refusal says nothing of a slot: the next flat domino is
+asked, and the refused one not again in that stretch; when none answers
+(``Fill.UNKNOWN``), the slot is taken as planned.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from collections.abc import Sequence
 from itertools import pairwise
 
 from dombot_bringup.run_report import StretchStart
-from dombot_bringup.task.gaps import Fill, flat_pile_dominoes, probe
+from dombot_bringup.task.gaps import Fill, Probe, flat_pile_dominoes, probe
 from dombot_bringup.task.picking import Candidate
 from dombot_bringup.task.state import Job, log
 
@@ -86,10 +87,19 @@ def start_of(job: Job, stretch: range, dominoes: list[Candidate]) -> StretchStar
     """Where ``stretch`` is started: its last slot refused with the one behind standing,
     when every slot before it plans with the one ahead standing; else its first slot."""
     first, last = stretch.start + 1, stretch.stop
+    dominoes = list(dominoes)
     plans, refused = 0, None
+
+    def asked(index: int, neighbour: int, where: str) -> Probe:
+        nonlocal plans
+        answer = probe(job, index, [neighbour], dominoes, where)
+        plans += answer.plans
+        if answer.fill is not Fill.UNKNOWN:  # those asked before it: their grasps refused
+            del dominoes[: answer.plans - 1]
+        return answer
+
     for index in reversed(stretch[1:]):
-        behind = probe(job, index, [index - 1], dominoes, BEHIND)
-        plans += behind.plans
+        behind = asked(index, index - 1, BEHIND)
         if behind.fill is Fill.REFUSED:
             refused = (index, behind.why)
             break
@@ -97,8 +107,7 @@ def start_of(job: Job, stretch: range, dominoes: list[Candidate]) -> StretchStar
         return StretchStart(first, last, first, "", "", plans)
     start, why = refused
     for index in range(start - 1, stretch.start - 1, -1):
-        ahead = probe(job, index, [index + 1], dominoes, AHEAD)
-        plans += ahead.plans
+        ahead = asked(index, index + 1, AHEAD)
         if ahead.fill is Fill.REFUSED:
             return StretchStart(
                 first, last, first, f"{start + 1}: {why}", f"{index + 1}: {ahead.why}", plans
