@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dombot_bringup import layouts
 from dombot_bringup.run_report import StretchStart
 from dombot_bringup.task.cell import PlaceRequest, Plan
-from dombot_bringup.task.loop import Turn, place_slot, run
+from dombot_bringup.task.loop import Turn, place_slot, requeue, run
 from dombot_bringup.task.order import build_order, from_start, stretches
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
@@ -136,3 +136,10 @@ def test_a_domino_whose_grasp_is_refused_is_not_asked_again() -> None:
     asked = [(slot_of(job, r), round(r.domino[0, 3], 2)) for r in job.cell.place_requests]
     assert asked == [(3, 0.5), (3, 0.55), (2, 0.55), (1, 0.55), (0, 0.55)]
     assert job.report.build_order[0].plans == 5
+
+
+def test_slots_knocked_over_are_built_again_in_the_build_order() -> None:
+    """The 1st to 4th knocked over once the 5th stands: built again from the 4th."""
+    job = line_job(0.022)
+    order = [3, 2, 1, 0, 4, 5, 6, 7]
+    assert requeue(job, [6, 7], {4, 5}, order) == [3, 2, 1, 0, 6, 7]
