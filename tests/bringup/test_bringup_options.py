@@ -105,3 +105,17 @@ def test_the_safety_gaps_are_asked_of_the_planner_unless_kept_as_laid_out(
     )
     run_arm(parse_args(options))
     assert settings[0].gap_probe_dominoes == asked
+
+
+@pytest.mark.parametrize(
+    ("options", "asked"), [([], ArmJobSettings.order_probe_dominoes), (["--run-order"], 0)]
+)
+def test_where_each_stretch_starts_is_asked_of_the_planner_unless_in_run_order(
+    monkeypatch, options: list[str], asked: int
+) -> None:
+    settings = []
+    monkeypatch.setattr(
+        "dombot_bringup.bringup.run_arm_job", lambda out, chosen, s, command: settings.append(s)
+    )
+    run_arm(parse_args(options))
+    assert settings[0].order_probe_dominoes == asked

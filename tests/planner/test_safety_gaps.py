@@ -13,19 +13,18 @@ import math
 from dataclasses import replace
 
 import pytest
-from pydrake.math import RigidTransform
 
 from dombot_bringup import layouts
-from dombot_bringup.task.cell import Detection, PlaceRequest, Plan, Posture
+from dombot_bringup.task.cell import Detection, Posture
 from dombot_bringup.task.gaps import gap_slots
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description.grasp import flat_pose
 from dombot_description.scenario import load_scenario
-from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.errors import ErrorCode
 from dombot_planner.planner import PickPlacePlanner
-from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
+from support.in_process_planner import in_process
 from support.planning_clock import UNHURRIED
 from support.scripted_cell import ScriptedCell
 
@@ -41,28 +40,6 @@ PILE_DOMINO = flat_pose(*SCENARIO.pile_center, 2.4).GetAsMatrix4()
 @pytest.fixture(scope="module")
 def planner() -> PickPlacePlanner:
     return PickPlacePlanner(SCENARIO, PlannerSettings(default_time_budget=UNHURRIED))
-
-
-def in_process(planner: PickPlacePlanner):
-    """The planner answering /plan_place from the arm's home, as planner_node would."""
-
-    def place(request: PlaceRequest) -> Plan:
-        try:
-            planner.plan(
-                PickPlaceRequest(
-                    RigidTransform(request.domino),
-                    RigidTransform(request.place),
-                    SCENARIO.home_position,
-                    standing=tuple(RigidTransform(p) for p in request.standing),
-                    pile_points=request.pile_points.reshape(-1, 3),
-                    time_budget=request.time_budget,
-                )
-            )
-        except PlanningError as error:
-            return Plan(False, error.code, f"{error.code.name} at {error.stage}: {error.message}")
-        return Plan(True, message="planned")
-
-    return place
 
 
 def test_s_curve30s_first_gap_cannot_be_filled_between_its_neighbours_and_is_dropped(

@@ -150,6 +150,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "first whether each can be filled between its neighbours; moved or dropped if not)",
     )
     run.add_argument(
+        "--run-order",
+        action="store_true",
+        help="build every stretch between safety gaps from its first slot (default: where "
+        "neighbours stand closer than 27 mm, the planner is asked first which slot each "
+        "stretch must start from, built backwards from there, then onwards)",
+    )
+    run.add_argument(
         "--keep-off-target",
         type=float,
         default=6.0,
@@ -345,6 +352,7 @@ def run_arm(args: argparse.Namespace) -> int:
         seed=args.seed,
         section=args.section,
         gap_probe_dominoes=0 if args.gaps_as_laid_out else ArmJobSettings.gap_probe_dominoes,
+        order_probe_dominoes=0 if args.run_order else ArmJobSettings.order_probe_dominoes,
         keep_off_target=args.keep_off_target * 1e-3,
         keep_when_stuck=args.keep_when_stuck * 1e-3,
         place_lead=args.place_lead * 1e-3,

@@ -96,6 +96,29 @@ class GapDecision:
 
 
 @dataclass
+class StretchStart:
+    """Where a stretch of consecutive slots (no safety gap) was started (``task.order``):
+    built from ``start`` backwards to ``first``, then onwards to ``last``."""
+
+    first: int  # counted from 1, as laid out
+    last: int
+    start: int  # ``first``: built in run order
+    behind: str  # "slot: refusal" of the last slot refused with the one behind standing
+    ahead: str  # "slot: refusal" of a slot before it refused with the one ahead standing
+    plans: int  # planning calls asked to decide
+
+    def words(self) -> str:
+        """The log's words after the start: why there."""
+        if not self.behind:
+            return " (each slot plans with the one behind standing)"
+        if self.ahead:
+            return (
+                f" (refused with the one behind: {self.behind}; with the one ahead: {self.ahead})"
+            )
+        return f", built backwards from there (refused with the one behind: {self.behind})"
+
+
+@dataclass
 class PileDomino:
     """A pile domino no grasp or push reached when the last slot found nothing to pick."""
 
@@ -150,6 +173,8 @@ class RunReport:
     empty_slots: list[EmptySlot] = field(default_factory=list)  # given up, built around
     # the safety gaps the planner was asked about before the build: kept, moved, dropped
     safety_gaps: list[GapDecision] = field(default_factory=list)
+    # where the stretches the planner was asked about before the build were started
+    build_order: list[StretchStart] = field(default_factory=list)
     sections: list[SectionOutcome] = field(default_factory=list)  # in run order
     struck: bool = False  # every section
     toppled_by_perception: bool = False
@@ -219,6 +244,8 @@ class RunReport:
                 for verdict in ("kept", "moved", "dropped")
             },
             "gap_plans": sum(g.plans for g in self.safety_gaps),
+            "stretches_started_later": [s.start for s in self.build_order if s.start != s.first],
+            "order_plans": sum(s.plans for s in self.build_order),
             "sections_struck": sum(s.struck for s in self.sections),
             "sections": len(self.sections),
             "standing_before_strike_by_truth": self.standing_by_truth,

@@ -122,11 +122,17 @@ def others_standing(job: Job, gap: range, later: Collection[int]) -> list[int]:
     return [i for i in range(len(job.layout)) if i != gap[-1] and i not in later]
 
 
-def probe(job: Job, slot: int, standing: Collection[int], dominoes: list[Candidate]) -> Probe:
+def probe(
+    job: Job,
+    slot: int,
+    standing: Collection[int],
+    dominoes: list[Candidate],
+    where: str = "between its neighbours",
+) -> Probe:
     """Whether the planner places a flat pile domino (the first of ``dominoes``) at
     ``slot`` with the slots ``standing`` standing (as the build leaves the run then),
     ignoring the domino's pile and any debris (only the place is in question); the next
-    domino when its grasp is refused."""
+    domino when its grasp is refused. ``where``: the log's words for ``standing``."""
     targets = tuple(job.targets[i] for i in sorted(standing))
     plans, why = 0, ""
     for candidate in dominoes:
@@ -139,7 +145,7 @@ def probe(job: Job, slot: int, standing: Collection[int], dominoes: list[Candida
         if plan.success:
             return Probe(Fill.PLANS, "", plans)
         why = plan.message.split(" (")[0]
-        log(f"{job.domino(slot)} between its neighbours refused: {why}")
+        log(f"{job.domino(slot)} {where} refused: {why}")
         if plan.error in PLACE_REFUSALS:
             return Probe(Fill.REFUSED, why, plans)
         if plan.error != ErrorCode.GRASP_UNREACHABLE:

@@ -11,7 +11,7 @@ empty and the run is built around it; what stands is then struck section by sect
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Sequence
 from enum import Enum
 
 import numpy as np
@@ -23,6 +23,7 @@ from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.clearing import sweep_debris
 from dombot_bringup.task.enclosure import enclosed
 from dombot_bringup.task.gaps import gap_slots
+from dombot_bringup.task.order import build_order
 from dombot_bringup.task.picking import Refusal
 from dombot_bringup.task.records import add_spent, record_truth, take_picture
 from dombot_bringup.task.state import Job, log
@@ -69,7 +70,8 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
     and the planner refuses it there: that turn, its last, comes before the second
     (``enclosure.enclosed``). How each slot's last turn ended."""
     gaps = gap_slots(job)
-    queue = [i for i in range(len(job.layout)) if i not in gaps] + gaps
+    order = build_order(job, [i for i in range(len(job.layout)) if i not in gaps]) + gaps
+    queue = list(order)
     if gaps:
         numbers = ", ".join(str(i + 1) for i in gaps)
         log(f"safety gaps at dominoes {numbers}: built once the rest stands")
@@ -87,7 +89,9 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
         # slots nothing planned for putting each other off for ever (S-curve seed 2).
         settled = deferred | set(standing)  # no turn to wait for
         if_placed = {*standing, index}
-        job.upcoming = next((i for i in requeue(job, queue, if_placed) if i not in if_placed), None)
+        job.upcoming = next(
+            (i for i in requeue(job, queue, if_placed, order) if i not in if_placed), None
+        )
         ended[index] = turn(job, index, not enclosure and any(i not in settled for i in queue))
         if ended[index] is Turn.DEFERRED:
             deferred.add(index)
@@ -113,16 +117,19 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
             log(empty_message(index, reason))
         else:
             deferred.clear()
-        queue = requeue(job, queue, standing)
+        queue = requeue(job, queue, standing, order)
     return ended
 
 
-def requeue(job: Job, queue: list[int], standing: Collection[int]) -> list[int]:
+def requeue(
+    job: Job, queue: list[int], standing: Collection[int], order: Sequence[int]
+) -> list[int]:
     """The slots to build, in order, after a turn: those built earlier that no longer
-    stand (knocked over, or their fallen domino picked up for another slot) first,
-    given-up ones not, then ``queue``."""
+    stand (knocked over, or their fallen domino picked up for another slot) first, in the
+    build's ``order`` (a stretch from where it was started: ``task.order``), given-up ones
+    not, then ``queue``."""
     given_up = {e.slot - 1 for e in job.report.empty_slots}
-    empty = [i for i in range(len(job.layout)) if i not in standing]
+    empty = [i for i in order if i not in standing]
     return [i for i in empty if i not in queue and i not in given_up] + queue
 
 

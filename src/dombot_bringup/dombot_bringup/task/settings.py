@@ -102,6 +102,14 @@ class ArmJobSettings:
     # asked, put off as any other: s_curve30's first 10 at 22 mm put slot 3 off, built the
     # 4th, then spent a turn behind each later slot on a place refused between the two).
     enclosure_probe_dominoes: int = 3
+    # Where neighbours stand closer than order_probe_spacing (the pads of a hold leaning
+    # over one come within 2 mm of it: at 24 mm 1.1 mm, at 26 mm 2.9 mm on a straight run,
+    # less on a curve's inner side), the planner is asked before the build, with at most
+    # this many flat dominoes, which slot of each stretch to start from (``task.order``):
+    # the s-curve of 10 at 22 mm refused slots 2-4 with the one behind standing, each of
+    # which plans with the one ahead (0: not asked, run order).
+    order_probe_dominoes: int = 3
+    order_probe_spacing: float = 0.027  # m between neighbouring centres
     plan_budget: float = 5.0  # s of planning per request
     # s simulated from letting go to checking a placement: in the simulator's truth
     # released dominoes were at rest (asleep) 0.01-0.17 s after the fingers let go (4 of
