@@ -1,0 +1,75 @@
+"""Strikes and sweeps the planner refuses whatever its IK finds, told without a plant (no ROS).
+
+Where the pusher (the closed pads) stands at each strike pose depends on the request
+alone (``strike.strike_pose`` for each of ``strike.pusher_rotations``), not on the arm
+configuration that reaches it. A pusher whose pads lie inside a standing domino's box
+there fails the descent's pads–standing clearance (``coarse_clearance`` ≥ 0) at every IK
+solution: ``StrikePlanning`` then refuses that orientation ("in collision at the pose
+(pads–standing)"), and when every orientation is so, the request
+(PLACE_IN_COLLISION at strike). Together with the request's own checks
+(``check_strike_request``: a sweep that pushes the domino into a standing one) that tells
+a refusal before asking (``foreseen_strike_refusal``): the bring-up asks it before it
+pushes a leaning pile domino over flat (docs/PLANNER.md, *Refusals told before planning*).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from dombot_description import DOMINO_SIZE
+from dombot_description.grasp import OrientedBox, gripper_geometry
+from dombot_description.pusher import PUSHER_STANDOFF, SWEEP_HEIGHT
+from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.pads import DEPTH_MARGIN
+from dombot_planner.request import StrikeRequest, check_strike_request
+from dombot_planner.settings import PlannerSettings
+from dombot_planner.strike import CLOSED, push_direction, pusher_rotations, strike_pose
+
+
+def pusher_in_standing(tcp: RigidTransform, standing: Sequence[RigidTransform]) -> bool:
+    """Whether a closed pad at TCP pose ``tcp`` reaches more than DEPTH_MARGIN into one of
+    the ``standing`` dominoes' boxes (penetration depth along the 15 separating-axis
+    candidates, ``OrientedBox.overlaps``: the test fails no pose SceneGraph's signed
+    distance would pass)."""
+    size = np.asarray(DOMINO_SIZE, dtype=float)
+    domino_radius = float(np.linalg.norm(size)) / 2.0
+    for box in gripper_geometry().pad_boxes_in_tcp(CLOSED):
+        pad = OrientedBox(tcp @ box.pose, box.size)
+        reach = domino_radius + float(np.linalg.norm(pad.size)) / 2.0
+        centre = pad.pose.translation()
+        for pose in standing:
+            if np.linalg.norm(pose.translation() - centre) < reach and pad.overlaps(
+                OrientedBox(pose, size), DEPTH_MARGIN
+            ):
+                return True
+    return False
+
+
+def foreseen_strike_refusal(
+    request: StrikeRequest, settings: PlannerSettings
+) -> PlanningError | None:
+    """The refusal the planner will answer ``request`` with whatever its IK finds, or None
+    when it may plan: the request's checks that need no table (``check_strike_request``),
+    or the pusher inside a standing domino at every strike pose (``pusher_in_standing``:
+    PLACE_IN_COLLISION at strike)."""
+    try:
+        check_strike_request(request, settings)
+    except PlanningError as error:
+        return error
+    direction = push_direction(request)
+    height = settings.strike_height if request.sweep is None else SWEEP_HEIGHT
+    poses = [
+        strike_pose(request.domino_pose, rotation, direction, height, PUSHER_STANDOFF)
+        for rotation in pusher_rotations(direction)
+    ]
+    if not all(pusher_in_standing(pose, request.standing) for pose in poses):
+        return None
+    return PlanningError(
+        ErrorCode.PLACE_IN_COLLISION,
+        "strike",
+        f"the pusher in a standing domino at every one of {len(poses)} pusher orientations, "
+        "before any IK",
+    )
