@@ -11,21 +11,19 @@ import pytest
 from pydrake.math import RigidTransform
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import flat_pose, release_opening
-from dombot_description.pusher import PUSHER_STANDOFF
+from dombot_description.grasp import flat_pose, gripper_geometry, release_opening
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.request import StrikeRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.strike import StrikePlanner
-from dombot_planner.strike_foresight import foreseen_strike_refusal, pusher_in_standing
+from dombot_planner.strike_foresight import foreseen_strike_refusal, pusher_near_standing
 from support.planning_clock import UNHURRIED
 
 SCENARIO = load_scenario()
 SETTINGS = PlannerSettings(default_time_budget=UNHURRIED)
 ALONG = np.array([0.0, 1.0, 0.0])  # the sweep
 DOMINO = flat_pose(0.58, -0.30, math.pi / 2)  # flat, its length along the sweep
-PAD = 0.008  # m: a pad's thickness
 
 
 @pytest.fixture(scope="module")
@@ -51,23 +49,31 @@ def sweep(standing: tuple[RigidTransform, ...]) -> StrikeRequest:
     )
 
 
-def test_pusher_in_a_domino_where_the_pads_stand() -> None:
-    """The pusher stands PUSHER_STANDOFF behind the domino: a domino filling that space
-    takes it in, one beyond the pads (and a second clearance) does not."""
-    tcp = RigidTransform(DOMINO.translation() - (DOMINO_SIZE[0] / 2 + PUSHER_STANDOFF) * ALONG)
-    assert pusher_in_standing(tcp, [behind(PUSHER_STANDOFF)])
-    assert not pusher_in_standing(tcp, [behind(PUSHER_STANDOFF + 3 * PAD)])
-    assert not pusher_in_standing(tcp, [])
+def test_pusher_near_a_domino_beside_a_pad() -> None:
+    """A domino beside the closed pads' end face, 3 mm from it (or 1 mm into it), is within
+    coarse_clearance (5 mm) of the pusher; 7 mm from it, it is not."""
+    pad = gripper_geometry().pad_boxes_in_tcp(0.0)[0]
+    clearance = SETTINGS.coarse_clearance
+
+    def beside(gap: float) -> RigidTransform:
+        return pad.pose @ RigidTransform([pad.size[0] / 2 + DOMINO_SIZE[0] / 2 + gap, 0.0, 0.0])
+
+    tcp = RigidTransform()
+    assert pusher_near_standing(tcp, [beside(-0.001)], clearance)
+    assert pusher_near_standing(tcp, [beside(0.003)], clearance)
+    assert not pusher_near_standing(tcp, [beside(0.007)], clearance)
+    assert not pusher_near_standing(tcp, [], clearance)
 
 
 @pytest.mark.parametrize(
     ("standing", "foreseen"),
     [
         ((behind(0.002),), True),  # the pusher's place taken at every orientation
+        ((behind(0.03),), True),  # the pads within 5 mm of it at every orientation
         ((behind(0.06),), False),  # room behind it: it plans
         ((), False),
     ],
-    ids=["boxed_in", "room", "alone"],
+    ids=["boxed_in", "close", "room", "alone"],
 )
 def test_a_foreseen_strike_refusal_is_the_planners(planner, standing, foreseen: bool) -> None:
     """``foreseen_strike_refusal`` says why only where the planner refuses the sweep."""

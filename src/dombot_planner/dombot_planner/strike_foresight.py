@@ -2,8 +2,8 @@
 
 Where the pusher (the closed pads) stands at each strike pose depends on the request
 alone (``strike.strike_pose`` for each of ``strike.pusher_rotations``), not on the arm
-configuration that reaches it. A pusher whose pads lie inside a standing domino's box
-there fails the descent's pads–standing clearance (``coarse_clearance`` ≥ 0) at every IK
+configuration that reaches it. A pusher whose pads come within ``coarse_clearance`` of
+a standing domino's box there fails the descent's pads–standing clearance at every IK
 solution: ``StrikePlanning`` then refuses that orientation ("in collision at the pose
 (pads–standing)"), and when every orientation is so, the request
 (PLACE_IN_COLLISION at strike). Together with the request's own checks
@@ -28,22 +28,28 @@ from dombot_planner.request import StrikeRequest, check_strike_request
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.strike import CLOSED, push_direction, pusher_rotations, strike_pose
 
+SURFACE_STEP = 0.002  # m between the points on a pad's faces
 
-def pusher_in_standing(tcp: RigidTransform, standing: Sequence[RigidTransform]) -> bool:
-    """Whether a closed pad at TCP pose ``tcp`` reaches more than DEPTH_MARGIN into one of
-    the ``standing`` dominoes' boxes (penetration depth along the 15 separating-axis
-    candidates, ``OrientedBox.overlaps``: the test fails no pose SceneGraph's signed
-    distance would pass)."""
+
+def pusher_near_standing(
+    tcp: RigidTransform, standing: Sequence[RigidTransform], clearance: float
+) -> bool:
+    """Whether a closed pad at TCP pose ``tcp`` comes within ``clearance`` (less
+    DEPTH_MARGIN, SceneGraph's tolerance) of one of the ``standing`` dominoes' boxes. Told
+    by points on the pads' faces, SURFACE_STEP apart: the nearest of them is at least as
+    far as the pad itself, so the test fails no pose SceneGraph's signed distance would
+    pass."""
     size = np.asarray(DOMINO_SIZE, dtype=float)
     domino_radius = float(np.linalg.norm(size)) / 2.0
     for box in gripper_geometry().pad_boxes_in_tcp(CLOSED):
         pad = OrientedBox(tcp @ box.pose, box.size)
-        reach = domino_radius + float(np.linalg.norm(pad.size)) / 2.0
-        centre = pad.pose.translation()
+        reach = domino_radius + float(np.linalg.norm(pad.size)) / 2.0 + clearance
+        centre, points = pad.pose.translation(), None
         for pose in standing:
-            if np.linalg.norm(pose.translation() - centre) < reach and pad.overlaps(
-                OrientedBox(pose, size), DEPTH_MARGIN
-            ):
+            if np.linalg.norm(pose.translation() - centre) >= reach:
+                continue
+            points = pad.surface(SURFACE_STEP) if points is None else points
+            if OrientedBox(pose, size).signed_distance(points).min() < clearance - DEPTH_MARGIN:
                 return True
     return False
 
@@ -53,7 +59,8 @@ def foreseen_strike_refusal(
 ) -> PlanningError | None:
     """The refusal the planner will answer ``request`` with whatever its IK finds, or None
     when it may plan: the request's checks that need no table (``check_strike_request``),
-    or the pusher inside a standing domino at every strike pose (``pusher_in_standing``:
+    or the pusher within coarse_clearance of a standing domino at every strike pose
+    (``pusher_near_standing``:
     PLACE_IN_COLLISION at strike)."""
     try:
         check_strike_request(request, settings)
@@ -65,11 +72,12 @@ def foreseen_strike_refusal(
         strike_pose(request.domino_pose, rotation, direction, height, PUSHER_STANDOFF)
         for rotation in pusher_rotations(direction)
     ]
-    if not all(pusher_in_standing(pose, request.standing) for pose in poses):
+    clearance = settings.coarse_clearance  # the descent's pads–standing rule at the pose
+    if not all(pusher_near_standing(pose, request.standing, clearance) for pose in poses):
         return None
     return PlanningError(
         ErrorCode.PLACE_IN_COLLISION,
         "strike",
-        f"the pusher in a standing domino at every one of {len(poses)} pusher orientations, "
-        "before any IK",
+        f"the pusher within coarse_clearance of a standing domino at every one of "
+        f"{len(poses)} pusher orientations, before any IK",
     )
