@@ -15,6 +15,7 @@ pushes a leaning pile domino over flat (docs/PLANNER.md, *Refusals told before p
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cache
 
 import numpy as np
 from pydrake.math import RigidTransform
@@ -35,23 +36,43 @@ def pusher_near_standing(
     tcp: RigidTransform, standing: Sequence[RigidTransform], clearance: float
 ) -> bool:
     """Whether a closed pad at TCP pose ``tcp`` comes within ``clearance`` (less
-    DEPTH_MARGIN, SceneGraph's tolerance) of one of the ``standing`` dominoes' boxes. Told
-    by points on the pads' faces, SURFACE_STEP apart: the nearest of them is at least as
-    far as the pad itself, so the test fails no pose SceneGraph's signed distance would
-    pass."""
+    DEPTH_MARGIN, SceneGraph's tolerance) of one of the ``standing`` dominoes' boxes.
+
+    A pad and a box that one of the 15 separating-axis candidates parts by ``clearance``
+    or more are that far apart; one reaching into the box is near it; otherwise points on
+    the pad's faces, SURFACE_STEP apart, tell: the nearest of them is at least as far as
+    the pad itself, so the test fails no pose SceneGraph's signed distance would pass."""
     size = np.asarray(DOMINO_SIZE, dtype=float)
     domino_radius = float(np.linalg.norm(size)) / 2.0
-    for box in gripper_geometry().pad_boxes_in_tcp(CLOSED):
+    limit = clearance - DEPTH_MARGIN
+    for box, faces in zip(closed_pads(), pad_faces(), strict=True):
         pad = OrientedBox(tcp @ box.pose, box.size)
         reach = domino_radius + float(np.linalg.norm(pad.size)) / 2.0 + clearance
         centre, points = pad.pose.translation(), None
         for pose in standing:
-            if np.linalg.norm(pose.translation() - centre) >= reach:
-                continue
-            points = pad.surface(SURFACE_STEP) if points is None else points
-            if OrientedBox(pose, size).signed_distance(points).min() < clearance - DEPTH_MARGIN:
+            other = OrientedBox(pose, size)
+            if np.linalg.norm(pose.translation() - centre) >= reach or not pad.overlaps(
+                other, -limit
+            ):
+                continue  # parted by ``limit`` along an axis
+            if pad.overlaps(other, DEPTH_MARGIN):
+                return True
+            points = tcp.multiply(faces.T).T if points is None else points
+            if other.signed_distance(points).min() < limit:
                 return True
     return False
+
+
+@cache
+def closed_pads() -> tuple[OrientedBox, ...]:
+    """The closed pads' boxes in the TCP frame."""
+    return tuple(gripper_geometry().pad_boxes_in_tcp(CLOSED))
+
+
+@cache
+def pad_faces() -> tuple[np.ndarray, ...]:
+    """Points on each closed pad's faces (N×3, TCP frame), SURFACE_STEP apart or closer."""
+    return tuple(box.surface(SURFACE_STEP) for box in closed_pads())
 
 
 def foreseen_strike_refusal(

@@ -202,9 +202,12 @@ def leaning_behind_flat(
     them first picks the same domino without planning it and its pushes (the default job,
     seed 0: at four slots a leaning domino planned, then its two pushes refused, 1.5-6 s
     of wall time before the flat one after it)."""
-    ordered = list(offers)
-    for offer in offers:
-        if not stays_leaning(job, index, offer[0]):
+    ordered, staying = list(offers), {}
+    for offer in offers:  # a candidate comes in both tiers: told once
+        candidate = offer[0]
+        if id(candidate) not in staying:
+            staying[id(candidate)] = stays_leaning(job, index, candidate)
+        if not staying[id(candidate)]:
             continue
         at = next(k for k, other in enumerate(ordered) if other is offer)
         after = ordered[at + 1 :]
