@@ -36,29 +36,22 @@ def pusher_near_standing(
     tcp: RigidTransform, standing: Sequence[RigidTransform], clearance: float
 ) -> bool:
     """Whether a closed pad at TCP pose ``tcp`` comes within ``clearance`` (less
-    DEPTH_MARGIN, SceneGraph's tolerance) of one of the ``standing`` dominoes' boxes.
-
-    A pad and a box that one of the 15 separating-axis candidates parts by ``clearance``
-    or more are that far apart; one reaching into the box is near it; otherwise points on
-    the pad's faces, SURFACE_STEP apart, tell: the nearest of them is at least as far as
-    the pad itself, so the test fails no pose SceneGraph's signed distance would pass."""
+    DEPTH_MARGIN, SceneGraph's tolerance) of one of the ``standing`` dominoes' boxes. Told
+    by points on the pads' faces, SURFACE_STEP apart: the nearest of them is at least as
+    far as the pad itself, so the test fails no pose SceneGraph's signed distance would
+    pass."""
     size = np.asarray(DOMINO_SIZE, dtype=float)
     domino_radius = float(np.linalg.norm(size)) / 2.0
     limit = clearance - DEPTH_MARGIN
+    centres = np.array([pose.translation() for pose in standing]).reshape(-1, 3)
     for box, faces in zip(closed_pads(), pad_faces(), strict=True):
-        pad = OrientedBox(tcp @ box.pose, box.size)
-        reach = domino_radius + float(np.linalg.norm(pad.size)) / 2.0 + clearance
-        centre, points = pad.pose.translation(), None
-        for pose in standing:
-            other = OrientedBox(pose, size)
-            if np.linalg.norm(pose.translation() - centre) >= reach or not pad.overlaps(
-                other, -limit
-            ):
-                continue  # parted by ``limit`` along an axis
-            if pad.overlaps(other, DEPTH_MARGIN):
-                return True
-            points = tcp.multiply(faces.T).T if points is None else points
-            if other.signed_distance(points).min() < limit:
+        reach = domino_radius + float(np.linalg.norm(box.size)) / 2.0 + clearance
+        near = np.linalg.norm(centres - tcp.multiply(box.pose.translation()), axis=1) < reach
+        if not near.any():
+            continue
+        points = tcp.multiply(faces.T).T
+        for k in np.flatnonzero(near):
+            if OrientedBox(standing[k], size).signed_distance(points).min() < limit:
                 return True
     return False
 

@@ -203,15 +203,17 @@ def leaning_behind_flat(
     seed 0: at four slots a leaning domino planned, then its two pushes refused, 1.5-6 s
     of wall time before the flat one after it)."""
     ordered, staying = list(offers), {}
-    for offer in offers:  # a candidate comes in both tiers: told once
+    for offer in offers:
         candidate = offer[0]
-        if id(candidate) not in staying:
-            staying[id(candidate)] = stays_leaning(job, index, candidate)
-        if not staying[id(candidate)]:
-            continue
         at = next(k for k, other in enumerate(ordered) if other is offer)
         after = ordered[at + 1 :]
         flat = [o for o in after if not o[0].leaning]
+        if not (candidate.leaning and flat):
+            continue  # nothing to ask before it
+        if id(candidate) not in staying:  # a candidate comes in both tiers: told once
+            staying[id(candidate)] = stays_leaning(job, index, candidate)
+        if not staying[id(candidate)]:
+            continue
         ordered = [*ordered[:at], *flat, offer, *(o for o in after if o[0].leaning)]
     return ordered
 
