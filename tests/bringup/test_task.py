@@ -165,7 +165,7 @@ def test_a_domino_refused_with_its_piles_cores_is_not_asked_so_again() -> None:
     run_job = job(refusing({0.50: ErrorCode.GRASP_UNREACHABLE, 0.55: ErrorCode.TIMEOUT}))
     found, _ = candidates(run_job, [], 0)
     run_job.state.cored.append(np.array([0.50, -0.3]))
-    offers = [(x_of(c.pose), pile) for c, pile in offers_with_pile(run_job, found)]
+    offers = [(x_of(c.pose), pile) for c, pile in offers_with_pile(run_job, 0, found)]
     assert offers == [(0.50, PILE_BOXES), (0.55, PILE_BOXES), (0.55, PILE_CORES)]
 
 
@@ -537,7 +537,8 @@ def test_flat_dominoes_are_offered_before_leaning_ones() -> None:
     cell = refusing({0.50: ErrorCode.GRASP_UNREACHABLE, 0.55: ErrorCode.GRASP_UNREACHABLE})
     cell.pile[0] = flat(0.50, posture=Posture.TILTED)
     attempt(job(cell), 0, [], ignore_pile=True)
-    assert [offer[0] for offer in offered(cell)] == [0.55, 0.50] * 3
+    # no push lays the leaning one flat: it comes after the flat one's cores too
+    assert [offer[0] for offer in offered(cell)] == [0.55, 0.55, 0.50, 0.50, 0.55, 0.50]
 
 
 def test_a_pick_whose_pads_meet_the_pile_at_every_grasp_is_refused_without_asking() -> None:
@@ -1093,6 +1094,28 @@ def test_a_leaning_domino_no_push_lays_flat_gives_way_to_a_flat_one_that_plans()
     assert len(cell.strike_requests) == 2  # both ways over: refused
     assert [offer[0] for offer in offered(cell)] == pytest.approx([0.50, 0.60])
     assert run_job.report.dominoes[0].attempts == 1
+
+
+def test_a_leaning_domino_no_push_will_lay_flat_is_asked_after_the_flat_ones() -> None:
+    """The same leaning domino, pushed where it lies already (its pushes were refused): the
+    flat one after it is asked first and picked, the leaning one and its pushes never
+    asked; with nothing but it, it is picked as it leans."""
+    leaning = lying(0.50, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
+    pile = [Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01), unscored]
+    cell = ScriptedCell(pile=pile, place=lambda request: planned())
+    run_job = job(cell)
+    run_job.state.pushed.append(np.array([0.50, -0.3]))
+    assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
+    assert [offer[0] for offer in offered(cell)] == pytest.approx([0.60])
+    assert not cell.strike_requests
+    alone = ScriptedCell(pile=pile[:1], place=lambda request: planned())
+    alone_job = job(alone)
+    alone_job.state.pushed.append(np.array([0.50, -0.3]))
+    assert place_slot(alone_job, 0, may_defer=False) is Turn.PLACED
+    assert [offer[0] for offer in offered(alone)] == pytest.approx([0.50])
+    assert not alone.strike_requests
 
 
 NO_PLACE_POSE = (

@@ -17,7 +17,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.math import RigidTransform
 
 from dombot_bringup.task.cell import (
     Detection,
@@ -35,6 +34,7 @@ from dombot_bringup.task.cell import (
     StrikeRequest,
     Trajectory,
     planner_request,
+    planner_strike_request,
 )
 from dombot_perception.frames import CameraView
 from dombot_perception.pipeline import PerceptionPipeline
@@ -43,7 +43,6 @@ from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
 from dombot_planner.motion import Plan as PlannerPlan
 from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
-from dombot_planner.request import StrikeRequest as PlannerStrikeRequest
 from dombot_planner.request import arm_positions, finger_opening
 from dombot_planner.strike import StrikePlanner
 from dombot_sim.goal_monitor import (
@@ -204,19 +203,7 @@ class SimCell:
 
     def plan_strike(self, request: StrikeRequest) -> Plan:
         def planned() -> PlannerPlan:
-            start, opening = self._start()
-            sweep = None if request.sweep is None else np.array([*request.sweep[:2], 0.0])
-            return self.striker.plan(
-                PlannerStrikeRequest(
-                    domino_pose=RigidTransform(request.domino),
-                    start=start,
-                    finger_opening=opening,
-                    standing=tuple(RigidTransform(p) for p in request.standing),
-                    push_distance=request.push_distance,
-                    time_budget=request.time_budget,
-                    sweep=sweep,
-                )
-            )
+            return self.striker.plan(planner_strike_request(request, *self._start()))
 
         return self._plan("strike", planned)
 

@@ -19,6 +19,7 @@ from pydrake.math import RigidTransform
 
 from dombot_planner.errors import ErrorCode
 from dombot_planner.request import PickPlaceRequest
+from dombot_planner.request import StrikeRequest as PlannerStrikeRequest
 
 Pose = np.ndarray  # 4x4, world frame
 T = TypeVar("T")
@@ -195,6 +196,22 @@ class StrikeRequest:
     sweep: np.ndarray | None = None
     push_distance: float = 0.0  # m; 0: the planner's default
     time_budget: float = 0.0
+
+
+def planner_strike_request(
+    request: StrikeRequest, start: np.ndarray, opening: float | None
+) -> PlannerStrikeRequest:
+    """``request`` as the planner's ``StrikeRequest``, planned from ``start`` (the arm's
+    joint positions) with the fingers ``opening`` apart (None: not known)."""
+    return PlannerStrikeRequest(
+        domino_pose=RigidTransform(request.domino),
+        start=start,
+        finger_opening=opening,
+        standing=tuple(RigidTransform(p) for p in request.standing),
+        push_distance=request.push_distance,
+        time_budget=request.time_budget,
+        sweep=None if request.sweep is None else np.array([*request.sweep[:2], 0.0]),
+    )
 
 
 @dataclass(frozen=True)
