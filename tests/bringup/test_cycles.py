@@ -36,8 +36,8 @@ LINE = layouts.line((0.45, 0.0), math.pi / 2, 3)  # slots at y = 0, 28.8 and 57.
 FALLEN_Y = [0.020, 0.0488, 0.0776]
 PILE_Y = -0.3
 # the scripted row lies flat, each domino over the next (a real one leans on the next),
-# so the pads' pre-test refuses it: the tests of the order ask every offer (test_pads
-# covers the refusals foreseen)
+# so the pads' and the pusher's pre-tests refuse it: the tests of the order and of the
+# sweeps ask every offer (test_pads and test_strike_foresight cover the refusals foreseen)
 ASK_EVERY_OFFER = ArmJobSettings(pile=8, foresee_refusals=False)
 
 
@@ -341,7 +341,7 @@ def test_a_struck_domino_seen_down_but_not_fitted_is_an_obstacle_swept_never_pic
         return PlacementCheck(True, "", answer.status, *(tuple(c) for c in columns))
 
     cell.placements = placements
-    jobs = run_cycles(cell, [("line", LINE)] * 2, ArmJobSettings(pile=8))
+    jobs = run_cycles(cell, [("line", LINE)] * 2, ASK_EVERY_OFFER)
     (unfitted,) = jobs[0].state.unfitted
     assert spot_of(unfitted) == pytest.approx(spot_of(presumed))
     second = cell.place_requests[3:]
