@@ -42,7 +42,8 @@ from dombot_perception.placement_check import PlacementConfig, check_placements
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
 from dombot_planner.motion import Plan as PlannerPlan
-from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.pick_place_plan import PickPlacePlan
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import StrikeRequest as PlannerStrikeRequest
 from dombot_planner.request import arm_positions, finger_opening
 from dombot_planner.strike import StrikePlanner

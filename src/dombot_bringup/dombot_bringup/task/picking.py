@@ -34,7 +34,7 @@ from dombot_bringup.task.geometry import (
 )
 from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
-from dombot_planner.planner import foreseen_refusal
+from dombot_planner.foreseen_refusal import foreseen_refusal
 from dombot_planner.settings import PlannerSettings
 
 DETECT_TRIES = 5
