@@ -18,9 +18,7 @@ from dombot_planner.grasp_candidates import (
     regrasp_grasp,
     regrasp_requests,
 )
-from dombot_planner.motion import (
-    reasons,
-)
+from dombot_planner.motion import reasons
 from dombot_planner.pads import pads_in_pile, pads_path_meets_points
 from dombot_planner.request import PickPlaceRequest, near_pick
 from dombot_planner.settings import PlannerSettings

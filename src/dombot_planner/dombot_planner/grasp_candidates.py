@@ -22,9 +22,7 @@ from dombot_description.grasp import (
     release_opening,
     top_grasp,
 )
-from dombot_planner.motion import (
-    UP,
-)
+from dombot_planner.motion import UP
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 

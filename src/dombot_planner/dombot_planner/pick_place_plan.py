@@ -10,11 +10,8 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.motion import (
-    UP,
-    Plan,
-    reasons,
-)
+from dombot_planner.motion import UP, reasons
+from dombot_planner.plan_segments import Plan
 
 
 @dataclass(kw_only=True)

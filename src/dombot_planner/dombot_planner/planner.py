@@ -31,10 +31,7 @@ from dataclasses import replace
 
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.grasp_candidates import regrasp_grasp, regrasp_requests
-from dombot_planner.motion import (
-    ArmPlanner,
-    Deadline,
-)
+from dombot_planner.motion import ArmPlanner, Deadline
 from dombot_planner.pick_place_plan import PickPlacePlan
 from dombot_planner.request import PickPlaceRequest, check_request, near_pick
 from dombot_planner.request_planning import RequestPlanning

@@ -24,17 +24,10 @@ from dombot_planner.grasp_candidates import (
     pile_points,
     ranked_grasps,
 )
-from dombot_planner.motion import (
-    GRIPPER_CLOSE,
-    GRIPPER_OPEN,
-    LINE_WRIST_OUT,
-    UP,
-    Deadline,
-    RequestMotions,
-    Segment,
-)
+from dombot_planner.motion import LINE_WRIST_OUT, UP, Deadline, RequestMotions
 from dombot_planner.pads import pads_in_pile, pads_path_meets_points
 from dombot_planner.pick_place_plan import End, EndSearch, PickPlacePlan
+from dombot_planner.plan_segments import GRIPPER_CLOSE, GRIPPER_OPEN, Segment
 from dombot_planner.request import GRASP_REACH, PickPlaceRequest, invalid
 from dombot_planner.scene import (
     HELD,

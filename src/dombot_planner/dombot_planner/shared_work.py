@@ -7,9 +7,7 @@ from collections.abc import Callable
 from pydrake.math import RigidTransform, RotationMatrix
 
 from dombot_planner.ik import PoseIK
-from dombot_planner.motion import (
-    ArmPlanner,
-)
+from dombot_planner.motion import ArmPlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.scene import (
     Scene,
