@@ -35,7 +35,8 @@ from pydrake.math import RigidTransform
 import dombot_planner
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.pick_place_plan import PickPlacePlan
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 

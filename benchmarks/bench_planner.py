@@ -39,7 +39,8 @@ from dombot_description.grasp import (
 )
 from dombot_description.scenario import Scenario, load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.pick_place_plan import PickPlacePlan
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.timing import retime

@@ -35,7 +35,7 @@ from dombot_bringup.task.settings import ArmJobSettings
 from dombot_description.grasp import SYMMETRIES, flat_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN, SampledSegment
+from dombot_planner.plan_segments import GRIPPER_CLOSE, GRIPPER_OPEN, SampledSegment
 from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings

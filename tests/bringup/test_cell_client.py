@@ -6,7 +6,7 @@ import numpy as np
 from geometry_msgs.msg import Pose
 
 from dombot_adapters.pose_messages import pose_message
-from dombot_bringup.cell_client import (
+from dombot_bringup.cell_messages import (
     detection_of,
     geometry_pose,
     plan_of,

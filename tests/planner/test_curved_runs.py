@@ -5,7 +5,7 @@ offered domino's place was PLACE_UNREACHABLE. The hold of a canonical grasp stan
 gripper 27° from vertical, leaning over one neighbour: on the inner side of the curve that
 neighbour comes closer to the pads than fine_obstacle_clearance, and the hold leaning over
 the other one needs the elbow beyond its limit (no IK) or lifts into it (the line up leaves
-the reach). The flatter grasps (planner.flatter_grasps) stand the gripper more upright at
+the reach). The flatter grasps (grasp_candidates.flatter_grasps) stand the gripper more upright at
 place, with the pads higher. The requests are built as the bring-up builds them: the
 layout's release poses (place_lead ahead), the run standing as the build order left it.
 """
@@ -29,7 +29,8 @@ from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import canonical_grasp, equivalent_grasps, flat_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.planner import PickPlacePlanner, flatter_grasps
+from dombot_planner.grasp_candidates import flatter_grasps
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.verify import TrajectoryChecker

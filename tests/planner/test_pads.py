@@ -1,5 +1,5 @@
 """Refusals told before any IK: the pads' place and path against the pile
-(dombot_planner.pads, planner.foreseen_refusal) agree with the planner's answers."""
+(dombot_planner.pads, foreseen_refusal) agree with the planner's answers."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import OrientedBox, flat_pose, pick_grasps, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.foreseen_refusal import foreseen_refusal
 from dombot_planner.pads import pads_in_pile
-from dombot_planner.planner import PickPlacePlanner, foreseen_refusal
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
 from support.planning_clock import UNHURRIED

@@ -13,28 +13,18 @@ from pydrake.math import RigidTransform, RotationMatrix
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import FINGER_SWAP, flat_pose, pick_grasps, upright_pose
 from dombot_description.scenario import load_scenario
+from dombot_planner.arm_reach import elbow_not_up, faces_away
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.motion import (
-    GRIPPER_CLOSE,
-    GRIPPER_NONE,
-    GRIPPER_OPEN,
-    UP,
-    Deadline,
-    RequestMotions,
-    elbow_not_up,
-    faces_away,
-)
-from dombot_planner.planner import (
-    PADS_IN_PILE,
-    PickPlacePlanner,
-    RequestPlanning,
-    SharedWork,
-    flatter_grasps,
-    steeper_grasps,
-)
+from dombot_planner.foreseen_refusal import PADS_IN_PILE
+from dombot_planner.grasp_candidates import flatter_grasps, steeper_grasps
+from dombot_planner.motion import UP, Deadline, RequestMotions
+from dombot_planner.plan_segments import GRIPPER_CLOSE, GRIPPER_NONE, GRIPPER_OPEN
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest, box_corners, dominoes_overlap
+from dombot_planner.request_planning import RequestPlanning
 from dombot_planner.scene import Scene
 from dombot_planner.settings import PlannerSettings
+from dombot_planner.shared_work import SharedWork
 from dombot_planner.verify import TrajectoryChecker
 from support.planning_clock import UNHURRIED, jump_clock
 

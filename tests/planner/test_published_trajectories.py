@@ -21,7 +21,7 @@ from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import flat_pose, release_opening, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import PlanningError
-from dombot_planner.motion import Plan
+from dombot_planner.plan_segments import Plan
 from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest, StrikeRequest
 from dombot_planner.settings import PlannerSettings

@@ -1,4 +1,4 @@
-"""The planning tiers of a request share their scenes and IK (planner.SharedWork): the
+"""The planning tiers of a request share their scenes and IK (shared_work.SharedWork): the
 answers must be those of tiers that each search from scratch."""
 
 from __future__ import annotations
@@ -14,9 +14,10 @@ from dombot_description.grasp import flat_pose, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner import planner as planner_module
 from dombot_planner.errors import PlanningError
-from dombot_planner.planner import PickPlacePlanner, SharedWork
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
 from dombot_planner.settings import PlannerSettings
+from dombot_planner.shared_work import SharedWork
 from support.planning_clock import UNHURRIED
 
 SCENARIO = load_scenario()

@@ -13,7 +13,7 @@ from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import flat_pose, release_opening, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_NONE
+from dombot_planner.plan_segments import GRIPPER_CLOSE, GRIPPER_NONE
 from dombot_planner.request import StrikeRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.strike import StrikePlanner

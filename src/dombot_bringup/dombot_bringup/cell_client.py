@@ -2,7 +2,8 @@
 
 One node spins on a background executor; each method sends a request and waits for
 its answer with a timeout, so the task loop reads like the procedure it is. Messages
-become the plain types of ``task.cell`` here, once, at the door.
+become the plain types of ``task.cell`` once, at the door (``cell_messages``); the
+services and actions it asks are named in ``cell_endpoints``.
 """
 
 from __future__ import annotations
@@ -20,116 +21,55 @@ from control_msgs.action import FollowJointTrajectory, GripperCommand
 from control_msgs.msg import GripperCommand as GripperGoal
 from control_msgs.msg import JointTolerance
 from geometry_msgs.msg import Point, Vector3
-from geometry_msgs.msg import Pose as PoseMessage
 from rclpy.action import ActionClient
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, JointState
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from dombot_adapters.pose_messages import (
-    duration_message,
     pose_matrix,
     pose_message,
     seconds_of,
     time_message,
 )
+from dombot_bringup.cell_endpoints import (
+    ACTIVITIES,
+    DETECT_SERVICE,
+    DETECT_TIMEOUT,
+    GRIPPER_ACTION,
+    RESTART_TIMEOUT,
+    SERVERS,
+    SERVICES,
+    TRAJECTORY_ACTION,
+    SerialActionClient,
+)
+from dombot_bringup.cell_messages import (
+    detections_of,
+    geometry_pose,
+    plan_of,
+    pose_or_none,
+    trajectory_message,
+)
 from dombot_bringup.qos import matching_qos
 from dombot_bringup.task.cell import (
     CellError,
-    Detection,
     Detections,
-    GripperEvent,
     Later,
     Motion,
     PlacementCheck,
     PlaceRequest,
     Plan,
     Pose,
-    Posture,
     Seen,
-    Segment,
     StrikeRequest,
     Trajectory,
 )
-from dombot_msgs.msg import DominoDetection, DominoStateArray, TrajectorySegment
+from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
-from dombot_planner.errors import ErrorCode
-
-# The arm's and gripper's controllers, at ros2_control's names (a real cell's too).
-TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
-GRIPPER_ACTION = "/gripper_controller/gripper_cmd"
-SERVICES = {
-    "/sim/reset": ResetSim,
-    "/perception/detect": DetectDominoes,
-    "/perception/check_placement": CheckPlacement,
-    "/plan_place": PlanPlace,
-    "/plan_strike": PlanStrike,
-}
-
-# The node that serves each service: its answer is asked again when it was restarted.
-SERVERS = {
-    "/sim/reset": "sim_node",
-    "/perception/detect": "perception_node",
-    "/perception/check_placement": "perception_node",
-    "/plan_place": "planner_node",
-    "/plan_strike": "planner_node",
-}
-DETECT_SERVICE = "/perception/detect"
-# s of wall time for perception's answer: a liveness bound, not a speed target (a check
-# took 27 s of wall time at load 30 on two cores; a dead node is seen by the process
-# group at once, and a restarted one is asked again)
-DETECT_TIMEOUT = 120.0
-RESTART_TIMEOUT = 600.0  # s for a restarted server to come back (the planner builds plants)
-
-
-# What simulated time spent waiting for each answer is counted as.
-ACTIVITIES = {
-    "/sim/reset": "reset",
-    "/perception/detect": "perception",
-    "/perception/check_placement": "perception",
-    "/plan_place": "planning",
-    "/plan_strike": "planning",
-    TRAJECTORY_ACTION: "motion",
-    GRIPPER_ACTION: "gripper",
-    "simulated time": "waiting",  # for a domino to settle, or a camera period
-}
-
 
 _RESTARTED = object()  # a call's server was started again before it answered
-
-
-class SerialActionClient(ActionClient):
-    """rclpy's ActionClient with sending a request and taking a response serialized.
-
-    rclpy 7.1 (Jazzy) records a request's sequence number only after sending it; an
-    executor thread that takes the response in between drops it ("Ignoring unexpected
-    goal response") and the future never completes (ros2/rclpy#1123; upstream fixed it
-    with this lock in #1308). Seen here: a trajectory goal the simulator accepted and
-    ran while the bring-up waited for its acceptance until it gave up.
-    """
-
-    def __init__(self, *args, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self._serial = threading.RLock()
-
-    def send_goal_async(self, *args, **kwargs):
-        with self._serial:
-            return super().send_goal_async(*args, **kwargs)
-
-    def _cancel_goal_async(self, goal_handle):
-        with self._serial:
-            return super()._cancel_goal_async(goal_handle)
-
-    def _get_result_async(self, goal_handle):
-        with self._serial:
-            return super()._get_result_async(goal_handle)
-
-    async def execute(self, taken_data):
-        with self._serial:
-            return await super().execute(taken_data)
 
 
 class CellClient:
@@ -478,84 +418,3 @@ class CellClient:
             self._watchdog()
             time.sleep(0.01)
         raise CellError(f"no answer from {what} within {timeout:.0f} s")
-
-
-def geometry_pose(pose: Pose | None) -> PoseMessage:
-    """``pose`` as a message; None as the default pose at the origin (a request's unset)."""
-    return PoseMessage() if pose is None else pose_message(pose)
-
-
-def pose_or_none(message: PoseMessage) -> Pose | None:
-    """The transform of ``message``; None for a field left at the origin (inside the arm
-    base: unset, as planner_node reads a grasp_pose)."""
-    p = message.position
-    return pose_matrix(message) if any((p.x, p.y, p.z)) else None
-
-
-def detections_of(answer: DetectDominoes.Response) -> Detections:
-    return Detections(
-        answer.success,
-        answer.message,
-        tuple(detection_of(d) for d in answer.detections.detections),
-        np.array([(p.x, p.y, p.z) for p in answer.unexplained_points]).reshape(-1, 3),
-    )
-
-
-def detection_of(message: DominoDetection) -> Detection:
-    return Detection(
-        pose_matrix(message.pose),
-        Posture(message.posture),
-        message.score,
-        message.clearance,
-        pose_or_none(message.grasp_pose),
-    )
-
-
-def plan_of(answer: PlanPlace.Response | PlanStrike.Response, held: Pose | None) -> Plan:
-    return Plan(
-        answer.success,
-        ErrorCode(answer.error_code),
-        answer.message,
-        tuple(segment_of(s) for s in answer.segments),
-        held,
-    )
-
-
-def segment_of(message: TrajectorySegment) -> Segment:
-    return Segment(
-        message.label,
-        trajectory_of(message.trajectory),
-        GripperEvent(message.gripper_after),
-        message.gripper_position,
-        message.gripper_max_effort,
-    )
-
-
-def trajectory_of(message: JointTrajectory) -> Trajectory:
-    points, joints = message.points, len(message.joint_names)
-    with_velocities = all(len(p.velocities) == joints for p in points)  # else none given
-    return Trajectory(
-        tuple(message.joint_names),
-        np.array([seconds_of(p.time_from_start) for p in points]),
-        np.array([list(p.positions) for p in points]).reshape(len(points), joints),
-        np.array([list(p.velocities) for p in points if with_velocities]).reshape(
-            len(points) if with_velocities else 0, joints
-        ),
-    )
-
-
-def trajectory_message(trajectory: Trajectory) -> JointTrajectory:
-    velocities = trajectory.velocities.tolist() or [[]] * len(trajectory.times)
-    return JointTrajectory(
-        joint_names=list(trajectory.joint_names),
-        points=[
-            JointTrajectoryPoint(
-                positions=positions,
-                velocities=speeds,
-                time_from_start=duration_message(time),
-            )
-            for time, positions, speeds in zip(
-                trajectory.times.tolist(), trajectory.positions.tolist(), velocities, strict=True
-            )
-        ],
-    )

@@ -40,9 +40,10 @@ from dombot_perception.frames import CameraView
 from dombot_perception.pipeline import PerceptionPipeline
 from dombot_perception.placement_check import PlacementConfig, check_placements
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN
-from dombot_planner.motion import Plan as PlannerPlan
-from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.pick_place_plan import PickPlacePlan
+from dombot_planner.plan_segments import GRIPPER_CLOSE, GRIPPER_OPEN
+from dombot_planner.plan_segments import Plan as PlannerPlan
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import arm_positions, finger_opening
 from dombot_planner.strike import StrikePlanner
 from dombot_sim.goal_monitor import (

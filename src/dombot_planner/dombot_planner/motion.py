@@ -1,7 +1,6 @@
-"""What every plan is built from, shared by the pick-and-place and the strike planner.
+"""What every plan is built from, shared by the pick-and-place and the strike planner
+(the plans themselves, ``Segment``/``Plan``, are in ``plan_segments``).
 
-* ``Segment``/``Plan``: trajectories made of rest-to-rest pieces, each segment followed
-  by an optional gripper event; sampled as they are sent and executed.
 * ``ArmPlanner``: the robot side kept between requests (shadow plants per finger opening,
   joint limits, clearance rules).
 * ``RequestMotions``: the moves of one request under its deadline: IK solutions and
@@ -14,7 +13,6 @@ from __future__ import annotations
 import time
 from collections import Counter
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.math import RigidTransform
@@ -22,6 +20,7 @@ from pydrake.math import RigidTransform
 from dombot_description import DOMINO_SIZE
 from dombot_description.scenario import Scenario
 from dombot_planner import coarse
+from dombot_planner.arm_reach import WristReach, elbow_not_up, faces_away
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.ik import PoseIK, straight_line
 from dombot_planner.scene import (
@@ -40,7 +39,6 @@ from dombot_planner.scene import (
 from dombot_planner.settings import BUDGET_CLOCKS, PlannerSettings
 from dombot_planner.timing import JointLimits, TimedPath, line_path, retime
 
-GRIPPER_NONE, GRIPPER_OPEN, GRIPPER_CLOSE = "none", "open", "close"
 MAX_JOINT_STEP = 0.1  # rad between line waypoints; more means the arm flips
 COARSE_CHECK_SAMPLES = 120  # at least this many clearance checks of each KTO result ...
 CHECK_JOINT_STEP = 0.01  # rad ... and no joint moving more than this between them
@@ -52,160 +50,13 @@ ESCAPE_DISTANCE = 0.08  # m: the longest straight line out of a start close to s
 ESCAPE_TOLERANCE = 5e-4  # m an escape may come closer to anything than the start was
 PERCEIVED = (TARGET, PILE)  # obstacles known only from perception (± 2 mm)
 SEED_TURN = 0.8  # rad: random IK seeds turn joint 1 up to this far from the target
-ELBOW_UP = 0.3  # the elbow's offset from the shoulder–wrist line points at least this up
-STRAIGHT_ARM = 0.02  # m: an elbow this close to the shoulder–wrist line is left alone
 UP = np.array([0.0, 0.0, 1.0])
 RISE_SAMPLES = 40  # along a coarse move, for the TCP's height
-REACH_TOLERANCE = 1e-4  # m a wrist point may lie outside WristReach's shell and still be tried
 WRIST_OUT = "no IK: the wrist beyond the elbow's reach"
 LINE_WRIST_OUT = "line leaves the reach: the wrist beyond the elbow's reach"
 
 # A clearance check: the scene and the rules it must keep there.
 Check = tuple[Scene, ClearanceRules]
-
-
-@dataclass(frozen=True)
-class SampledSegment:
-    """One executed segment: joint samples and the gripper event after it."""
-
-    label: str
-    times: np.ndarray
-    positions: np.ndarray  # samples × 7
-    velocities: np.ndarray
-    accelerations: np.ndarray
-    gripper_after: str  # "none" | "open" | "close"
-    gripper_position: float
-
-
-@dataclass
-class Segment:
-    """A trajectory (pieces played in order, each from rest to rest) and a gripper event."""
-
-    label: str
-    pieces: list[TimedPath]
-    finger_opening: float  # m while this segment runs
-    gripper_after: str = GRIPPER_NONE
-    gripper_position: float = 0.0
-    gripper_effort: float = 0.0
-    start: np.ndarray | None = None  # for a segment without motion
-
-    @property
-    def duration(self) -> float:
-        return sum(piece.duration for piece in self.pieces)
-
-    def sample(self, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Times (from the segment start), positions, velocities, accelerations.
-
-        Each piece is sampled every ``period`` and at its end, so every rest point (piece
-        ends) is a sample.
-        """
-        if not self.pieces:
-            q = np.atleast_2d(self.start)
-            return np.zeros(1), q, np.zeros_like(q), np.zeros_like(q)
-        times, q, qd, qdd = [np.zeros(1)], [], [], []
-        offset = 0.0
-        first = self.pieces[0].sample(np.zeros(1))
-        q.append(first[0]), qd.append(first[1]), qdd.append(first[2])
-        for piece in self.pieces:
-            local = np.append(np.arange(period, piece.duration, period), piece.duration)
-            values = piece.sample(local)
-            times.append(offset + local)
-            q.append(values[0]), qd.append(values[1]), qdd.append(values[2])
-            offset += piece.duration
-        return np.concatenate(times), np.vstack(q), np.vstack(qd), np.vstack(qdd)
-
-
-@dataclass
-class Plan:
-    segments: list[Segment]
-    planning_time: float = 0.0
-    kto_attempts: dict[str, int] = field(default_factory=dict)
-
-    def final_positions(self) -> np.ndarray:
-        """Arm joint positions when the plan has been executed."""
-        last = self.segments[-1]
-        if not last.pieces:
-            return np.asarray(last.start)
-        return last.pieces[-1].sample(np.array([last.pieces[-1].duration]))[0][0]
-
-    def sampled(self, period: float) -> list[SampledSegment]:
-        """The segments as executed: samples every ``period`` (and at every rest point)."""
-        result = []
-        for segment in self.segments:
-            times, q, qd, qdd = segment.sample(period)
-            result.append(
-                SampledSegment(
-                    segment.label,
-                    times,
-                    q,
-                    qd,
-                    qdd,
-                    segment.gripper_after,
-                    segment.gripper_position,
-                )
-            )
-        return result
-
-
-@dataclass(frozen=True)
-class WristReach:
-    """Where the arm can put its wrist: from ``near`` to ``far`` from its shoulder.
-
-    The LBR iiwa's shoulder and wrist are spherical (axes 1-3 and 5-7 each meet in a
-    point): the distance between the two points depends on the elbow (joint 4) alone, and
-    the wrist point is fixed in the TCP frame. A TCP pose, or straight line, whose wrist
-    point leaves that shell has no IK, which is told without solving: SNOPT takes longest
-    to fail, ~10 times a solve (near the base, where the elbow's limit keeps the wrist
-    0.41 m from the shoulder, most place candidates failed so).
-    """
-
-    shoulder: np.ndarray  # in world
-    wrist_in_tcp: np.ndarray
-    near: float
-    far: float
-
-    @classmethod
-    def of(cls, scene: Scene, arm_joints: Sequence[str], q: np.ndarray) -> WristReach:
-        """The shell of the arm in ``scene`` (joint limits from its plant), measured at
-        ``q`` with the elbow bent to either limit and stretched; no shell (everything
-        reaches) when its shoulder and wrist points are not where the iiwa has them."""
-        plant, context = scene.plant, scene.plant_context
-        joints = [plant.GetJointByName(name) for name in arm_joints]
-        elbow = joints[3].position_start()
-        low, high = plant.GetPositionLowerLimits()[elbow], plant.GetPositionUpperLimits()[elbow]
-
-        def points(bend: float) -> tuple[np.ndarray, np.ndarray, float]:
-            bent = np.array(q, dtype=float)
-            bent[elbow] = bend
-            scene.set_positions(bent)
-            shoulder, wrist = (
-                joints[i].child_body().EvalPoseInWorld(context).translation() for i in (1, 5)
-            )
-            tcp = scene.tcp.CalcPoseInWorld(context)
-            return shoulder, tcp.inverse() @ wrist, float(np.linalg.norm(wrist - shoulder))
-
-        measured = [points(bend) for bend in (low, high, float(np.clip(0.0, low, high)))]
-        shoulder, wrist_in_tcp, _ = measured[0]
-        if any(
-            not (np.allclose(s, shoulder, atol=1e-9) and np.allclose(w, wrist_in_tcp, atol=1e-9))
-            for s, w, _ in measured
-        ):
-            return cls(shoulder, wrist_in_tcp, 0.0, np.inf)
-        return cls(shoulder, wrist_in_tcp, min(measured[0][2], measured[1][2]), measured[2][2])
-
-    def reaches(self, tcp: RigidTransform, offset: np.ndarray | None = None) -> bool:
-        """Whether the wrist point stays in the shell (REACH_TOLERANCE outside passes) with
-        the TCP at ``tcp`` and, given ``offset`` (world), all along a straight line moving
-        it that far with the orientation kept."""
-        start = tcp @ self.wrist_in_tcp - self.shoulder
-        move = np.zeros(3) if offset is None else np.asarray(offset, dtype=float)
-        along = move @ move
-        closest = start + (np.clip(-(start @ move) / along, 0.0, 1.0) if along else 0.0) * move
-        farthest = max(np.linalg.norm(start), np.linalg.norm(start + move))
-        return bool(
-            np.linalg.norm(closest) >= self.near - REACH_TOLERANCE
-            and farthest <= self.far + REACH_TOLERANCE
-        )
 
 
 def reasons(failures: Counter) -> str:
@@ -531,35 +382,6 @@ class RequestMotions:
             label,
             f"KTO failed after {attempts.get(label, 0)} attempts ({failure})",
         )
-
-
-def faces_away(q: np.ndarray, position: np.ndarray) -> bool:
-    """Whether the arm reaches ``position`` (world; the arm base at the origin) from
-    behind: joint 1 turned away from it and the shoulder (joint 2) leaning backwards over
-    the top. Moving between that branch and the usual one swings the arm overhead (the
-    TCP up to 1.2-1.4 m at up to 2.7 m/s in the bring-up benchmarks, throwing held
-    dominoes out of the cell); its elbow may point up or not."""
-    azimuth = np.arctan2(position[1], position[0])
-    return bool(q[1] < 0.0 and np.cos(q[0] - azimuth) < 0.0)
-
-
-def elbow_not_up(scene: Scene, arm_joints: Sequence[str], q: np.ndarray) -> bool:
-    """Whether the arm at ``q`` holds its elbow sideways or down: its offset from the line
-    from shoulder (joint 2) to wrist (joint 6) points up less than ELBOW_UP (an arm
-    stretched nearly straight has no elbow to speak of). Moving between such a branch
-    and the usual elbow-up one swings the arm overhead: in one bring-up benchmark the
-    elbow turned sideways (offset -0.01 up; the usual postures 0.54-1.0), the TCP rose
-    to 0.69 m at 1.3 m/s and threw the held domino onto the run."""
-    plant, context = scene.plant, scene.plant_context
-    scene.set_positions(q)
-    shoulder, elbow, wrist = (
-        plant.GetJointByName(arm_joints[i]).child_body().EvalPoseInWorld(context).translation()
-        for i in (1, 3, 5)
-    )
-    line = (wrist - shoulder) / np.linalg.norm(wrist - shoulder)
-    offset = (elbow - shoulder) - ((elbow - shoulder) @ line) * line
-    size = float(np.linalg.norm(offset))
-    return size > STRAIGHT_ARM and offset[2] < ELBOW_UP * size
 
 
 def first_violation(q: np.ndarray, checks: Sequence[Check]) -> str:

@@ -3,8 +3,8 @@
 Where the pads are at a grasp, and the space they sweep down its approach line and closing
 onto the domino, depend only on the TCP pose and the line, not on the arm configuration
 that reaches it. A grasp whose pads meet the pile so fails at every IK solution: the
-planner tells it before solving any (``planner.RequestPlanning``), and the bring-up before
-it asks for a pick whose every grasp fails so (``planner.foreseen_refusal``).
+planner tells it before solving any (``request_planning.RequestPlanning``), and the
+bring-up before it asks for a pick whose every grasp fails so (``foreseen_refusal``).
 """
 
 from __future__ import annotations

@@ -38,8 +38,9 @@ from dombot_description.scenario import ScenarioError, load_scenario
 from dombot_msgs.msg import TrajectorySegment
 from dombot_msgs.srv import PlanPlace, PlanStrike
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.motion import GRIPPER_CLOSE, GRIPPER_OPEN, Plan
-from dombot_planner.planner import PickPlacePlan, PickPlacePlanner
+from dombot_planner.pick_place_plan import PickPlacePlan
+from dombot_planner.plan_segments import GRIPPER_CLOSE, GRIPPER_OPEN, Plan
+from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import (
     MAX_PILE_DOMINOES,
     MAX_PILE_POINTS,

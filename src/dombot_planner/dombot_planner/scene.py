@@ -212,7 +212,7 @@ class Scene:
         """Smallest signed distance per (moving class, obstacle class or SELF) at ``q``.
 
         Pairs farther apart than QUERY_DISTANCE are reported as QUERY_DISTANCE. Kept per
-        ``q``: the planning tiers of a request share their scenes (planner.SharedWork) and
+        ``q``: the planning tiers of a request share their scenes (shared_work.SharedWork) and
         ask again for the configurations the tier before them checked.
         """
         key = np.asarray(q, dtype=float).tobytes()

@@ -78,10 +78,10 @@ class PlannerSettings:
     seed: int = 0  # random IK seeds and KTO restarts
     allow_regrasp: bool = True  # turn a domino no tilted grasp reaches, then pick it again
     # When no canonical grasp works, grasps turned about the domino's width towards a
-    # vertical approach by half this and this (planner.steeper_grasps); 0: none.
+    # vertical approach by half this and this (grasp_candidates.steeper_grasps); 0: none.
     steeper_grasp_turn: float = math.radians(20.0)  # rad
     # Grasps turned the other way and moved towards the end the pads hold, by half these
-    # and these (planner.flatter_grasps): at place the gripper stands more upright and its
+    # and these (grasp_candidates.flatter_grasps): at place the gripper stands more upright and its
     # pads ride higher, for slots of a curved run and near the inner reach limit; 0 and 0:
     # none. Beyond ~7° the wrist comes within coarse_clearance (5 mm) of the table at pick;
     # each mm of shift takes ~1.5 mm² off the pads' 40.7 mm² on the side faces.

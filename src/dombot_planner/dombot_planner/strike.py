@@ -43,16 +43,8 @@ from dombot_description.grasp import gripper_geometry
 from dombot_description.pusher import PUSHER_STANDOFF, SWEEP_HEIGHT
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.ik import PoseIK
-from dombot_planner.motion import (
-    GRIPPER_CLOSE,
-    UP,
-    ArmPlanner,
-    Deadline,
-    Plan,
-    RequestMotions,
-    Segment,
-    reasons,
-)
+from dombot_planner.motion import UP, ArmPlanner, Deadline, RequestMotions, reasons
+from dombot_planner.plan_segments import GRIPPER_CLOSE, Plan, Segment
 from dombot_planner.request import StrikeRequest, box_corners, check_strike_request
 from dombot_planner.scene import PADS, STANDING, TABLE, TARGET, Scene
 

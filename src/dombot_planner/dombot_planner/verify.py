@@ -33,9 +33,9 @@ from dombot_description.grasp import (
     top_grasp,
 )
 from dombot_description.scenario import Scenario
-from dombot_planner.motion import GRIPPER_CLOSE as CLOSE
-from dombot_planner.motion import GRIPPER_OPEN as OPEN
-from dombot_planner.motion import SampledSegment
+from dombot_planner.plan_segments import GRIPPER_CLOSE as CLOSE
+from dombot_planner.plan_segments import GRIPPER_OPEN as OPEN
+from dombot_planner.plan_segments import SampledSegment
 from dombot_planner.request import box_corners
 
 MAX_INTERPOLATION_STEP = 0.003  # rad per joint between checked configurations

@@ -35,7 +35,7 @@ from dombot_bringup.task.geometry import (
 from dombot_bringup.task.state import Job, log
 from dombot_description import tilt_from_vertical
 from dombot_planner.errors import ErrorCode
-from dombot_planner.planner import foreseen_refusal
+from dombot_planner.foreseen_refusal import foreseen_refusal
 from dombot_planner.settings import PlannerSettings
 
 DETECT_TRIES = 5
@@ -286,7 +286,7 @@ def first_plan(
 
 def foreseen(job: Job, request: PlaceRequest) -> Plan | None:
     """The planner's refusal of ``request`` when it is told without asking the planner
-    (``planner.foreseen_refusal``: every grasp it would try has its pads' path on seen
+    (``dombot_planner.foreseen_refusal``: every grasp it would try has its pads' path on seen
     points or its pads beyond pile_nudge in a pile domino, before any IK), else None
     (settings foresee_refusals). Of 68 recorded pile requests, 21 of the 34 refused were
     told so, in ~0.05 s CPU each; the planner took 0.05-0.91 s CPU to refuse them, and
