@@ -23,6 +23,7 @@ from dombot_description.scenario import load_scenario
 from dombot_msgs.msg import TrajectorySegment
 from dombot_msgs.srv import PlanPlace, PlanStrike
 from dombot_planner.errors import ErrorCode
+from dombot_planner.foreseen_refusal import PADS_IN_PILE
 from support.planning_clock import UNHURRIED
 from support.ros_processes import installed_node, spin_until
 
@@ -199,7 +200,7 @@ def test_pile_dominoes_reach_the_planner_and_are_checked(client: Client) -> None
     beside = pose_message(flat_pose(0.60 + side[0], -0.28 + side[1], 0.4))
     response = client.call(plan_request(pile_dominoes=[beside]))
     assert response.error_code == PlanPlace.Response.GRASP_UNREACHABLE, response.message
-    assert "pads–pile" in response.message
+    assert PADS_IN_PILE in response.message  # told before any IK, from the pile's boxes
     nowhere = Pose(position=Point(x=0.6, y=math.inf, z=0.004))
     response = client.call(plan_request(pile_dominoes=[beside, nowhere]))
     assert response.error_code == PlanPlace.Response.INVALID_REQUEST
