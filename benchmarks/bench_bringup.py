@@ -69,14 +69,17 @@ CASES = {
 }
 DEFAULT_CASES = ("arc10", "arc10_cycles5", "s_curve20")
 SEEDS = (1, 2, 3)
-CYCLE_TIMEOUT = 3600.0  # s of wall time per cycle (a --cycles run has as many)
+CYCLE_TIMEOUT = 3600.0  # s of wall time per cycle (a --cycles run has as many) ...
+WALL_PER_DOMINO = 240.0  # ... or per domino of a cycle, if more (30 dominoes: 7200 s)
 
 
 def run_timeout(arguments: list[str]) -> float:
-    """Wall time [s] a bring-up with ``arguments`` may take: CYCLE_TIMEOUT per cycle
-    (``--cycles`` as bringup reads it). arc10_cycles5 at load 9-18 took 770-1633 s a cycle
-    and was cut off in its fourth by a limit of 3600 s a run."""
-    return CYCLE_TIMEOUT * parse_args(arguments).cycles
+    """Wall time [s] a bring-up with ``arguments`` may take: per cycle (``--cycles`` as
+    bringup reads it) CYCLE_TIMEOUT or WALL_PER_DOMINO a domino, whichever is more.
+    arc10_cycles5 at load 9-18 took 770-1633 s a cycle; s_curve30 seed 2 at load ~11 was
+    cut off at 21 of 30 placed by a limit of 3600 s."""
+    options = parse_args(arguments)
+    return max(CYCLE_TIMEOUT, WALL_PER_DOMINO * options.count) * options.cycles
 
 
 def log(message: str) -> None:
@@ -147,6 +150,7 @@ def bring_up(
         return {
             "exit": exit_code,
             "completed": False,
+            "timed_out": wall >= timeout,
             "wall_s": wall,
             "error": tail,
         }
@@ -349,7 +353,9 @@ def main() -> None:
             runs.append(
                 run_case(name, arguments, seed, args.out, args.record_picks, args.real_time_factor)
             )
-            if args.ledger is not None:
+            if runs[-1].get("timed_out"):
+                log(f"{name} seed {seed}: cut off by the wall-time limit: not kept in the ledger")
+            elif args.ledger is not None:
                 with args.ledger.open("a") as ledger_file:
                     ledger_file.write(json.dumps(runs[-1]) + "\n")
         commits = sorted({run["commit"] for run in runs})

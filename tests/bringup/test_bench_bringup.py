@@ -22,3 +22,5 @@ def test_a_run_may_take_a_cycle_timeout_per_cycle() -> None:
     assert bench.run_timeout(bench.CASES["arc10_cycles5"]) == 5 * limit
     # --options come after the case's and override them, as in bringup's own parser
     assert bench.run_timeout([*bench.CASES["arc10_cycles5"], "--cycles", "2"]) == 2 * limit
+    # a cycle of many dominoes gets WALL_PER_DOMINO each
+    assert bench.run_timeout(bench.CASES["circle30"]) == 30 * bench.WALL_PER_DOMINO > limit
