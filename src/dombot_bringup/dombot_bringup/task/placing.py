@@ -81,7 +81,11 @@ class InHand:
 
 
 def execute(
-    job: Job, segments: Sequence[Segment], hold: Hold | None = None, holds_domino: bool = True
+    job: Job,
+    segments: Sequence[Segment],
+    hold: Hold | None = None,
+    holds_domino: bool = True,
+    carried: tuple[Segment, ...] = (),
 ) -> Execution:
     """Run the segments and their gripper events.
 
@@ -91,6 +95,10 @@ def execute(
     backs out the way it came before anything else is tried. With a ``hold``, the domino
     is looked at in the hand where "transfer" ends above its slot (``in_hand``), and
     ``hold.let_go`` is told where the plan ends as the fingers let go of it on the slot.
+    The descent to the place stops as soon as a joint falls ``place_path_tolerance``
+    behind it (the held domino or a pad pressing on something): the arm backs up the
+    line, still holding the domino, and puts it back on the pile along the transfers it
+    came (``carried``: those of the plans run before this one) rather than press on.
     Any motion drops what was planned ahead (``ahead.drop``) and the look at the pile
     made while placing.
     """
@@ -104,13 +112,21 @@ def execute(
             look_while_placing(job)
         if moves(segment):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
-            motion = cell.execute(segment.trajectory, tolerance)
+            placing = segment.label == PLACE_SEGMENT
+            path = job.settings.place_path_tolerance if placing else 0.0
+            motion = cell.execute(segment.trajectory, tolerance, path)
             if opening is not None:
                 job.fingers, opening = opening(), None
             if not motion.ok:
+                why = f"{segment.label}: {motion.error}"
                 if approach:
                     back_out(job, segment)
-                return Execution(Ran.FAILED, f"{segment.label}: {motion.error}")
+                elif placing and holds_domino and (way := (*carried, *transfers(segments))):
+                    log(f"{why}; backing up the line, still holding it")
+                    move(job, segment.trajectory.reversed(BACK_OUT_LEAD), "backing up")
+                    put_back(job, way)
+                    return Execution(Ran.PUT_BACK, f"put back on the pile: stopped ({why})")
+                return Execution(Ran.FAILED, why)
         if segment.gripper_after == GripperEvent.CLOSE:
             stopped = grip(job, segment.gripper_position, segment.gripper_max_effort)
             problem = grasp_problem(job, stopped)
@@ -133,10 +149,10 @@ def execute(
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
             verdict = in_hand(job, hold)
             if verdict.put_back:
-                put_back(job, segment)
+                put_back(job, (*carried, *transfers(segments[: index + 1])))
                 return Execution(Ran.PUT_BACK, verdict.put_back)
             if verdict.again:
-                return execute(job, verdict.again)
+                return execute(job, verdict.again, carried=(*carried, segment))
     return Execution(Ran.DONE)
 
 
@@ -237,15 +253,22 @@ def grip(job: Job, position: float, max_effort: float) -> float:
     return job.fingers
 
 
-def put_back(job: Job, transfer: Segment) -> None:
-    """Carry the held domino back along ``transfer`` to above where it was picked (the way
-    it came, with this hold), let it drop onto the pile from there, and go back along
-    ``transfer``: out of the cameras' view of the pile before the next look, where the
-    next plan starts as after a placement."""
+def transfers(segments: Sequence[Segment]) -> tuple[Segment, ...]:
+    """The carries among ``segments`` from above the pick towards the slot, in order."""
+    return tuple(s for s in segments if s.label == HOLD_CHECK_SEGMENT)
+
+
+def put_back(job: Job, carried: Sequence[Segment]) -> None:
+    """Carry the held domino back along the ``carried`` transfers (the first from above
+    where it was picked, each later one from where the one before it ended) to above
+    where it was picked (the way it came, with this hold), let it drop onto the pile from
+    there, and go back along the first: out of the cameras' view of the pile before the
+    next look, where the next plan starts as after a placement."""
     log("put back on the pile: carrying it back to where it was picked and letting it drop")
-    move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
+    for transfer in reversed(carried):
+        move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
     grip(job, LET_GO_OPENING, 0.0)
-    move(job, transfer.trajectory, "leaving the pile")
+    move(job, carried[0].trajectory, "leaving the pile")
 
 
 def grasp_problem(job: Job, opening: float) -> str:
