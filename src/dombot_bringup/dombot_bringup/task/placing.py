@@ -23,7 +23,7 @@ from dombot_bringup.task.cell import (
     Trajectory,
 )
 from dombot_bringup.task.checks import settle
-from dombot_bringup.task.geometry import foot_distance
+from dombot_bringup.task.geometry import foot, foot_distance
 from dombot_bringup.task.state import Job, log
 from dombot_description import DOMINO_SIZE
 
@@ -194,8 +194,11 @@ def in_hand(job: Job, hold: Hold) -> InHand:
     measured, tilt = answer.measured[0], answer.tilt[0]
     off = foot_distance(measured, hold.held_above)
     seen = f"foot {off * 1e3:.1f} mm off, leaning {math.degrees(tilt):.1f}°"
+    # how much lower than planned it hangs: not judged (the place line ends release_height
+    # above the table; a lower hold stops its descent, issue 23), logged to learn it
+    low = (foot(hold.held_above)[2] - foot(measured)[2]) * 1e3
     if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
-        log(f"{name} in the hand: {seen}; placing it")
+        log(f"{name} in the hand: {seen} ({low:.1f} mm lower than planned); placing it")
         return InHand()
     if off > settings.in_hand_max_off:
         log(f"{name} in the hand: {seen}; too far off: a misreading, placing it")
@@ -218,7 +221,8 @@ def in_hand(job: Job, hold: Hold) -> InHand:
         )
     )
     if plan.success:
-        log(f"{name} in the hand: {seen}; carrying it again from where it is held")
+        hangs = f"{low:.1f} mm lower than planned"
+        log(f"{name} in the hand: {seen} ({hangs}); carrying it again from where it is held")
         return InHand(again=plan.segments)
     refused = f"carrying it again refused ({plan.message.split(' (')[0]})"
     if tilt > settings.put_back_lean:
