@@ -54,6 +54,7 @@ class Ran(Enum):
 class Execution:
     ran: Ran
     why: str = ""  # what failed, or how the hold was found
+    stalled: bool = False  # put back because its descent to the place stalled
 
     @property
     def done(self) -> bool:
@@ -125,7 +126,8 @@ def execute(
                     log(f"{why}; backing up the line, still holding it")
                     move(job, segment.trajectory.reversed(BACK_OUT_LEAD), "backing up")
                     put_back(job, way)
-                    return Execution(Ran.PUT_BACK, f"put back on the pile: stopped ({why})")
+                    why = f"put back on the pile: its descent stopped ({why})"
+                    return Execution(Ran.PUT_BACK, why, stalled=True)
                 return Execution(Ran.FAILED, why)
         if segment.gripper_after == GripperEvent.CLOSE:
             stopped = grip(job, segment.gripper_position, segment.gripper_max_effort)
