@@ -120,6 +120,7 @@ class ScriptedCell:
     strike_requests: list[StrikeRequest] = field(default_factory=list)
     checks: list[tuple[list[Pose], bool, float]] = field(default_factory=list)
     executed: list[Trajectory] = field(default_factory=list)
+    path_tolerances: list[float] = field(default_factory=list)  # each execute's [rad]
     openings: list[float] = field(default_factory=list)  # every gripper command's opening
     # of those sent without waiting: (opening, trajectories executed before it was sent)
     openings_while_moving: list[tuple[float, int]] = field(default_factory=list)
@@ -157,8 +158,11 @@ class ScriptedCell:
         self.strike_requests.append(request)
         return self.strike(request)
 
-    def execute(self, trajectory: Trajectory, goal_tolerance: float = 0.0) -> Motion:
+    def execute(
+        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+    ) -> Motion:
         self.executed.append(trajectory)
+        self.path_tolerances.append(path_tolerance)
         motion = self.motion(trajectory)
         if motion.ok and len(trajectory.times):
             names, positions = self.joint_positions

@@ -350,12 +350,19 @@ class CellClient:
         return plan_of(self.call("/plan_strike", message, request.time_budget + 30.0), None)
 
     # ------------------------------------------------------------------ actions
-    def execute(self, trajectory: Trajectory, goal_tolerance: float = 0.0) -> Motion:
+    def execute(
+        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+    ) -> Motion:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
-        point (0: the controller's default) within a second. The wall-clock timeout is
+        point (0: the controller's default) within a second, and stay within
+        ``path_tolerance`` of it on the way (0: not checked). The wall-clock timeout is
         generous: the simulator may run well below real time."""
         goal = FollowJointTrajectory.Goal(
             trajectory=trajectory_message(trajectory),
+            path_tolerance=[
+                JointTolerance(name=name, position=path_tolerance)
+                for name in trajectory.joint_names
+            ],
             goal_tolerance=[
                 JointTolerance(name=name, position=goal_tolerance)
                 for name in trajectory.joint_names

@@ -246,7 +246,9 @@ class SimCell:
         )
 
     # ------------------------------------------------------------------ motion
-    def execute(self, trajectory: Trajectory, goal_tolerance: float = 0.0) -> Motion:
+    def execute(
+        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+    ) -> Motion:
         """As sim_node's FollowJointTrajectory server: the trajectory checked and splined
         from where the arm is, then followed until ``goal_monitor`` has its verdict."""
         world = self.world
@@ -264,7 +266,9 @@ class SimCell:
             return Motion(False, str(error))
         names = list(world.arm_joint_names)
         tolerances = Tolerances(
-            path=np.full(len(names), -1.0),
+            path=joint_tolerances(
+                [(n, path_tolerance) for n in trajectory.joint_names], names, -1.0
+            ),
             goal=joint_tolerances(
                 [(n, goal_tolerance) for n in trajectory.joint_names], names, DEFAULT_GOAL_TOLERANCE
             ),
@@ -278,6 +282,8 @@ class SimCell:
             )
             if verdict.outcome is Outcome.RUNNING:
                 continue
+            if verdict.outcome is Outcome.PATH_TOLERANCE_VIOLATED:
+                world.hold_arm()  # as sim_node: not pressing on towards the goal
             figures = tracking_summary(monitor.worst, verdict.error)
             ok = verdict.outcome is Outcome.SUCCEEDED
             return Motion(ok, f"{verdict.message or 'goal reached'}; {figures}")

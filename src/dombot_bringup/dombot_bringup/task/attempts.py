@@ -356,6 +356,9 @@ def pick(
         if candidate.toppled:
             state.toppled_picked += 1
     if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
+        if execution.stalled:  # picked again, it hung the same way (s-curve seed 3: 3 times)
+            state.unpickable.append(spot)
+            state.remember_why(spot, execution.why)
         return Attempt(Outcome.NOT_PLACED, execution.why)
     if execution.ran is Ran.FAILED:  # blocked or missed: unless it moved, it would recur
         if seen_off is not None:  # the name finds it in sim_node's "during the" lines

@@ -261,9 +261,13 @@ class Cell(Protocol):
 
     def plan_strike(self, request: StrikeRequest) -> Plan: ...
 
-    def execute(self, trajectory: Trajectory, goal_tolerance: float = 0.0) -> Motion:
+    def execute(
+        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+    ) -> Motion:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
-        point (0: the controller's default)."""
+        point (0: the controller's default). With ``path_tolerance``, a joint that falls
+        that far [rad] behind the trajectory aborts it at once, the arm held where it is
+        (something pressed against: 0, not checked)."""
         ...
 
     def gripper(self, position: float, max_effort: float) -> float:

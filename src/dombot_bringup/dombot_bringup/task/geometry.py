@@ -43,14 +43,16 @@ def near_any(spot: np.ndarray, spots: Sequence[np.ndarray]) -> bool:
     return any(near(spot, other, SAME_SPOT) for other in spots)
 
 
+def foot(pose: Pose) -> np.ndarray:
+    """The lower end of a domino's length axis [m]: where a leaning domino's foot is, it
+    will stand once let go."""
+    axis = pose[:3, 0] * (1.0 if pose[2, 0] <= 0.0 else -1.0)  # pointing down
+    return pose[:3, 3] + axis * DOMINO_LENGTH / 2.0
+
+
 def foot_distance(measured: Pose, expected: Pose) -> float:
-    """Horizontal distance [m] between the lower ends (feet) of two dominoes' length axes:
-    where a leaning domino's foot is, it will stand once let go."""
-    feet = []
-    for pose in (measured, expected):
-        axis = pose[:3, 0] * (1.0 if pose[2, 0] <= 0.0 else -1.0)  # pointing down
-        feet.append(pose[:2, 3] + axis[:2] * DOMINO_LENGTH / 2.0)
-    return float(np.linalg.norm(feet[0] - feet[1]))
+    """Horizontal distance [m] between the feet of two dominoes."""
+    return float(np.linalg.norm((foot(measured) - foot(expected))[:2]))
 
 
 def in_the_way(lying: Pose, target: Pose, along: float, across: float) -> bool:

@@ -23,7 +23,7 @@ from dombot_bringup.task.cell import (
     Trajectory,
 )
 from dombot_bringup.task.checks import settle
-from dombot_bringup.task.geometry import foot_distance
+from dombot_bringup.task.geometry import foot, foot_distance
 from dombot_bringup.task.state import Job, log
 from dombot_description import DOMINO_SIZE
 
@@ -54,6 +54,7 @@ class Ran(Enum):
 class Execution:
     ran: Ran
     why: str = ""  # what failed, or how the hold was found
+    stalled: bool = False  # put back because its descent to the place stalled
 
     @property
     def done(self) -> bool:
@@ -81,7 +82,11 @@ class InHand:
 
 
 def execute(
-    job: Job, segments: Sequence[Segment], hold: Hold | None = None, holds_domino: bool = True
+    job: Job,
+    segments: Sequence[Segment],
+    hold: Hold | None = None,
+    holds_domino: bool = True,
+    carried: tuple[Segment, ...] = (),
 ) -> Execution:
     """Run the segments and their gripper events.
 
@@ -91,6 +96,10 @@ def execute(
     backs out the way it came before anything else is tried. With a ``hold``, the domino
     is looked at in the hand where "transfer" ends above its slot (``in_hand``), and
     ``hold.let_go`` is told where the plan ends as the fingers let go of it on the slot.
+    The descent to the place stops as soon as a joint falls ``place_path_tolerance``
+    behind it (the held domino or a pad pressing on something): the arm backs up the
+    line, still holding the domino, and puts it back on the pile along the transfers it
+    came (``carried``: those of the plans run before this one) rather than press on.
     Any motion drops what was planned ahead (``ahead.drop``) and the look at the pile
     made while placing.
     """
@@ -104,13 +113,22 @@ def execute(
             look_while_placing(job)
         if moves(segment):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
-            motion = cell.execute(segment.trajectory, tolerance)
+            placing = segment.label == PLACE_SEGMENT
+            path = job.settings.place_path_tolerance if placing else 0.0
+            motion = cell.execute(segment.trajectory, tolerance, path)
             if opening is not None:
                 job.fingers, opening = opening(), None
             if not motion.ok:
+                why = f"{segment.label}: {motion.error}"
                 if approach:
                     back_out(job, segment)
-                return Execution(Ran.FAILED, f"{segment.label}: {motion.error}")
+                elif placing and holds_domino and (way := (*carried, *transfers(segments))):
+                    log(f"{why}; backing up the line, still holding it")
+                    move(job, segment.trajectory.reversed(BACK_OUT_LEAD), "backing up")
+                    put_back(job, way)
+                    why = f"put back on the pile: its descent stopped ({why})"
+                    return Execution(Ran.PUT_BACK, why, stalled=True)
+                return Execution(Ran.FAILED, why)
         if segment.gripper_after == GripperEvent.CLOSE:
             stopped = grip(job, segment.gripper_position, segment.gripper_max_effort)
             problem = grasp_problem(job, stopped)
@@ -133,10 +151,10 @@ def execute(
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
             verdict = in_hand(job, hold)
             if verdict.put_back:
-                put_back(job, segment)
+                put_back(job, (*carried, *transfers(segments[: index + 1])))
                 return Execution(Ran.PUT_BACK, verdict.put_back)
             if verdict.again:
-                return execute(job, verdict.again)
+                return execute(job, verdict.again, carried=(*carried, segment))
     return Execution(Ran.DONE)
 
 
@@ -178,8 +196,11 @@ def in_hand(job: Job, hold: Hold) -> InHand:
     measured, tilt = answer.measured[0], answer.tilt[0]
     off = foot_distance(measured, hold.held_above)
     seen = f"foot {off * 1e3:.1f} mm off, leaning {math.degrees(tilt):.1f}°"
+    # how much lower than planned it hangs: not judged (the place line ends release_height
+    # above the table; a lower hold stops its descent, issue 23), logged to learn it
+    low = (foot(hold.held_above)[2] - foot(measured)[2]) * 1e3
     if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
-        log(f"{name} in the hand: {seen}; placing it")
+        log(f"{name} in the hand: {seen} ({low:.1f} mm lower than planned); placing it")
         return InHand()
     if off > settings.in_hand_max_off:
         log(f"{name} in the hand: {seen}; too far off: a misreading, placing it")
@@ -202,7 +223,8 @@ def in_hand(job: Job, hold: Hold) -> InHand:
         )
     )
     if plan.success:
-        log(f"{name} in the hand: {seen}; carrying it again from where it is held")
+        hangs = f"{low:.1f} mm lower than planned"
+        log(f"{name} in the hand: {seen} ({hangs}); carrying it again from where it is held")
         return InHand(again=plan.segments)
     refused = f"carrying it again refused ({plan.message.split(' (')[0]})"
     if tilt > settings.put_back_lean:
@@ -237,15 +259,22 @@ def grip(job: Job, position: float, max_effort: float) -> float:
     return job.fingers
 
 
-def put_back(job: Job, transfer: Segment) -> None:
-    """Carry the held domino back along ``transfer`` to above where it was picked (the way
-    it came, with this hold), let it drop onto the pile from there, and go back along
-    ``transfer``: out of the cameras' view of the pile before the next look, where the
-    next plan starts as after a placement."""
+def transfers(segments: Sequence[Segment]) -> tuple[Segment, ...]:
+    """The carries among ``segments`` from above the pick towards the slot, in order."""
+    return tuple(s for s in segments if s.label == HOLD_CHECK_SEGMENT)
+
+
+def put_back(job: Job, carried: Sequence[Segment]) -> None:
+    """Carry the held domino back along the ``carried`` transfers (the first from above
+    where it was picked, each later one from where the one before it ended) to above
+    where it was picked (the way it came, with this hold), let it drop onto the pile from
+    there, and go back along the first: out of the cameras' view of the pile before the
+    next look, where the next plan starts as after a placement."""
     log("put back on the pile: carrying it back to where it was picked and letting it drop")
-    move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
+    for transfer in reversed(carried):
+        move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
     grip(job, LET_GO_OPENING, 0.0)
-    move(job, transfer.trajectory, "leaving the pile")
+    move(job, carried[0].trajectory, "leaving the pile")
 
 
 def grasp_problem(job: Job, opening: float) -> str:

@@ -190,6 +190,13 @@ class ArmJobSettings:
     # default is 0.01) closes the gripper and lets the grasp check judge: the gripper body
     # resting 0.1 mm deep on a pile domino stopped joint 6 0.012 rad (~1.5 mm) short.
     approach_goal_tolerance: float = 0.02  # rad
+    # The descent to a place stops when a joint falls this far behind it (0: never), and
+    # the domino goes back to the pile: one pressing on something (a carry again from an
+    # off hold stalled 0.0128 rad short at joint 6 and pushed its neighbour over at
+    # 22 mm). A free descent's largest tracking error is ~1.5e-3 rad; descents of pile
+    # dominoes hanging low pressed the table 4.8-9.3e-3 rad behind and, let go, mostly
+    # stood (at 5e-3 the s-curve's 8th slot was given up after four stops): those go on.
+    place_path_tolerance: float = 0.012  # rad
     # The fingers open for a grasp as the arm starts its move to above it (planned with
     # them open) when they stand this close to that opening: after a let-go (release
     # opening, 6 mm narrower; the fingers stop within 1 mm of it, 33.4 mm seen) each pad
