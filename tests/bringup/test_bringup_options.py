@@ -94,28 +94,20 @@ def test_a_directory_as_csv_is_a_usage_error_without_a_traceback(tmp_path, capsy
 
 
 @pytest.mark.parametrize(
-    ("options", "asked"), [([], ArmJobSettings.gap_probe_dominoes), (["--gaps-as-laid-out"], 0)]
+    ("options", "probe", "asked"),
+    [
+        ([], "gap_probe_dominoes", ArmJobSettings.gap_probe_dominoes),
+        (["--gaps-as-laid-out"], "gap_probe_dominoes", 0),
+        ([], "order_probe_dominoes", ArmJobSettings.order_probe_dominoes),
+        (["--run-order"], "order_probe_dominoes", 0),
+    ],
 )
-def test_the_safety_gaps_are_asked_of_the_planner_unless_kept_as_laid_out(
-    monkeypatch, options: list[str], asked: int
+def test_the_gaps_and_where_each_stretch_starts_are_asked_of_the_planner_unless_turned_off(
+    monkeypatch, options: list[str], probe: str, asked: int
 ) -> None:
     settings = []
     monkeypatch.setattr(
         "dombot_bringup.bringup.run_arm_job", lambda out, chosen, s, command: settings.append(s)
     )
     run_arm(parse_args(options))
-    assert settings[0].gap_probe_dominoes == asked
-
-
-@pytest.mark.parametrize(
-    ("options", "asked"), [([], ArmJobSettings.order_probe_dominoes), (["--run-order"], 0)]
-)
-def test_where_each_stretch_starts_is_asked_of_the_planner_unless_in_run_order(
-    monkeypatch, options: list[str], asked: int
-) -> None:
-    settings = []
-    monkeypatch.setattr(
-        "dombot_bringup.bringup.run_arm_job", lambda out, chosen, s, command: settings.append(s)
-    )
-    run_arm(parse_args(options))
-    assert settings[0].order_probe_dominoes == asked
+    assert getattr(settings[0], probe) == asked

@@ -354,6 +354,22 @@ def test_a_struck_domino_seen_down_but_not_fitted_is_an_obstacle_swept_never_pic
     assert (second_cycle.toppled_found, second_cycle.toppled_picked) == (3, 2)
 
 
+def looking_again(moved: Pose, seen_now: tuple, gone: Pose, unfit: Pose) -> ScriptedCell:
+    """A cell whose look again finds ``moved`` lying as ``seen_now`` (pose, position
+    error, tilt), ``gone`` missing and ``unfit`` down but not fitted."""
+
+    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
+        answers = {
+            id(moved): (Seen.FALLEN, *seen_now),
+            id(gone): (Seen.MISSING, gone, 0.0, 0.0),
+            id(unfit): (Seen.FALLEN, unfit, 0.0, 0.0),
+        }
+        columns = zip(*(answers[id(pose)] for pose in expected), strict=True)
+        return PlacementCheck(True, "", *(tuple(column) for column in columns))
+
+    return ScriptedCell(placements=placements)
+
+
 def test_toppled_dominoes_near_where_something_moved_are_looked_at_again() -> None:
     """Where they were seen: one found moved lies where perception measured it now, one
     down but not fitted is an obstacle only, one gone is forgotten; one far from what
@@ -362,16 +378,7 @@ def test_toppled_dominoes_near_where_something_moved_are_looked_at_again() -> No
     far = lying(0.45, 0.20)
     now = lying(0.45, 0.035)
 
-    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
-        answers = {
-            id(moved): (Seen.FALLEN, now, 0.015, math.radians(85.0)),
-            id(gone): (Seen.MISSING, gone, 0.0, 0.0),
-            id(unfit): (Seen.FALLEN, unfit, 0.0, 0.0),
-        }
-        columns = zip(*(answers[id(pose)] for pose in expected), strict=True)
-        return PlacementCheck(True, "", *(tuple(column) for column in columns))
-
-    cell = ScriptedCell(placements=placements)
+    cell = looking_again(moved, (now, 0.015, math.radians(85.0)), gone, unfit)
     job = Job.new(cell, LINE, "line", ArmJobSettings())
     job.state.toppled = [moved, gone, far]
     job.state.unfitted = [unfit]
@@ -392,16 +399,7 @@ def test_fallen_run_dominoes_near_where_something_moved_are_looked_at_again() ->
     moved, gone, unfit, far = (lying(0.45, y) for y in (0.020, 0.049, 0.035, 0.20))
     now = lying(0.45, 0.028)
 
-    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
-        answers = {
-            id(moved): (Seen.FALLEN, now, 0.008, math.radians(74.0)),
-            id(gone): (Seen.MISSING, gone, 0.0, 0.0),
-            id(unfit): (Seen.FALLEN, unfit, 0.0, 0.0),
-        }
-        columns = zip(*(answers[id(pose)] for pose in expected), strict=True)
-        return PlacementCheck(True, "", *(tuple(column) for column in columns))
-
-    cell = ScriptedCell(placements=placements)
+    cell = looking_again(moved, (now, 0.008, math.radians(74.0)), gone, unfit)
     job = Job.new(cell, LINE, "line", ArmJobSettings())
     job.state.fallen = {0: moved, 1: gone, 2: unfit, 5: far}
     job.state.forget_refusals_near(spot_of(lying(0.45, 0.03)))  # a pick there

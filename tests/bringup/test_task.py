@@ -1086,11 +1086,16 @@ def test_a_pile_domino_no_grasp_or_push_reaches_is_named_with_why(capsys) -> Non
     assert "flat at [0.450, -0.300] (domino_7): no push lays it flat" in out
 
 
+def leaning_at(x: float) -> Detection:
+    """A pile domino leaning 30° at (x, -0.3), perception's pick."""
+    leaning = lying(x, -0.3)
+    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
+    return Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)
+
+
 def leaning_cell(lies_flat_at: float) -> ScriptedCell:
     """A pile of one domino leaning 30° at x 0.55; a push lays it flat at ``lies_flat_at``."""
-    leaning = lying(0.55, -0.3)
-    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
-    cell = ScriptedCell(pile=[Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01)])
+    cell = ScriptedCell(pile=[leaning_at(0.55)])
 
     def push(request: StrikeRequest) -> Plan:
         cell.pile = [flat(lies_flat_at)]
@@ -1135,15 +1140,17 @@ def test_a_leaning_domino_that_plans_is_pushed_over_flat_before_it_is_picked() -
     assert cell.strike_requests == [] and offered(cell)[0][0] == pytest.approx(0.55)
 
 
+def leaning_then_flat() -> list[Detection]:
+    """A domino leaning 30° at x 0.50, perception's pick, then an unscored flat one at 0.60."""
+    unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
+    return [leaning_at(0.50), unscored]
+
+
 def test_a_leaning_domino_no_push_lays_flat_gives_way_to_a_flat_one_that_plans() -> None:
     """Spiral seed 11: both pushes of a leaning domino were refused (one into the
     neighbour it leaned on), its pick closed on nothing, and a flat one planned at the
     next attempt. The flat one offered after it is asked first."""
-    leaning = lying(0.50, -0.3)
-    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
-    unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
-    pile = [Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01), unscored]
-    cell = ScriptedCell(pile=pile, place=lambda request: planned())
+    cell = ScriptedCell(pile=leaning_then_flat(), place=lambda request: planned())
     run_job = job(cell)
     assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
     assert len(cell.strike_requests) == 2  # both ways over: refused
@@ -1155,17 +1162,13 @@ def test_a_leaning_domino_no_push_will_lay_flat_is_asked_after_the_flat_ones() -
     """The same leaning domino, pushed where it lies already (its pushes were refused): the
     flat one after it is asked first and picked, the leaning one and its pushes never
     asked; with nothing but it, it is picked as it leans."""
-    leaning = lying(0.50, -0.3)
-    leaning[:3, :3] = Rotation.from_euler("y", 30.0, degrees=True).as_matrix()
-    unscored = Detection(lying(0.60, -0.3), Posture.FLAT, score=0.0, clearance=0.0)
-    pile = [Detection(leaning, Posture.TILTED, score=0.9, clearance=0.01), unscored]
-    cell = ScriptedCell(pile=pile, place=lambda request: planned())
+    cell = ScriptedCell(pile=leaning_then_flat(), place=lambda request: planned())
     run_job = job(cell)
     run_job.state.pushed.append(np.array([0.50, -0.3]))
     assert place_slot(run_job, 0, may_defer=False) is Turn.PLACED
     assert [offer[0] for offer in offered(cell)] == pytest.approx([0.60])
     assert not cell.strike_requests
-    alone = ScriptedCell(pile=pile[:1], place=lambda request: planned())
+    alone = ScriptedCell(pile=leaning_then_flat()[:1], place=lambda request: planned())
     alone_job = job(alone)
     alone_job.state.pushed.append(np.array([0.50, -0.3]))
     assert place_slot(alone_job, 0, may_defer=False) is Turn.PLACED
