@@ -14,7 +14,8 @@ With ``--ledger FILE`` every finished run is appended to FILE (one JSON object a
 with the commit it ran at) and a case and seed already in it with the same options is
 not run again: a benchmark of many 30-domino runs (20-45 min each here) accumulates over
 several sittings, and the figures aggregate all of them. ``--table`` prints the cases as
-a Markdown table instead of JSON.
+a Markdown table instead of JSON; ``--ledger-only`` runs nothing and reports the ledger's
+runs of the cases (all its seeds unless ``--seeds`` names some): a partial series.
 """
 
 from __future__ import annotations
@@ -86,17 +87,26 @@ def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def run_logged(command: list[str], log_path: Path, name: str, timeout: float) -> tuple[int, str]:
+def run_logged(
+    command: list[str], log_path: Path, name: str, timeout: float
+) -> tuple[int, str, bool]:
     """Run the bring-up, its output into ``log_path`` and its own progress lines (not the
-    nodes') onto stderr as they come; killed after ``timeout`` s. Exit code and last lines."""
+    nodes') onto stderr as they come; killed after ``timeout`` s. Exit code, last lines,
+    and whether the limit killed it."""
     lines: list[str] = []
+    killed = threading.Event()
+
+    def kill(process: subprocess.Popen) -> None:
+        killed.set()
+        process.kill()
+
     with (
         log_path.open("w") as log_file,
         subprocess.Popen(
             command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
         ) as process,
     ):
-        watchdog = threading.Timer(timeout, process.kill)
+        watchdog = threading.Timer(timeout, kill, args=(process,))
         watchdog.start()
         for line in process.stdout:
             log_file.write(line)
@@ -104,7 +114,7 @@ def run_logged(command: list[str], log_path: Path, name: str, timeout: float) ->
             if line.startswith("[bringup]"):
                 log(f"{name}: {line.rstrip()}")
         watchdog.cancel()
-    return process.returncode, "".join(lines)
+    return process.returncode, "".join(lines), killed.is_set()
 
 
 def run_case(
@@ -140,17 +150,18 @@ def bring_up(
         str(factor),
         *(["--record-picks"] if record else []),
     ]
+    report_path = folder / "run_report.json"
+    report_path.unlink(missing_ok=True)  # an earlier run's, in the same --out
     started = time.monotonic()
     log_path, timeout = out / f"{name}_seed{seed}.log", run_timeout(arguments)
-    exit_code, tail = run_logged(command, log_path, f"{name} seed {seed}", timeout)
+    exit_code, tail, timed_out = run_logged(command, log_path, f"{name} seed {seed}", timeout)
     wall = time.monotonic() - started
-    report_path = folder / "run_report.json"
-    if not report_path.exists():
+    if timed_out or not report_path.exists():
         log(f"{name} seed {seed}: no report (exit {exit_code})")
         return {
             "exit": exit_code,
             "completed": False,
-            "timed_out": wall >= timeout,
+            "timed_out": timed_out,
             "wall_s": wall,
             "error": tail,
         }
@@ -310,11 +321,32 @@ def aggregate(runs: list[dict]) -> dict:
     }
 
 
+def ledger_runs(ledger: dict[tuple, dict], case: tuple, seeds: list[int] | None) -> list[dict]:
+    """The ledger's runs of ``case`` (name, arguments, pacing) by seed: of ``seeds``, or
+    all its seeds when None."""
+    name, arguments, factor = case
+    runs = {
+        run["seed"]: run
+        for key, run in ledger.items()
+        if key == (name, run["seed"], arguments, factor) and (seeds is None or run["seed"] in seeds)
+    }
+    return [runs[seed] for seed in sorted(runs)]
+
+
+def case_report(arguments: list[str], runs: list[dict]) -> dict:
+    """A case's entry in the report: its options, the commits its runs ran at, the
+    aggregate figures and each run."""
+    commits = sorted({run["commit"] for run in runs})
+    return {"arguments": arguments, "commits": commits, **aggregate(runs), "per_seed": runs}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", type=Path, default=Path("out/bench_bringup"))
     parser.add_argument("--cases", nargs="+", choices=sorted(CASES), default=list(DEFAULT_CASES))
-    parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS))
+    parser.add_argument(
+        "--seeds", type=int, nargs="+", help=f"default {list(SEEDS)}; --ledger-only: all"
+    )
     parser.add_argument("--record-picks", action="store_true", help="bringup --record-picks")
     parser.add_argument(
         "--real-time-factor", type=float, default=0.0, help="sim_node's (0: as fast as possible)"
@@ -330,7 +362,12 @@ def main() -> None:
     )
     parser.add_argument("--again", action="store_true", help="run cases in the ledger again")
     parser.add_argument("--table", action="store_true", help="print a Markdown table, not JSON")
+    parser.add_argument(
+        "--ledger-only", action="store_true", help="run nothing: report the ledger's runs"
+    )
     args = parser.parse_args()
+    if args.ledger_only and args.ledger is None:
+        parser.error("--ledger-only needs --ledger")
     args.out.mkdir(parents=True, exist_ok=True)
     extra = shlex.split(args.options)
     report = {
@@ -342,8 +379,13 @@ def main() -> None:
     ledger = read_ledger(args.ledger)
     for name in args.cases:
         arguments = [*CASES[name], *extra]
+        if args.ledger_only:
+            runs = ledger_runs(ledger, (name, tuple(arguments), args.real_time_factor), args.seeds)
+            if runs:
+                report["cases"][name] = case_report(arguments, runs)
+            continue
         runs = []
-        for seed in args.seeds:
+        for seed in args.seeds or SEEDS:
             key = (name, seed, tuple(arguments), args.real_time_factor)
             if key in ledger and not args.again:
                 at = ledger[key]["commit"]
@@ -358,13 +400,7 @@ def main() -> None:
             elif args.ledger is not None:
                 with args.ledger.open("a") as ledger_file:
                     ledger_file.write(json.dumps(runs[-1]) + "\n")
-        commits = sorted({run["commit"] for run in runs})
-        report["cases"][name] = {
-            "arguments": arguments,
-            "commits": commits,
-            **aggregate(runs),
-            "per_seed": runs,
-        }
+        report["cases"][name] = case_report(arguments, runs)
     report["load_average_at_end"] = os.getloadavg()
     print(markdown(report) if args.table else json.dumps(report, indent=2))
 
