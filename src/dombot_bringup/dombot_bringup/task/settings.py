@@ -170,9 +170,11 @@ class ArmJobSettings:
     # most 0.5 mm low ended at most 2.1e-3 rad behind, as free descents do (~1.5e-3); read
     # 1.2 and 1.3 mm low, 2.9 and 3.9e-3 rad (~3e-3 rad a millimetre pressed); the ones
     # that stopped or tipped lagged 4.8-9.3e-3 rad. Perception reads a hold as planned
-    # within ~0.8 mm of its height. Hanging higher is not judged: the fit sees the foot's
-    # lower end (points below the box pull it down) but nothing pulls its box up (the top
-    # is hidden by the pads, the underside unseen), and one let go from higher drops.
+    # -0.8 to 0.5 mm low, and a rendered one 0.8 or 2.3 mm low 0.4-0.5 mm short of that
+    # (tests/perception/test_placement_check.py). Hanging higher is not judged: the fit
+    # cannot see it (the points below the expected foot pull its box down, nothing pulls
+    # it up: the top is cut off at the pads, the underside unseen; it reads as planned),
+    # and one let go from higher drops rather than presses.
     in_hand_low_tolerance: float = 0.001  # m
     # However far it turned: placed as held, a domino leaning more than ~9° (its thickness
     # over its height) cannot stand. The two holds read 12.1° and 12.2° off in a
