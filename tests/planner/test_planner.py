@@ -410,6 +410,35 @@ def test_a_domino_turned_in_the_hand_is_placed_again_from_where_it_is_held(
     assert math.degrees(turn.ToAngleAxis().angle()) <= 10.0
 
 
+@pytest.mark.parametrize("low", [0.0025, -0.0015])
+def test_a_domino_slid_down_in_the_hand_is_let_go_with_its_foot_release_height_up(
+    planner, planned, low: float
+) -> None:
+    """Issue 23: a domino that slid down in the fingers on the way hangs lower than
+    planned, and the place line made for the hold as planned ends with its foot pressed
+    into the table (joints 4.8-9.3e-3 rad behind at 22 mm). Told where it is held, lower
+    (or higher) above its place, the held plan lets it go with its foot release_height
+    above the table, as planned holds are."""
+    req, plan, _ = planned
+    start = end_of(plan.segments[3])  # "transfer": above the place
+    checker = checker_for(req)
+    tcp = checker.tcp_pose(start)
+    measured = RigidTransform([0.0, 0.0, -low]) @ tcp @ plan.held_in_tcp
+    held_now = tcp.inverse() @ measured
+    again = planner.plan(dataclasses.replace(req, domino_pose=measured, start=start, holding=True))
+
+    def foot_height(segments) -> float:
+        let_go = checker.tcp_pose(end_of(segments[-1])) @ held_now
+        return let_go.translation()[2] - DOMINO_SIZE[0] / 2.0
+
+    table = req.place_pose.translation()[2] - DOMINO_SIZE[0] / 2.0
+    as_planned = foot_height(plan.segments[:5])  # the first plan's place line, held so
+    assert as_planned - table == pytest.approx(SETTINGS.release_height - low, abs=1e-4)
+    assert foot_height(again.segments[:2]) - table == pytest.approx(
+        SETTINGS.release_height, abs=1e-4
+    )
+
+
 def descent_clearance(
     req: PickPlaceRequest, plan, held_in_tcp: RigidTransform
 ) -> dict[tuple[str, str], float]:

@@ -50,6 +50,13 @@ def foot(pose: Pose) -> np.ndarray:
     return pose[:3, 3] + axis * DOMINO_LENGTH / 2.0
 
 
+def lowered(pose: Pose, depth: float) -> Pose:
+    """``pose`` moved ``depth`` metres straight down."""
+    moved = pose.copy()
+    moved[2, 3] -= depth
+    return moved
+
+
 def foot_distance(measured: Pose, expected: Pose) -> float:
     """Horizontal distance [m] between the feet of two dominoes."""
     return float(np.linalg.norm((foot(measured) - foot(expected))[:2]))

@@ -23,7 +23,7 @@ from dombot_bringup.task.cell import (
     Trajectory,
 )
 from dombot_bringup.task.checks import settle
-from dombot_bringup.task.geometry import foot, foot_distance
+from dombot_bringup.task.geometry import foot, foot_distance, lowered
 from dombot_bringup.task.state import Job, log
 from dombot_description import DOMINO_SIZE
 
@@ -179,8 +179,9 @@ def opens_while_moving(job: Job, segment: Segment, following: Sequence[Segment])
 
 def in_hand(job: Job, hold: Hold) -> InHand:
     """The held domino straight above its slot, seen by perception: when it turned or
-    slid in the hand on the way (``in_hand_tolerance``), a plan from where it is held to
-    its release pose (down onto it from above, the fingers open there, then the retreat).
+    slid in the hand on the way (``in_hand_tolerance``), or hangs lower than planned
+    (``in_hand_low_tolerance``), a plan from where it is held to its release pose (down
+    onto it from above, the fingers open there, then the retreat).
     No plan: placed as planned (within the tolerance, read beyond ``in_hand_max_off``, not
     seen well, or no plan for a hold that may still stand). Put back: no plan, and leaning
     over ``put_back_lean`` it would fall."""
@@ -196,20 +197,24 @@ def in_hand(job: Job, hold: Hold) -> InHand:
     measured, tilt = answer.measured[0], answer.tilt[0]
     off = foot_distance(measured, hold.held_above)
     seen = f"foot {off * 1e3:.1f} mm off, leaning {math.degrees(tilt):.1f}°"
-    # how much lower than planned it hangs: not judged (the place line ends release_height
-    # above the table; a lower hold stops its descent, issue 23), logged to learn it
-    low = (foot(hold.held_above)[2] - foot(measured)[2]) * 1e3
-    if off <= settings.in_hand_tolerance and tilt <= settings.in_hand_tilt_tolerance:
-        log(f"{name} in the hand: {seen} ({low:.1f} mm lower than planned); placing it")
+    # how much lower than planned it hangs: the place line ends release_height above the
+    # table for the hold as planned, so a lower one would press the table (issue 23)
+    low = foot(hold.held_above)[2] - foot(measured)[2]
+    hangs = f"{low * 1e3:.1f} mm lower than planned"
+    aside = off > settings.in_hand_tolerance or tilt > settings.in_hand_tilt_tolerance
+    if not aside and low <= settings.in_hand_low_tolerance:
+        log(f"{name} in the hand: {seen} ({hangs}); placing it")
         return InHand()
     if off > settings.in_hand_max_off:
         log(f"{name} in the hand: {seen}; too far off: a misreading, placing it")
         return InHand()
     outcome = job.report.dominoes[hold.index]
-    outcome.corrected_in_hand.append(seen)
+    outcome.corrected_in_hand.append(f"{seen} ({hangs})")
     plan = job.cell.plan_place(
         PlaceRequest(
-            domino=measured,
+            # only low: the hold as planned, that much lower (its foot's horizontal
+            # reading, within in_hand_tolerance, is as much perception's ~1 mm as the hold's)
+            domino=measured if aside else lowered(hold.held_above, low),
             place=job.releases[hold.index],
             # a fallen run domino being carried is no obstacle where it lay (an S-curve
             # run: its own pose "overlapped" its slot, every correction was
@@ -223,7 +228,6 @@ def in_hand(job: Job, hold: Hold) -> InHand:
         )
     )
     if plan.success:
-        hangs = f"{low:.1f} mm lower than planned"
         log(f"{name} in the hand: {seen} ({hangs}); carrying it again from where it is held")
         return InHand(again=plan.segments)
     refused = f"carrying it again refused ({plan.message.split(' (')[0]})"
