@@ -192,3 +192,32 @@ def test_the_same_request_with_the_arm_elsewhere_is_dropped() -> None:
         plan = ahead.answer(job, request)
         assert (plan is not None) == (stands == list(RETREAT_END.values()))
     assert job.report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 1, "dropped": 1}
+
+
+def ran(cell: ScriptedCell, label: str) -> int:
+    """How many of the segments labelled ``label`` (``scripted_cell.path``) ran."""
+    return sum(t.joint_names == (label,) for t in cell.executed)
+
+
+def test_a_domino_put_back_on_the_pile_drops_the_look_asked_as_its_descent_began() -> None:
+    """Slot 0's descent stalls: the domino is carried back and dropped on the pile, which
+    then lies otherwise than looked at as the descent began. Nothing was asked ahead, and
+    slot 0's next attempt looks at the pile afresh (it used to take that stale look)."""
+    cell, _ = recording_cell()
+    looked: list[tuple[int, int]] = []  # (slot, looks so far) at each request
+    planning = cell.place
+
+    def place(request: PlaceRequest) -> Plan:
+        looked.append((slot_of(request), len(cell.looks)))
+        return planning(request)
+
+    def motion(trajectory: Trajectory) -> Motion:
+        if trajectory.joint_names == ("place",) and ran(cell, "place") == 1:
+            return Motion(False, "a joint fell behind")
+        return Motion(True)
+
+    cell.place, cell.motion = place, motion
+    report = run(line_job(cell))
+    assert report.built and report.dominoes[0].attempts == 2
+    assert looked[:2] == [(0, 1), (0, 3)]  # slot 0 again after a look of its own
+    assert report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 2, "dropped": 0}

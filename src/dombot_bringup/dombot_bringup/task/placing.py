@@ -273,8 +273,10 @@ def put_back(job: Job, carried: Sequence[Segment]) -> None:
     where it was picked, each later one from where the one before it ended) to above
     where it was picked (the way it came, with this hold), let it drop onto the pile from
     there, and go back along the first: out of the cameras' view of the pile before the
-    next look, where the next plan starts as after a placement."""
+    next look, where the next plan starts as after a placement. The pile changes: the
+    look at it asked for as the descent began is dropped."""
     log("put back on the pile: carrying it back to where it was picked and letting it drop")
+    job.pile_look = None
     for transfer in reversed(carried):
         move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
     grip(job, LET_GO_OPENING, 0.0)
