@@ -892,6 +892,7 @@ def test_a_hold_put_back_costs_an_attempt_not_a_pick_and_leaves_its_spot_pickabl
     assert tried.outcome is Outcome.NOT_PLACED and tried.moved and tried.spot is None
     assert tried.why.startswith("put back on the pile")
     assert len(run_job.state.unpickable) == stalled
+    assert run_job.report.summary()["put_back_on_pile"] == 1  # counted either way
 
 
 def test_sweeps_push_debris_across_the_run_towards_its_side_first() -> None:

@@ -53,7 +53,8 @@ class DominoOutcome:
     # Held dominoes found off before the fingers let go, and placed again from where they
     # were held: what perception measured each time.
     corrected_in_hand: list[str] = field(default_factory=list)
-    # Held dominoes that could neither stand nor be carried again: dropped back on the pile.
+    # Held dominoes dropped back on the pile: they could neither stand nor be carried
+    # again, or their descent to the place stalled.
     put_back: list[str] = field(default_factory=list)
     # Fallen dominoes no grasp reached, pushed out of this slot's way.
     sweeps: list[str] = field(default_factory=list)

@@ -357,6 +357,7 @@ def pick(
             state.toppled_picked += 1
     if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
         if execution.stalled:  # picked again, it hung the same way (s-curve seed 3: 3 times)
+            job.report.dominoes[index].put_back.append(execution.why)
             state.unpickable.append(spot)
             state.remember_why(spot, execution.why)
         return Attempt(Outcome.NOT_PLACED, execution.why)
