@@ -8,6 +8,8 @@ import inspect
 import math
 import subprocess
 import sys
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -22,6 +24,9 @@ from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from support.planning_clock import UNHURRIED
+
+if TYPE_CHECKING:
+    from dombot_sim.world import DominoTruth
 
 
 def on_edge(x: float, y: float, yaw: float) -> np.ndarray:
@@ -66,10 +71,26 @@ print(sorted(m for m in sys.modules if m.split(".")[0] in ROS and sys.modules[m]
     assert answer.stdout.strip() == "[]"
 
 
-@pytest.mark.slow
-def test_the_real_loop_places_a_domino_from_a_pile_through_sim_cell() -> None:
-    """One slot of an arc, built by ``place_slot`` from a poured pile of 8: placed, and in
-    the simulator's truth the nearest domino stands upright on its target."""
+@dataclass(frozen=True)
+class PlacedFromPile:
+    """One slot of an arc built by ``place_slot`` from a poured pile of 8, and what the
+    simulator's truth showed while and after it was built."""
+
+    poured: str  # reset's answer
+    turn: Turn
+    job: Job
+    time_spent: dict[str, float]  # the cell's, by activity, once placed
+    truth: list[np.ndarray]  # the dominoes' poses once placed
+    sim_time: float  # the cell's clock once placed
+    world_time: float  # the world's clock once placed
+    checked: list[tuple[DominoTruth, float]]  # the placed domino's truth when the
+    # placement check's frame was taken, and how long after the release
+    second_later: list[DominoTruth]  # the world's truth a second after the place
+
+
+@pytest.fixture(scope="module")
+def placed_from_a_pile() -> PlacedFromPile:
+    """The real loop through ``SimCell``, run once for the two tests that look at it."""
     from dombot_description.scenario import load_scenario
     from dombot_perception.pipeline import build_pipeline
     from dombot_planner.planner import PickPlacePlanner
@@ -80,16 +101,42 @@ def test_the_real_loop_places_a_domino_from_a_pile_through_sim_cell() -> None:
     cell = SimCell(world, build_pipeline(scenario), PickPlacePlanner(scenario))
     layout = layouts.arc((0.0, 0.0), 0.6, math.radians(5.0), 1)
     job = Job.new(cell, layout, "arc", ArmJobSettings(pile=8, seed=0))
-    assert "poured 8 dominoes (seed 0); settled" in cell.reset(8, 0)
+    poured = cell.reset(8, 0)
+    seen = []
+    check_placement = cell.check_placement
 
-    assert place_slot(job, 0, may_defer=False) is Turn.PLACED
-    assert job.report.dominoes[0].placed
-    assert cell.time_spent["motion"] > 0.0 and cell.time_spent["gripper"] > 0.0
-    poses = [pose for _, pose in cell.truth(newer_than=0.0)]
-    nearest = min(poses, key=lambda pose: foot_distance(pose, job.targets[0]))
-    assert foot_distance(nearest, job.targets[0]) < 0.004
+    def checked(expected, in_hand=False, not_before=0.0):
+        """The check as the cell makes it, noting the truth when its frame is taken."""
+        if not in_hand:
+            world.advance(max(0.0, not_before - world.time))  # when perception's frame is
+            placed = min(world.domino_truth(), key=lambda t: foot_distance(t.X_WD, job.targets[0]))
+            seen.append((placed, world.time - job.let_go_at))
+        return check_placement(expected, in_hand, not_before)
+
+    cell.check_placement = checked
+    turn = place_slot(job, 0, may_defer=False)
+    time_spent, clocks = dict(cell.time_spent), (cell.sim_time, world.time)
+    truth = [pose for _, pose in cell.truth(newer_than=0.0)]
+    cell.wait_for_sim_time(1.0)
+    return PlacedFromPile(poured, turn, job, time_spent, truth, *clocks, seen, world.domino_truth())
+
+
+@pytest.mark.slow
+def test_the_real_loop_places_a_domino_from_a_pile_through_sim_cell(
+    placed_from_a_pile: PlacedFromPile,
+) -> None:
+    """One slot of an arc, built by ``place_slot`` from a poured pile of 8: placed, and in
+    the simulator's truth the nearest domino stands upright on its target."""
+    placed = placed_from_a_pile
+    assert "poured 8 dominoes (seed 0); settled" in placed.poured
+    assert placed.turn is Turn.PLACED
+    assert placed.job.report.dominoes[0].placed
+    assert placed.time_spent["motion"] > 0.0 and placed.time_spent["gripper"] > 0.0
+    target = placed.job.targets[0]
+    nearest = min(placed.truth, key=lambda pose: foot_distance(pose, target))
+    assert foot_distance(nearest, target) < 0.004
     assert tilt_from_vertical(nearest) < math.radians(3.0)
-    assert np.isclose(cell.sim_time, world.time)
+    assert np.isclose(placed.sim_time, placed.world_time)
 
 
 @pytest.mark.slow
@@ -131,40 +178,20 @@ def test_a_domino_on_its_edge_no_grasp_holds_is_pushed_over_and_then_plans() -> 
 
 
 @pytest.mark.slow
-def test_a_placed_domino_has_settled_when_its_placement_is_checked() -> None:
+def test_a_placed_domino_has_settled_when_its_placement_is_checked(
+    placed_from_a_pile: PlacedFromPile,
+) -> None:
     """``settle_after_place`` is long enough: in the simulator's truth, when the real loop
     asks for the placement check, the domino let go on its slot stands within 0.5 mm and
     0.5° of where it stands a second later (perception's own error is ~0.9 mm), so the
     check's frame shows it as it will stand. (This one rocks by ~0.3 mm at 12 Hz for
     over a second, at 0.25 s after the release as at 0.5 s; others were asleep by 0.17 s.)"""
-    from dombot_description.scenario import load_scenario
-    from dombot_perception.pipeline import build_pipeline
-    from dombot_planner.planner import PickPlacePlanner
-    from dombot_sim.world import CellWorld, WorldConfig
-
-    scenario = load_scenario()
-    world = CellWorld(WorldConfig(cameras=True, domino_capacity=8), scenario)
-    cell = SimCell(world, build_pipeline(scenario), PickPlacePlanner(scenario))
-    layout = layouts.arc((0.0, 0.0), 0.6, math.radians(5.0), 1)
-    job = Job.new(cell, layout, "arc", ArmJobSettings(pile=8, seed=0))
-    cell.reset(8, 0)
-    seen = []  # (the placed domino's truth when checked, how long after the release)
-    check_placement = cell.check_placement
-
-    def checked(expected, in_hand=False, not_before=0.0):
-        if not in_hand:
-            world.advance(max(0.0, not_before - world.time))  # when perception's frame is
-            placed = min(world.domino_truth(), key=lambda t: foot_distance(t.X_WD, job.targets[0]))
-            seen.append((placed, world.time - job.let_go_at))
-        return check_placement(expected, in_hand, not_before)
-
-    cell.check_placement = checked
-    assert place_slot(job, 0, may_defer=False) is Turn.PLACED
-    placed, after_release = seen[0]
-    assert after_release >= job.settings.settle_after_place - 1e-9
-    cell.wait_for_sim_time(1.0)
-    later = next(t for t in world.domino_truth() if t.name == placed.name)
-    moved = np.linalg.norm(later.X_WD[:3, 3] - placed.X_WD[:3, 3])
-    turned = abs(tilt_from_vertical(later.X_WD) - tilt_from_vertical(placed.X_WD))
+    placed = placed_from_a_pile
+    assert placed.turn is Turn.PLACED
+    seen, after_release = placed.checked[0]
+    assert after_release >= placed.job.settings.settle_after_place - 1e-9
+    later = next(t for t in placed.second_later if t.name == seen.name)
+    moved = np.linalg.norm(later.X_WD[:3, 3] - seen.X_WD[:3, 3])
+    turned = abs(tilt_from_vertical(later.X_WD) - tilt_from_vertical(seen.X_WD))
     assert moved < 0.0005
     assert turned < math.radians(0.5)

@@ -3,28 +3,41 @@ be downloaded here): prompts, batching, quality filters, NMS, masks into the pip
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pytest
-import torch
 
 from dombot_description.scenario import load_scenario
 from dombot_perception.backprojection import organised_cloud
 from dombot_perception.pipeline import PerceptionPipeline, config_for_scenario, make_segmenter
-from dombot_perception.sam_segmentation import SamSegmenter, box_nms, load_sam
 from dombot_perception.segmentation import SegmenterError
 from support.perception_scenes import PILE_CENTRE, flat
 
-from segment_anything.modeling import (  # isort: skip (after sam_segmentation sets it up)
-    ImageEncoderViT,
-    MaskDecoder,
-    PromptEncoder,
-    Sam,
-    TwoWayTransformer,
-)
+if TYPE_CHECKING:
+    from segment_anything.modeling import Sam
+
+    from dombot_perception.sam_segmentation import SamSegmenter
+
+# torch, and the SAM code that needs it, are imported by the tests, not here: every
+# pytest-xdist worker collects this module, and torch's import takes seconds.
 
 
 def tiny_sam(seed: int = 0, width: int = 32, image_size: int = 128) -> Sam:
     """SAM's architecture at toy size (a few thousand weights), randomly initialised."""
+    import torch
+
+    import dombot_perception.sam_segmentation  # noqa: F401 (sets segment_anything up)
+
+    # isort: split
+    from segment_anything.modeling import (
+        ImageEncoderViT,
+        MaskDecoder,
+        PromptEncoder,
+        Sam,
+        TwoWayTransformer,
+    )
+
     torch.manual_seed(seed)
     grid = image_size // 16
     return Sam(
@@ -71,6 +84,8 @@ def region_config():
 
 def permissive(model: Sam) -> SamSegmenter:
     """Random weights predict poor masks: keep them all so every step runs."""
+    from dombot_perception.sam_segmentation import SamSegmenter
+
     return SamSegmenter(
         model,
         points_per_side=32,
@@ -101,6 +116,8 @@ def test_prompts_only_where_the_work_region_is_seen(scene) -> None:
 def test_strict_quality_filters_can_reject_everything(scene, region_config) -> None:
     view = scene[0]
     cloud = organised_cloud(view, region_config.region, region_config.depth_range)
+    from dombot_perception.sam_segmentation import SamSegmenter
+
     strict = SamSegmenter(tiny_sam(), points_per_side=32, pred_iou_threshold=2.0)
     assert strict.segment(view, cloud) == []
 
@@ -113,12 +130,18 @@ def test_sam_masks_flow_through_the_whole_pipeline(scene, region_config) -> None
 
 
 def test_box_nms_keeps_the_best_of_overlapping_boxes() -> None:
+    import torch
+
+    from dombot_perception.sam_segmentation import box_nms
+
     boxes = torch.tensor([[0, 0, 10, 10], [1, 1, 10, 10], [20, 20, 30, 30]], dtype=torch.float)
     scores = torch.tensor([0.8, 0.9, 0.5])
     assert box_nms(boxes, scores, 0.7).tolist() == [1, 2]
 
 
 def test_missing_checkpoint_or_model_type_is_a_clear_error(tmp_path) -> None:
+    from dombot_perception.sam_segmentation import load_sam
+
     with pytest.raises(SegmenterError, match="does not exist"):
         load_sam("vit_b", str(tmp_path / "sam_vit_b.pth"))
     with pytest.raises(SegmenterError, match="model type"):

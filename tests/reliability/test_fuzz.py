@@ -11,17 +11,8 @@ import pytest
 import rclpy
 from rclpy.node import Node
 
-from support.fuzz import (
-    Harness,
-    action_endpoints,
-    fuzz,
-    fuzzed_nodes,
-    layer_endpoints,
-    layer_parameter_cases,
-    path_cases,
-    radius_cases,
-    service_endpoints,
-)
+# support.fuzz (hypothesis: seconds to import) is imported by the fixture, not here:
+# every pytest-xdist worker collects this module.
 
 pytestmark = pytest.mark.slow  # every node, fuzzed over DDS
 
@@ -38,20 +29,31 @@ BATCHES = {  # derandomized: the same batches every run
     "/layer/path": 3,
     "/layer_node/set_parameters": 3,
 }
-LAYER_CASES = {
-    "/layer/target_radius": radius_cases,
-    "/layer/path": path_cases,
-    "/layer_node/set_parameters": layer_parameter_cases,
-}
 
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
+    from support.fuzz import (
+        Harness,
+        action_endpoints,
+        fuzzed_nodes,
+        layer_endpoints,
+        layer_parameter_cases,
+        path_cases,
+        radius_cases,
+        service_endpoints,
+    )
+
+    layer_cases = {
+        "/layer/target_radius": radius_cases,
+        "/layer/path": path_cases,
+        "/layer_node/set_parameters": layer_parameter_cases,
+    }
     rclpy.init()
     with fuzzed_nodes(tmp_path_factory.mktemp("fuzz_logs")) as processes:
         node = Node("fuzz_probe")
         endpoints = service_endpoints(node) | action_endpoints(node)
-        endpoints |= {e.name: (e, LAYER_CASES[e.name]) for e in layer_endpoints(node)}
+        endpoints |= {e.name: (e, layer_cases[e.name]) for e in layer_endpoints(node)}
         yield Harness(processes, REPLY_TIMEOUT), endpoints
         node.destroy_node()
     rclpy.shutdown()
@@ -59,6 +61,8 @@ def session(tmp_path_factory):
 
 @pytest.mark.parametrize("name", list(BATCHES))
 def test_hostile_requests_get_the_right_code_and_a_message(session, name: str) -> None:
+    from support.fuzz import fuzz
+
     harness, endpoints = session
     endpoint, cases = endpoints[name]
     harness.warm_up(endpoint)
