@@ -329,3 +329,39 @@ def test_a_domino_held_lower_than_planned_is_read_that_low_but_not_higher(
         assert hangs - 0.0005 <= read <= hangs
     else:
         assert read == pytest.approx(0.0, abs=1e-4)
+
+
+# Where the 30-domino ledger runs' in-hand checks saw nothing (issue 23: 48 of 118), as
+# bench_in_hand renders them: 70 mm above the slot, the gripper over the slot's ±z side.
+# spiral30 slot 21 and s_curve30 slot 21 head towards camera_2 (the gripper leaning over
+# the free side ahead, +z, stands between camera_2 and the domino, and no pile camera sees
+# the slot); circle30 slot 1 heads across camera_2's view (it sees the domino edge-on,
+# which pins no turn about the pinch axis, whichever side the gripper leans to).
+@pytest.mark.parametrize(
+    "x, y, heading, lean, seen",
+    [
+        (0.625, 0.075, 36.0, 1, False),
+        (0.625, 0.075, 36.0, -1, True),
+        (0.611, 0.267, 44.0, 1, False),
+        (0.611, 0.267, 44.0, -1, True),
+        (0.68, 0.18, 90.0, 1, False),
+        (0.68, 0.18, 90.0, -1, False),
+    ],
+)
+def test_held_dominoes_where_the_ledger_saw_none_are_not_seen_or_measured(
+    pipeline, hold, x, y, heading, lean, seen
+) -> None:
+    """Every camera (the node's in_hand_cameras): where the gripper hides the held domino
+    from camera_2 or camera_2 sees it edge-on it is NOT_SEEN, never a wrong pose (the job
+    would carry a good hold again); the gripper leaning the other way, it is measured."""
+    slot = upright_pose(x, y, np.radians(heading)).GetAsMatrix4()
+    views, truth = hold(slot, lean=lean, every_camera=True, height=0.07)
+    above = slot.copy()
+    above[2, 3] += 0.07
+    [held] = check_placements([above], views, pipeline, PlacementConfig(in_hand=True))
+    if not seen:
+        assert held.status == NOT_SEEN
+        return
+    assert held.status == STANDING
+    foot, tilt = foot_and_tilt_errors(held.measured, truth)
+    assert foot < FOOT_TOLERANCE and tilt < TILT_TOLERANCE, (foot, np.degrees(tilt))
