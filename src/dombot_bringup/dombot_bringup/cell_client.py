@@ -69,6 +69,7 @@ from dombot_bringup.task.cell import (
 from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
 
+SPIN_PERIOD = 0.1  # s: how long the spin thread waits for work before it looks whether to stop
 _RESTARTED = object()  # a call's server was started again before it answered
 
 
@@ -109,14 +110,23 @@ class CellClient:
         )
         self._executor = MultiThreadedExecutor(num_threads=2)
         self._executor.add_node(self.node)
-        self._spinner = threading.Thread(target=self._executor.spin, daemon=True)
+        self._stopping = threading.Event()
+        self._spinner = threading.Thread(target=self._spin, daemon=True)
         self._spinner.start()
 
+    def _spin(self) -> None:
+        while not self._stopping.is_set():
+            self._executor.spin_once(timeout_sec=SPIN_PERIOD)
+
     def close(self) -> None:
-        # the spinner leaves its wait before the node goes: destroying the node under a
-        # waiting executor raises in the spin thread (seen on a loaded machine)
+        # The spinner leaves its loop before the executor shuts down: rclpy's shutdown
+        # from another thread destroys the executor's guard condition while the spinner
+        # may be building its wait set (rclpy issue 968: "'NoneType' object has no
+        # attribute 'handle'" in the spin thread, a partial build's test on a loaded CI),
+        # and the node goes last.
+        self._stopping.set()
+        self._spinner.join(timeout=10.0)
         self._executor.shutdown(timeout_sec=5.0)
-        self._spinner.join(timeout=5.0)
         self.node.destroy_node()
 
     # ------------------------------------------------------------------ topics
