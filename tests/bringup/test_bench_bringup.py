@@ -28,7 +28,7 @@ def test_a_run_may_take_a_cycle_timeout_per_cycle() -> None:
 
 def test_the_limit_says_whether_it_killed_the_run(tmp_path: Path) -> None:
     bench = bench_bringup()
-    _, _, timed_out = bench.run_logged(["sleep", "5"], tmp_path / "a.log", "slow", 0.2)
+    _, _, timed_out = bench.run_logged(["sleep", "600"], tmp_path / "a.log", "slow", 0.2)
     assert timed_out
     code, tail, timed_out = bench.run_logged(
         ["echo", "[bringup] done"], tmp_path / "b.log", "quick", 60.0
