@@ -10,7 +10,12 @@ import time
 import pytest
 import rclpy
 
-from dombot_adapters.node_shutdown import spin_until_shutdown, stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import (
+    BackgroundSpinner,
+    DrainingExecutor,
+    spin_until_shutdown,
+    stop_quietly_on_shutdown,
+)
 
 
 def test_an_error_after_shutdown_is_a_normal_stop_and_one_before_it_is_raised() -> None:
@@ -52,3 +57,30 @@ def test_a_callback_running_at_shutdown_returns_before_its_node_is_destroyed(cap
     gc.collect()  # rclpy reports an unfetched callback error when its task is collected
     assert resolved == ["/chatter"]
     assert "never retrieved" not in capfd.readouterr().err
+
+
+def test_a_background_spinner_logs_a_failing_callback_and_keeps_serving(capfd) -> None:
+    """sim_node's and the cell client's spinner: a callback that raises is logged and
+    the next ones still run; ``stop`` leaves the loop before the executor shuts down
+    (rclpy issue 968), so nothing is printed from the spin thread."""
+    rclpy.init()
+    node = rclpy.create_node("spinning_node")
+    ticks = threading.Semaphore(0)
+
+    def tick() -> None:
+        ticks.release()
+        raise RuntimeError("a bad callback")
+
+    node.create_timer(0.01, tick)
+    executor = DrainingExecutor(num_threads=2)
+    executor.add_node(node)
+    spinner = BackgroundSpinner(executor, node)
+    try:
+        assert all(ticks.acquire(timeout=30) for _ in range(5))
+    finally:
+        spinner.stop()
+        node.destroy_node()
+        rclpy.shutdown()
+    err = capfd.readouterr().err
+    assert "callback failed: RuntimeError('a bad callback'); still serving" in err
+    assert "Traceback" not in err

@@ -12,6 +12,7 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
+from dombot_adapters.node_shutdown import BackgroundSpinner
 from dombot_sim.sim_node import SimNode
 from support.ros_processes import spin_until
 
@@ -30,8 +31,7 @@ def sim():
     node = SimNode()
     executor = MultiThreadedExecutor(num_threads=2)
     executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    spinner = BackgroundSpinner(executor, node)
     stop = threading.Event()
     loop = threading.Thread(target=node.run, args=(stop,), daemon=True)
     loop.start()
@@ -39,7 +39,7 @@ def sim():
     yield node, viewer
     stop.set()
     loop.join(timeout=10)
-    executor.shutdown(timeout_sec=5)
+    spinner.stop()
     viewer.destroy_node()
     node.destroy_node()
     rclpy.shutdown()

@@ -3,11 +3,12 @@ logic here, only rclpy's context and executor)."""
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
 
@@ -61,3 +62,41 @@ def spin_until_shutdown(node: Node, num_threads: int) -> None:
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+class BackgroundSpinner:
+    """Spins ``executor`` on a thread of its own until ``stop``, for code whose main
+    thread does other work (a client, the simulation loop, a test). A callback that
+    raises is logged on ``node``'s logger and the others are still served.
+
+    ``stop`` ends the spin loop before the executor shuts down: rclpy's shutdown from
+    another thread destroys the executor's guard condition while the spinner may be
+    building its wait set (rclpy issue 968: "'NoneType' object has no attribute
+    'handle'" in the spin thread, which failed a partial build's test on a loaded CI).
+    """
+
+    def __init__(self, executor: Executor, node: Node, period: float = 0.1) -> None:
+        self.executor = executor
+        self._logger = node.get_logger()
+        self._period = period  # s: how long one wait for work lasts before it looks at stop
+        self._stopping = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stopping.is_set() and self.executor.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=self._period)
+            except ExternalShutdownException:
+                return
+            except Exception as error:
+                if not self.executor.context.ok():
+                    return  # the context went down under the wait: stopping
+                self._logger.error(f"callback failed: {error!r}; still serving")
+
+    def stop(self, timeout_sec: float = 10.0) -> None:
+        """Leave the spin loop, then shut the executor down (its running callbacks
+        drain first with a ``DrainingExecutor``)."""
+        self._stopping.set()
+        self._thread.join(timeout=timeout_sec)
+        self.executor.shutdown(timeout_sec=timeout_sec)

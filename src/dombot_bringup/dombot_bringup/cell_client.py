@@ -28,6 +28,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, JointState
 
+from dombot_adapters.node_shutdown import BackgroundSpinner
 from dombot_adapters.pose_messages import (
     pose_matrix,
     pose_message,
@@ -69,7 +70,6 @@ from dombot_bringup.task.cell import (
 from dombot_msgs.msg import DominoStateArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes, PlanPlace, PlanStrike, ResetSim
 
-SPIN_PERIOD = 0.1  # s: how long the spin thread waits for work before it looks whether to stop
 _RESTARTED = object()  # a call's server was started again before it answered
 
 
@@ -108,25 +108,12 @@ class CellClient:
         self.node.create_subscription(
             DominoStateArray, "/sim/domino_ground_truth", self._on_truth, 2
         )
-        self._executor = MultiThreadedExecutor(num_threads=2)
-        self._executor.add_node(self.node)
-        self._stopping = threading.Event()
-        self._spinner = threading.Thread(target=self._spin, daemon=True)
-        self._spinner.start()
-
-    def _spin(self) -> None:
-        while not self._stopping.is_set():
-            self._executor.spin_once(timeout_sec=SPIN_PERIOD)
+        executor = MultiThreadedExecutor(num_threads=2)
+        executor.add_node(self.node)
+        self._spinner = BackgroundSpinner(executor, self.node)
 
     def close(self) -> None:
-        # The spinner leaves its loop before the executor shuts down: rclpy's shutdown
-        # from another thread destroys the executor's guard condition while the spinner
-        # may be building its wait set (rclpy issue 968: "'NoneType' object has no
-        # attribute 'handle'" in the spin thread, a partial build's test on a loaded CI),
-        # and the node goes last.
-        self._stopping.set()
-        self._spinner.join(timeout=10.0)
-        self._executor.shutdown(timeout_sec=5.0)
+        self._spinner.stop()  # before the node goes (node_shutdown.BackgroundSpinner)
         self.node.destroy_node()
 
     # ------------------------------------------------------------------ topics

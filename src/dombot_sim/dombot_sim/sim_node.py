@@ -34,7 +34,6 @@ from control_msgs.action import FollowJointTrajectory, GripperCommand
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -43,7 +42,11 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 
-from dombot_adapters.node_shutdown import DrainingExecutor, stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import (
+    BackgroundSpinner,
+    DrainingExecutor,
+    stop_quietly_on_shutdown,
+)
 from dombot_adapters.parameters import DataclassParameters
 from dombot_adapters.pose_messages import pose_message, seconds_of, time_message
 from dombot_description.allocator import release_memory, set_mmap_threshold, tune_allocator
@@ -610,18 +613,6 @@ class SimNode(Node):
                 return gripper_result(state, reached, stalled)
 
 
-def spin_forever(executor: DrainingExecutor, node: Node) -> None:
-    """Spin until shutdown; a callback that raises is logged and the node keeps serving."""
-    while rclpy.ok():
-        try:
-            executor.spin()
-            return  # the executor was shut down
-        except (KeyboardInterrupt, ExternalShutdownException):
-            return
-        except Exception as error:  # one bad callback must not stop the node
-            node.get_logger().error(f"callback failed: {error!r}; still serving")
-
-
 def use_dds_profile(environ: MutableMapping[str, str] = os.environ) -> None:
     """Have Fast DDS read sim_node's writer settings (DDS_PROFILE_FILE: a heartbeat every
     0.1 s) unless the user chose a profiles file: a reliable writer repairs a frame its
@@ -643,8 +634,7 @@ def main(args: list[str] | None = None) -> int:
         return 2
     executor = DrainingExecutor(num_threads=4)
     executor.add_node(node)
-    spinner = threading.Thread(target=spin_forever, args=(executor, node), daemon=True)
-    spinner.start()
+    spinner = BackgroundSpinner(executor, node)
     stop = threading.Event()
     try:
         with stop_quietly_on_shutdown():
@@ -654,8 +644,7 @@ def main(args: list[str] | None = None) -> int:
         frames = ", ".join(f"{name} {count}" for name, count in node.frames_rendered.items())
         # the loop has ended (node.stopped): the callbacks still at work see it and return;
         # the node is destroyed only once they have (rclpy issue 893, node_shutdown)
-        executor.shutdown()
-        spinner.join(timeout=10.0)
+        spinner.stop()
         node.save_meshcat_recording()
         # a logger of its own, not the node's (nor its child, which rclpy registers with
         # rosout): Ctrl-C may have shut the context down, and rosout would refuse the line
