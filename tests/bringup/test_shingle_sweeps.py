@@ -13,7 +13,7 @@ from dombot_bringup import layouts
 from dombot_bringup.debris import carried_along, sweep_pushes
 from dombot_bringup.task.cell import Plan, StrikeRequest, planner_strike_request
 from dombot_bringup.task.clearing import sweep_debris
-from dombot_bringup.task.geometry import placement_pose, spot_of
+from dombot_bringup.task.geometry import near_any, placement_pose, spot_of
 from dombot_bringup.task.picking import PLANNER_SETTINGS
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
@@ -104,6 +104,9 @@ def test_a_shingled_row_is_swept_as_one_blob_clear_of_the_standing_run(
     assert len(request.standing) < len(standing) + len(fallen) - 1  # some pushed along
     assert len(request.standing) >= len(standing)  # the standing run kept
     assert "lying on its way with it" in job.report.dominoes[4].sweeps[0]
+    kept = [spot_of(p) for p in request.standing]
+    carried = [spot_of(p) for p in job.state.unfitted if not near_any(spot_of(p), kept)]
+    assert all(near_any(spot, job.state.disturbed) for spot in carried)  # looked at again
     run = tuple(RigidTransform(job.targets[i]) for i in standing)
     checker = StrikeChecker(
         SCENARIO, RigidTransform(request.domino), run, SETTINGS.acceleration_limit

@@ -64,6 +64,8 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
                 continue
             job.report.dominoes[index].sweeps.append(swept)
             log(f"{job.domino(index)}: {swept}")
+            for m in along:  # moved too: looked at again before the next pick
+                state.forget_refusals_near(spot_of(others[m]))
             if k is None:  # not a slot perception checks: taken to lie where it was pushed
                 moved = pose.copy()  # (until looked at again, ``checks.look_again``)
                 moved[:2, 3] += distance * np.asarray(direction)[:2]
