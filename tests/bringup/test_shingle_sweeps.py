@@ -29,6 +29,7 @@ from support.scripted_cell import ScriptedCell, planned
 SCENARIO = load_scenario()
 SETTINGS = PlannerSettings(default_time_budget=UNHURRIED)
 CLEARANCE = PLANNER_SETTINGS.coarse_clearance
+KEEP = ArmJobSettings().carry_clearance
 
 
 def s_curve30() -> list[layouts.DominoPlacement]:
@@ -120,17 +121,24 @@ def test_a_shingled_row_is_swept_as_one_blob_clear_of_the_standing_run(
 
 def test_the_dominoes_a_sweep_pushes_along() -> None:
     """Along a shingled row, the sweep of one domino across it pushes its neighbours on
-    the row along (they lie where the pusher goes), not a domino farther along the row,
-    and never one within coarse_clearance of a standing domino or pushed into one."""
+    the row along (they lie where the pusher goes), not a domino farther along the row;
+    none when one of them lies within carry_clearance of a standing domino, before or
+    after the push (arc cycle 5: such a sweep left a standing domino leaning 9°)."""
     layout = arc10()
     targets = [placement_pose(p) for p in layout]
     row = [tipped_pose(t, math.radians(75.0)) for t in targets]
     debris, others = row[5], [row[4], row[6], row[9]]
     ((direction, distance), _) = sweep_pushes(debris, layout[5], 0.022)  # 46 mm inwards
-    assert carried_along(debris, others, [], direction, distance, CLEARANCE) == [0, 1]
+
+    def carried(standing: list) -> list[int] | None:
+        return carried_along(debris, others, standing, direction, distance, CLEARANCE, KEEP)
+
+    assert carried([]) == [0, 1]
     # slot 5 (index 4) standing where its domino fell from: 4's domino touches it
-    assert carried_along(debris, others, [targets[4]], direction, distance, CLEARANCE) == [1]
+    assert carried([targets[4]]) is None
     # a domino standing 10 mm beyond where the row's next domino would be pushed to
     beyond = targets[6].copy()
     beyond[:2, 3] = spot_of(row[6]) + (distance + 0.01) * direction[:2]
-    assert 1 not in carried_along(debris, others, [beyond], direction, distance, CLEARANCE)
+    assert carried([beyond]) is None
+    # ... or standing far from the row (slot 1): nothing changes
+    assert carried([targets[0]]) == [0, 1]

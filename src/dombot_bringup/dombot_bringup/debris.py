@@ -47,14 +47,16 @@ def carried_along(
     direction: np.ndarray,
     distance: float,
     clearance: float,
-) -> list[int]:
+    keep: float,
+) -> list[int] | None:
     """The indices of the ``lying`` dominoes (4×4 poses) that the sweep of ``debris``
     ``distance`` along ``direction`` pushes along with it, as one blob: those whose
     footprint comes within ``clearance`` of the sweep's path (the pusher's place behind
-    ``debris`` and the ground ``debris`` covers up to its end), none within ``clearance``
-    of a ``standing`` domino nor pushed into one on that path. In a shingled row each
-    domino lies on the next: with them as obstacles no pusher pose keeps its clearance
-    (s_curve30 seed 2, arc cycle 4: every sweep of the row refused)."""
+    ``debris`` and the ground ``debris`` covers up to its end). None when one of them
+    lies within ``keep`` of a ``standing`` domino, before or after the push, or would be
+    pushed into one: dragged along, it may turn into the standing run. In a shingled row
+    each domino lies on the next: with them as obstacles no pusher pose keeps its
+    clearance (s_curve30 seed 2, arc cycle 4: every sweep of the row refused)."""
     direction = np.asarray(direction, dtype=float)[:2]
     corners = domino_corners(debris)[:, :2]
     behind = PUSHER_STANDOFF + 2 * PADS_HALF
@@ -63,13 +65,16 @@ def carried_along(
     upright = [RigidTransform(pose) for pose in standing]
     carried = []
     for n, pose in enumerate(lying):
-        moved = RigidTransform(pose)
         if not footprints_meet(path, domino_corners(pose)[:, :2], clearance):
             continue
-        if any(dominoes_overlap(moved, other, -clearance) for other in upright):
-            continue
-        if sweep_blocker(moved, along, distance, upright) is None:
-            carried.append(n)
+        start = RigidTransform(pose)
+        end = RigidTransform(start.rotation(), start.translation() + distance * along)
+        for other in upright:
+            if dominoes_overlap(start, other, -keep) or dominoes_overlap(end, other, -keep):
+                return None
+        if sweep_blocker(start, along, distance, upright) is not None:
+            return None
+        carried.append(n)
     return carried
 
 

@@ -29,8 +29,9 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
     or one of two or more in its way (``picking.in_its_way``): those no grasp reached
     first, nearest the slot first, out of the slot's way, the lying dominoes on its way
     pushed along (``debris.carried_along``: a shingled row as one blob; the standing run
-    and the other lying dominoes kept clear of); True once one was pushed (or the push
-    failed after the arm moved)."""
+    and the other lying dominoes kept clear of; not swept where one of those lies within
+    carry_clearance of the standing run); True once one was pushed (or the push failed after
+    the arm moved)."""
     state, settings = job.state, job.settings
     place, avoid = spot_of(job.releases[index]), failed + state.unpickable
     way = in_its_way(job, index)
@@ -56,7 +57,12 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
         for direction, distance in sweep_pushes(pose, job.layout[index], margin):
             name = "toppled domino" if k is None else f"domino {k + 1}"
             what = f"{name} lying at {spot_of(pose).round(3).tolist()}"
-            along = carried_along(pose, others, standing, direction, distance, clearance)
+            along = carried_along(
+                pose, others, standing, direction, distance, clearance, settings.carry_clearance
+            )
+            if along is None:
+                log(f"not sweeping {what}: a lying domino it drags would near the standing run")
+                continue
             where = "across the run" + (f", {len(along)} lying on its way with it" if along else "")
             kept = [p for m, p in enumerate(others) if m not in along]
             swept = sweep(job, pose, kept, direction, distance, what, where)
