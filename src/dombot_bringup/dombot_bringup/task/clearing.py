@@ -29,9 +29,9 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
     or one of two or more in its way (``picking.in_its_way``): those no grasp reached
     first, nearest the slot first, out of the slot's way, the lying dominoes on its way
     pushed along (``debris.carried_along``: a shingled row as one blob; the standing run
-    and the other lying dominoes kept clear of; not swept where one of those lies within
-    carry_clearance of the standing run); True once one was pushed (or the push failed after
-    the arm moved)."""
+    and the other lying dominoes kept clear of; every lying one kept clear of where one
+    of those lies within carry_clearance of the standing run); True once one was pushed
+    (or the push failed after the arm moved)."""
     state, settings = job.state, job.settings
     place, avoid = spot_of(job.releases[index]), failed + state.unpickable
     way = in_its_way(job, index)
@@ -60,9 +60,7 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
             along = carried_along(
                 pose, others, standing, direction, distance, clearance, settings.carry_clearance
             )
-            if along is None:
-                log(f"not sweeping {what}: a lying domino it drags would near the standing run")
-                continue
+            along = along or []  # None: one would near the standing run; all kept clear of
             where = "across the run" + (f", {len(along)} lying on its way with it" if along else "")
             kept = [p for m, p in enumerate(others) if m not in along]
             swept = sweep(job, pose, kept, direction, distance, what, where)

@@ -218,11 +218,11 @@ class ArmJobSettings:
     max_sweeps: int = 2
     # The lying dominoes on a sweep's way are pushed along with it (``debris.carried_along``:
     # a shingled row as one blob), unless one of them lies within carry_clearance of a
-    # standing domino before or after the push, or would be pushed into one; then the sweep
-    # is not asked for. Dragged, one may turn: in arc cycle 5 one pushed along moved 30 mm
-    # and turned 50°, and a standing domino 6 cm from the swept one was left leaning 9°
-    # (picked up and built again). At half a domino length (24 mm) the 3-slot line's
-    # second cycle was no longer swept clear (tests/bringup/test_cycles.py).
+    # standing domino before or after the push, or would be pushed into one; then the
+    # sweep keeps clear of every lying domino (as before the blob). Dragged, one may turn:
+    # in arc cycle 5 one pushed along moved 30 mm and turned 50°, and a standing domino
+    # 6 cm from the swept one was left leaning 9° (picked up and built again): how far a
+    # dragged domino may go is not measured; 5 mm is the planner's coarse_clearance.
     carry_clearance: float = 0.005  # m
     # A domino lying (fallen, or toppled by an earlier cycle) whose footprint comes within
     # clear_margin of a slot's domino (perception located a struck run's dominoes within
