@@ -3,18 +3,23 @@
 A domino that fell between standing neighbours often leaves the fingers no room on
 either side of it; left there it blocks its slot for good (two S-curve runs ended so).
 The planner's sweep (/plan_strike with a sweep direction) pushes it low across the run
-instead; here is which way, and how far.
+instead; here is which way, and how far, and which other lying dominoes it pushes along.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from pydrake.math import RigidTransform
+from scipy.spatial import ConvexHull
 
 from dombot_bringup.layouts import DOMINO_WIDTH, DominoPlacement
 from dombot_description import domino_corners
 from dombot_description.pusher import MAX_SWEEP_DISTANCE as MAX_SWEEP
+from dombot_description.pusher import PADS_HALF, PUSHER_STANDOFF
+from dombot_planner.request import dominoes_overlap, sweep_blocker
 
 
 def sweep_pushes(
@@ -33,3 +38,53 @@ def sweep_pushes(
         if distance <= MAX_SWEEP:
             pushes.append((direction, distance))
     return pushes
+
+
+def carried_along(
+    debris: np.ndarray,
+    lying: Sequence[np.ndarray],
+    standing: Sequence[np.ndarray],
+    direction: np.ndarray,
+    distance: float,
+    clearance: float,
+    keep: float,
+) -> list[int] | None:
+    """The indices of the ``lying`` dominoes (4×4 poses) that the sweep of ``debris``
+    ``distance`` along ``direction`` pushes along with it, as one blob: those whose
+    footprint comes within ``clearance`` of the sweep's path (the pusher's place behind
+    ``debris`` and the ground ``debris`` covers up to its end). None when one of them
+    lies within ``keep`` of a ``standing`` domino, before or after the push, or would be
+    pushed into one: dragged along, it may turn into the standing run. In a shingled row
+    each domino lies on the next: with them as obstacles no pusher pose keeps its
+    clearance (s_curve30 seed 2, arc cycle 4: every sweep of the row refused)."""
+    direction = np.asarray(direction, dtype=float)[:2]
+    corners = domino_corners(debris)[:, :2]
+    behind = PUSHER_STANDOFF + 2 * PADS_HALF
+    path = np.vstack([corners - behind * direction, corners + distance * direction])
+    along = np.array([*direction, 0.0])
+    upright = [RigidTransform(pose) for pose in standing]
+    carried = []
+    for n, pose in enumerate(lying):
+        if not footprints_meet(path, domino_corners(pose)[:, :2], clearance):
+            continue
+        start = RigidTransform(pose)
+        end = RigidTransform(start.rotation(), start.translation() + distance * along)
+        for other in upright:
+            if dominoes_overlap(start, other, -keep) or dominoes_overlap(end, other, -keep):
+                return None
+        if sweep_blocker(start, along, distance, upright) is not None:
+            return None
+        carried.append(n)
+    return carried
+
+
+def footprints_meet(a: np.ndarray, b: np.ndarray, gap: float) -> bool:
+    """Whether the convex hulls of points ``a`` and ``b`` (N×2) come within ``gap`` of
+    each other: no edge normal of either separates them by more (separating axes; near
+    two corners it errs towards meeting)."""
+    for points, other in ((a, b), (b, a)):
+        # each edge of the hull: normal · p + offset <= 0 inside
+        for normal_x, normal_y, offset in ConvexHull(points, qhull_options="QJ").equations:
+            if np.all(other @ [normal_x, normal_y] + offset > gap):
+                return False
+    return True

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from dombot_bringup.debris import sweep_pushes
+from dombot_bringup.debris import carried_along, sweep_pushes
 from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.offers import roomiest_first
 from dombot_bringup.spread import TIP_DISTANCE, lay_flat_pushes, spread_pushes, stir_pushes
@@ -27,8 +27,11 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
     """Push aside a fallen or toppled domino within a domino length of slot ``index``
     that no grasp reached (refused, or its pick failed; an unfitted one, never offered),
     or one of two or more in its way (``picking.in_its_way``): those no grasp reached
-    first, nearest the slot first, out of the slot's way; True once one was pushed (or the
-    push failed after the arm moved)."""
+    first, nearest the slot first, out of the slot's way, the lying dominoes on its way
+    pushed along (``debris.carried_along``: a shingled row as one blob; the standing run
+    and the other lying dominoes kept clear of; every lying one kept clear of where one
+    of those lies within carry_clearance of the standing run); True once one was pushed
+    (or the push failed after the arm moved)."""
     state, settings = job.state, job.settings
     place, avoid = spot_of(job.releases[index]), failed + state.unpickable
     way = in_its_way(job, index)
@@ -46,17 +49,27 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
     )
     # beyond the run's side by sweep_margin, and out of the slot's way (a millimetre more)
     margin = max(settings.sweep_margin, settings.clear_margin + settings.clear_pads + 1e-3)
+    standing = list(state.standing.values())
+    clearance = PLANNER_SETTINGS.coarse_clearance
     for _, _, n in debris:
         k, pose = lying[n]
         others = [p for p in known if p is not pose]
         for direction, distance in sweep_pushes(pose, job.layout[index], margin):
             name = "toppled domino" if k is None else f"domino {k + 1}"
             what = f"{name} lying at {spot_of(pose).round(3).tolist()}"
-            swept = sweep(job, pose, others, direction, distance, what, "across the run")
+            along = carried_along(
+                pose, others, standing, direction, distance, clearance, settings.carry_clearance
+            )
+            along = along or []  # None: one would near the standing run; all kept clear of
+            where = "across the run" + (f", {len(along)} lying on its way with it" if along else "")
+            kept = [p for m, p in enumerate(others) if m not in along]
+            swept = sweep(job, pose, kept, direction, distance, what, where)
             if swept is None:
                 continue
             job.report.dominoes[index].sweeps.append(swept)
             log(f"{job.domino(index)}: {swept}")
+            for m in along:  # moved too: looked at again before the next pick
+                state.forget_refusals_near(spot_of(others[m]))
             if k is None:  # not a slot perception checks: taken to lie where it was pushed
                 moved = pose.copy()  # (until looked at again, ``checks.look_again``)
                 moved[:2, 3] += distance * np.asarray(direction)[:2]

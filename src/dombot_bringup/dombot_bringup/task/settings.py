@@ -216,6 +216,14 @@ class ArmJobSettings:
     # run until they lie this far beyond its side; at most max_sweeps per slot.
     sweep_margin: float = 0.008  # m
     max_sweeps: int = 2
+    # The lying dominoes on a sweep's way are pushed along with it (``debris.carried_along``:
+    # a shingled row as one blob), unless one of them lies within carry_clearance of a
+    # standing domino before or after the push, or would be pushed into one; then the
+    # sweep keeps clear of every lying domino (as before the blob). Dragged, one may turn:
+    # in arc cycle 5 one pushed along moved 30 mm and turned 50°, and a standing domino
+    # 6 cm from the swept one was left leaning 9° (picked up and built again): how far a
+    # dragged domino may go is not measured; 5 mm is the planner's coarse_clearance.
+    carry_clearance: float = 0.005  # m
     # A domino lying (fallen, or toppled by an earlier cycle) whose footprint comes within
     # clear_margin of a slot's domino (perception located a struck run's dominoes within
     # 7.6 mm), or within clear_pads more across the run (the pads beside it: release
