@@ -250,7 +250,8 @@ def test_held_dominoes_are_standing_where_they_are_or_not_seen(
     either measured within the tolerances or not called STANDING (e.g. a gripper leaning
     towards camera_2 hides it; an edge-on view pins the turn too weakly). With every
     camera (the node's in_hand_cameras), each camera's points are fitted alone: fused from
-    two sides, their offsets twisted the box by up to 2°."""
+    two sides, their offsets twisted the box by up to 2°. camera_3 among them, all but one
+    (camera_2 alone: 5 of 12; without camera_3: 10)."""
     statuses = []
     for heading in np.radians([45.0, -45.0, 135.0, -135.0, 90.0, 0.0]):
         step = SPACING * np.array([np.cos(heading), np.sin(heading)])
@@ -264,7 +265,8 @@ def test_held_dominoes_are_standing_where_they_are_or_not_seen(
                 foot, tilt = foot_and_tilt_errors(held.measured, truth)
                 assert foot < FOOT_TOLERANCE and tilt < TILT_TOLERANCE, (foot, np.degrees(tilt))
     print("in hand, every camera" if every_camera else "in hand, camera_2:", statuses)
-    assert statuses.count(STANDING) >= 2 and set(statuses) <= {STANDING, NOT_SEEN}
+    assert statuses.count(STANDING) >= (11 if every_camera else 2)
+    assert set(statuses) <= {STANDING, NOT_SEEN}
 
 
 # A real slot: domino 7 of the S-curve (--start 0.50 -0.07 --heading 90 --length 0.55
