@@ -12,7 +12,7 @@ ahead) or its -z side (-1: a slot built after the next one). The holds: as plann
 axis, and the planner's flatter and steeper grasps (``canonical_grasp`` turned by
 ``--grasp-turn``). Each scene is checked with every camera of the cell (the node's
 ``in_hand_cameras``), with each camera alone (``seen_by``) and, with ``--without``, with
-every camera but that one (``seen_without``: the cell before it was added); ``--scenario``
+every camera but that one (``without``: the cell before it was added); ``--scenario``
 another cell, e.g. one with a camera more (its ``model_directives`` an absolute path).
 
 Prints one JSON object on stdout: per side the gripper leans to as seen from
@@ -151,11 +151,17 @@ def run(args: argparse.Namespace) -> dict:
     by_side: dict[str, dict] = defaultdict(lambda: {**tally(), "seen_by": Counter()})
     seconds: dict[str, list[float]] = defaultdict(list)  # per check, by the cameras checked
 
-    def timed_check(target: np.ndarray, views: list[CameraView], cameras: str) -> check.Placement:
+    def judged(
+        target: np.ndarray, truth: np.ndarray, views: list[CameraView], cameras: str
+    ) -> tuple[bool, bool]:
+        """Seen, misread: the check of ``views`` (timed under ``cameras``)."""
         start = time.perf_counter()
         [placement] = check.check_placements([target], views, pipeline, config)
         seconds[cameras].append(time.perf_counter() - start)
-        return placement
+        seen = placement.status == check.STANDING
+        errors = foot_and_tilt(placement.measured, truth)
+        tolerances = (args.foot_tolerance, math.radians(args.tilt_tolerance))
+        return seen, seen and any(e > t for e, t in zip(errors, tolerances, strict=True))
 
     for layout in args.layouts:
         run_slots = placements_of(layout)
@@ -170,16 +176,7 @@ def run(args: argparse.Namespace) -> dict:
                     if scene is None:
                         continue
                     views, truth = scene
-                    placement = timed_check(target, views, "every camera")
-                    seen = placement.status == check.STANDING
-                    misread = seen and any(
-                        error > tolerance
-                        for error, tolerance in zip(
-                            foot_and_tilt(placement.measured, truth),
-                            (args.foot_tolerance, math.radians(args.tilt_tolerance)),
-                            strict=True,
-                        )
-                    )
+                    seen, misread = judged(target, truth, views, "every camera")
                     build_camera = next(v for v in views if v.name == args.build_camera)
                     side = (
                         f"gripper {gripper_side(expected, lean, build_camera)} {args.build_camera}"
@@ -193,10 +190,9 @@ def run(args: argparse.Namespace) -> dict:
                         by_side[side]["seen_by"][view.name] += alone.status == check.STANDING
                     if args.without:
                         rest = [v for v in views if v.name != args.without]
-                        without = timed_check(target, rest, f"without {args.without}")
-                        by_side[side]["seen_without"] = by_side[side].get("seen_without", 0) + (
-                            without.status == check.STANDING
-                        )
+                        before = judged(target, truth, rest, f"without {args.without}")
+                        without = by_side[side].setdefault("without", Counter())
+                        without.update(seen=before[0], misread=before[1])
                     print(
                         f"{layout} slot {slot + 1} {name} lean {lean:+d} ({side}): "
                         f"{'seen' if seen else 'not seen'}",

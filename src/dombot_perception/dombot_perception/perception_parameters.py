@@ -35,7 +35,7 @@ class PerceptionParameters:
         ("camera_0", "camera_1"), "cameras that watch the pile"
     )
     placement_cameras: tuple[str, ...] = described(
-        ("camera_2",), "cameras that watch the build area"
+        ("camera_2",), "cameras of placement checks (their points fitted together)"
     )
     in_hand_cameras: tuple[str, ...] = described(
         ("camera_0", "camera_1", "camera_2", "camera_3"),
