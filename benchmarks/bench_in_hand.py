@@ -11,14 +11,16 @@ ahead) or its -z side (-1: a slot built after the next one). The holds: as plann
 ``--low`` lower, turned ``--yaw`` about the vertical, leaning ``--lean`` about the pinch
 axis, and the planner's flatter and steeper grasps (``canonical_grasp`` turned by
 ``--grasp-turn``). Each scene is checked with every camera of the cell (the node's
-``in_hand_cameras``), and with each camera alone (``seen_by``); ``--scenario`` another
-cell, e.g. one with a camera more (its ``model_directives`` an absolute path).
+``in_hand_cameras``), with each camera alone (``seen_by``) and, with ``--without``, with
+every camera but that one (``without``: the cell before it was added); ``--scenario``
+another cell, e.g. one with a camera more (its ``model_directives`` an absolute path).
 
 Prints one JSON object on stdout: per side the gripper leans to as seen from
 ``--build-camera`` (towards it, away from it, across its view) and per hold and lean the
 scenes, seen (STANDING), misread (seen, but the foot off by more than ``--foot-tolerance``
 or the length axis by more than ``--tilt-tolerance`` from the truth); per side also how
-many each camera alone sees (``seen_by``); progress on stderr.
+many each camera alone sees (``seen_by``); the median wall seconds of a check with every
+camera (and without ``--without``'s); progress on stderr.
 """
 
 from __future__ import annotations
@@ -26,7 +28,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import statistics
 import sys
+import time
 from collections import Counter, defaultdict
 
 import numpy as np
@@ -145,6 +149,20 @@ def run(args: argparse.Namespace) -> dict:
 
     by_hold: dict[str, dict] = defaultdict(tally)
     by_side: dict[str, dict] = defaultdict(lambda: {**tally(), "seen_by": Counter()})
+    seconds: dict[str, list[float]] = defaultdict(list)  # per check, by the cameras checked
+
+    def judged(
+        target: np.ndarray, truth: np.ndarray, views: list[CameraView], cameras: str
+    ) -> tuple[bool, bool]:
+        """Seen, misread: the check of ``views`` (timed under ``cameras``)."""
+        start = time.perf_counter()
+        [placement] = check.check_placements([target], views, pipeline, config)
+        seconds[cameras].append(time.perf_counter() - start)
+        seen = placement.status == check.STANDING
+        errors = foot_and_tilt(placement.measured, truth)
+        tolerances = (args.foot_tolerance, math.radians(args.tilt_tolerance))
+        return seen, seen and any(e > t for e, t in zip(errors, tolerances, strict=True))
+
     for layout in args.layouts:
         run_slots = placements_of(layout)
         for slot in range(0, len(run_slots), args.step):
@@ -158,16 +176,7 @@ def run(args: argparse.Namespace) -> dict:
                     if scene is None:
                         continue
                     views, truth = scene
-                    [placement] = check.check_placements([target], views, pipeline, config)
-                    seen = placement.status == check.STANDING
-                    misread = seen and any(
-                        error > tolerance
-                        for error, tolerance in zip(
-                            foot_and_tilt(placement.measured, truth),
-                            (args.foot_tolerance, math.radians(args.tilt_tolerance)),
-                            strict=True,
-                        )
-                    )
+                    seen, misread = judged(target, truth, views, "every camera")
                     build_camera = next(v for v in views if v.name == args.build_camera)
                     side = (
                         f"gripper {gripper_side(expected, lean, build_camera)} {args.build_camera}"
@@ -179,13 +188,23 @@ def run(args: argparse.Namespace) -> dict:
                     for view in views:
                         [alone] = check.check_placements([target], [view], pipeline, config)
                         by_side[side]["seen_by"][view.name] += alone.status == check.STANDING
+                    if args.without:
+                        rest = [v for v in views if v.name != args.without]
+                        before = judged(target, truth, rest, f"without {args.without}")
+                        without = by_side[side].setdefault("without", Counter())
+                        without.update(seen=before[0], misread=before[1])
                     print(
                         f"{layout} slot {slot + 1} {name} lean {lean:+d} ({side}): "
                         f"{'seen' if seen else 'not seen'}",
                         file=sys.stderr,
                     )
     scenes.world.set_robot_positions()
-    return {"benchmark": "in_hand", "by_side": by_side, "by_hold": by_hold}
+    return {
+        "benchmark": "in_hand",
+        "by_side": by_side,
+        "by_hold": by_hold,
+        "seconds_per_check": {k: statistics.median(v) for k, v in seconds.items()},
+    }
 
 
 def main() -> None:
@@ -196,6 +215,9 @@ def main() -> None:
     )
     parser.add_argument(
         "--build-camera", default="camera_2", help="the gripper's side is told from it"
+    )
+    parser.add_argument(
+        "--without", help="also check every scene without this camera (e.g. camera_3)"
     )
     parser.add_argument("--step", type=int, default=5, help="every step-th slot")
     parser.add_argument("--low", type=float, default=0.006, help="m the hold hangs low")

@@ -101,6 +101,25 @@ def test_each_camera_sees_what_it_looks_at_in_the_middle_of_the_image() -> None:
     assert pile_cameras == ["camera_0", "camera_1"]  # the paper's two, on the pile
 
 
+def test_two_cameras_see_every_reachable_place_of_the_build_area() -> None:
+    """camera_2 (the placement checks) and camera_3 (49° round from it, for the held
+    domino the gripper hides from camera_2) see every place of the build area within the
+    arm's reach, up to a held domino's height."""
+    build = [c for c in SCENARIO.cameras if not np.allclose(c.look_at[:2], SCENARIO.pile_center)]
+    assert [c.name for c in build] == ["camera_2", "camera_3"]
+    xs, ys = np.meshgrid(np.linspace(*SCENARIO.build_x, 25), np.linspace(*SCENARIO.build_y, 25))
+    reach = np.hypot(xs, ys).ravel()
+    inner, outer = SCENARIO.build_reach
+    places = np.column_stack([xs.ravel(), ys.ravel()])[(reach >= inner) & (reach <= outer)]
+    for camera in build:
+        for height in (0.0, 0.12):
+            points = np.column_stack([places, np.full(len(places), height), np.ones(len(places))])
+            in_camera = (np.linalg.inv(camera.pose()) @ points.T)[:3]
+            u, v = (camera.intrinsics @ (in_camera / in_camera[2]))[:2]
+            assert np.all(in_camera[2] > 0.3)
+            assert np.all((u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height))
+
+
 def test_shadow_plant_has_only_the_arm_and_the_obstacles() -> None:
     obstacle = RigidTransform([0.5, 0.1, 0.024])
     shadow = build_shadow_plant(SCENARIO, grasp_opening=0.024, obstacle_poses=[obstacle])

@@ -12,7 +12,8 @@ import pytest
 
 from dombot_perception.frames import CameraView
 
-PILE_CAMERAS = ("camera_0", "camera_1")  # camera_2 watches the build area
+PILE_CAMERAS = ("camera_0", "camera_1")
+PLACEMENT_CAMERAS = ("camera_2",)  # perception_node's placement_cameras: the run from its end
 collect_ignore = [] if importlib.util.find_spec("dombot_msgs") else ["test_perception_node.py"]
 
 
@@ -23,17 +24,14 @@ def world():
     return CellWorld(WorldConfig(cameras=True, domino_capacity=3))
 
 
-def renderer(world, pile: bool | None):
-    """Render dominoes at exact poses: {index: 4x4} -> a CameraView per pile camera
-    (``pile``), per build-area camera (not ``pile``) or per camera (None)."""
+def renderer(world, cameras: tuple[str, ...] | None):
+    """Render dominoes at exact poses: {index: 4x4} -> a CameraView per camera named in
+    ``cameras`` (None: every camera), only those cameras rendered."""
 
     def render(poses: dict[int, np.ndarray]) -> list[CameraView]:
         world.set_domino_poses(poses)
-        return [
-            CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC)
-            for f in world.render().values()
-            if pile is None or (f.name in PILE_CAMERAS) == pile
-        ]
+        frames = world.render(list(cameras) if cameras else None)
+        return [CameraView(f.name, f.rgb, f.depth, f.K, f.X_WC) for f in frames.values()]
 
     return render
 
@@ -41,16 +39,16 @@ def renderer(world, pile: bool | None):
 @pytest.fixture(scope="session")
 def render_scene(world):
     """Dominoes at exact poses, seen by the pile cameras."""
-    return renderer(world, pile=True)
+    return renderer(world, PILE_CAMERAS)
 
 
 @pytest.fixture(scope="session")
 def render_build_area(world):
-    """Dominoes at exact poses, seen by the build-area camera (camera_2)."""
-    return renderer(world, pile=False)
+    """Dominoes at exact poses, seen by the placement camera (camera_2)."""
+    return renderer(world, PLACEMENT_CAMERAS)
 
 
 @pytest.fixture(scope="session")
 def render_every_camera(world):
     """Dominoes at exact poses, seen by every camera."""
-    return renderer(world, pile=None)
+    return renderer(world, None)

@@ -220,7 +220,8 @@ def test_on_demand_it_listens_only_while_a_request_waits_and_still_detects(
     finally:
         continuous.bool_value = True
         cameras.set_parameter("continuous", continuous)
-    assert spin_until(cameras.node, lambda: len(watched(cameras)) == 3, timeout=30)
+    # continuous again: every camera of its ``cameras`` (each one the scenario has)
+    assert spin_until(cameras.node, lambda: len(watched(cameras)) == len(cameras.views), 30)
 
 
 def test_unknown_camera_is_an_error_not_a_crash(cameras: Cameras) -> None:

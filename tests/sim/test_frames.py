@@ -74,6 +74,8 @@ def test_the_chain_world_to_tcp_is_drakes_forward_kinematics(cell) -> None:
 
 
 def test_camera_optical_frames_look_along_z_with_y_down() -> None:
+    names = [frame.child for frame in camera_transforms(SCENARIO.cameras)]
+    assert names == [f"camera_{i}_optical" for i in range(4)]  # pile 0, 1; build area 2, 3
     for frame, spec in zip(camera_transforms(SCENARIO.cameras), SCENARIO.cameras, strict=True):
         assert (frame.parent, frame.child) == (WORLD, f"{spec.name}_optical")
         rotation = frame.X_PC.rotation().matrix()

@@ -29,16 +29,16 @@ class PerceptionParameters:
 
     scenario: str = described("", "scenario file; empty: dombot_description's default")
     cameras: tuple[str, ...] = described(
-        ("camera_0", "camera_1", "camera_2"), "cameras to subscribe (/<name>/...)"
+        ("camera_0", "camera_1", "camera_2", "camera_3"), "cameras to subscribe (/<name>/...)"
     )
     detect_cameras: tuple[str, ...] = described(
         ("camera_0", "camera_1"), "cameras that watch the pile"
     )
     placement_cameras: tuple[str, ...] = described(
-        ("camera_2",), "cameras that watch the build area"
+        ("camera_2",), "cameras of placement checks (their points fitted together)"
     )
     in_hand_cameras: tuple[str, ...] = described(
-        ("camera_0", "camera_1", "camera_2"),
+        ("camera_0", "camera_1", "camera_2", "camera_3"),
         "cameras of in_hand placement checks (each fitted alone; the gripper hides the held "
         "domino from some)",
     )
