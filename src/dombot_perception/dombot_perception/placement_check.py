@@ -39,6 +39,7 @@ detections cannot tell a held domino from the pads around it.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -132,9 +133,10 @@ def check_placements(
             results.append(Placement(MISSING, pose, 0.0, 0.0))
             continue
         near = _around_box(points, pose, config.fit_margin) & (owner == index)
-        fits = _camera_fits(pose, points[near], camera[near], views, config)
-        if fits:  # the first camera's: ``views`` in order of preference
-            results.append(_placement(STANDING, fits[0][0], pose))
+        # the first camera's fit: ``views`` in order of preference
+        fitted = next(_camera_fits(pose, points[near], camera[near], views, config), None)
+        if fitted is not None:
+            results.append(_placement(STANDING, fitted[0], pose))
             continue
         if detections is None:
             filtering = replace(pipeline.config.filtering, min_coverage=config.min_lying_coverage)
@@ -275,10 +277,10 @@ def _held(
     below_pads = points[:, 2] < _foot_height(expected) + config.in_hand_fit_height
     near = _around_box(points, expected, config.fit_margin) & below_pads
     fits = _camera_fits(expected, points[near], camera[near], views, config)
-    if not fits:
+    best = max(fits, key=lambda fit: _turn_support(*fit), default=None)
+    if best is None:
         return Placement(NOT_SEEN, expected, 0.0, 0.0)
-    best, _ = max(fits, key=lambda fit: _turn_support(*fit))
-    return _placement(STANDING, best, expected)
+    return _placement(STANDING, best[0], expected)
 
 
 def _camera_fits(
@@ -287,25 +289,24 @@ def _camera_fits(
     camera: np.ndarray,
     views: list[CameraView],
     config: PlacementConfig,
-) -> list[tuple[np.ndarray, np.ndarray]]:
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The box fitted from ``expected`` in each camera's ``points`` alone (``camera``: the
     index in ``views`` of each point's camera) and the points on it, for each camera
     whose image holds the expected centre and whose fit stands there (``_local_fit``,
-    seen through by none of its own pixels), in the order of ``views``.
+    seen through by none of its own pixels), in the order of ``views``, each fitted when
+    asked for.
 
     Each camera alone, because each camera's points carry their own ~0.6-0.9 mm offset,
     partly along its view direction: fused from two sides they twisted a held box by up
     to 2° at S-curve slots (each camera alone: within 0.2°), a standing one by up to 1°.
     """
-    fits = []
     for index, view in enumerate(views):
         if not _in_view(expected, view):
             continue
         own = points[camera == index]
         fitted = _local_fit(expected, own, [view], config)
         if fitted is not None:
-            fits.append((fitted, own[_on(fitted, own, config.inlier_distance)]))
-    return fits
+            yield fitted, own[_on(fitted, own, config.inlier_distance)]
 
 
 def _claim(
