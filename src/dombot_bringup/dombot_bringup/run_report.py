@@ -206,17 +206,21 @@ class RunReport:
         return self.built and self.toppled_by_perception and self.toppled_by_truth is not False
 
     @property
-    def exit_status(self) -> int:
-        """The arm job's exit status (``sections.exit_status``): 0, 3 partial, or 1; with
-        cycles, the worst of them (``sections.worst_status``)."""
-        own = exit_status(
+    def own_exit_status(self) -> int:
+        """This run's exit status alone (``sections.exit_status``): 0, 3 partial, or 1."""
+        return exit_status(
             len(self.empty_slots),
             len(self.sections),
             sum(s.struck for s in self.sections),
             self.toppled_by_perception,
             self.toppled_by_truth,
         )
-        return worst_status([own, *(c.exit_status for c in self.cycles)])
+
+    @property
+    def exit_status(self) -> int:
+        """The arm job's exit status: this run's, or with cycles, the worst of theirs
+        (``sections.worst_status``)."""
+        return worst_status([self.own_exit_status, *(c.exit_status for c in self.cycles)])
 
     def summary(self) -> dict:
         placed = [d for d in self.dominoes if d.placed]
