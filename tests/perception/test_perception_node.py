@@ -262,7 +262,7 @@ def test_a_placement_check_is_answered_while_a_detect_waits(cameras: Cameras) ->
         cameras.held_stamps = {}
         continuous.bool_value = True
         cameras.set_parameter("continuous", continuous)
-    assert spin_until(cameras.node, lambda: len(watched(cameras)) == 3, timeout=30)
+    assert spin_until(cameras.node, lambda: len(watched(cameras)) == len(cameras.views), 30)
 
 
 def test_unknown_camera_is_an_error_not_a_crash(cameras: Cameras) -> None:
