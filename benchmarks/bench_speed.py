@@ -7,8 +7,9 @@ planning, gripper, waiting, other: the run report's split), the wall seconds per
 domino, and the CPU seconds each node process used (psutil, read off the process tree);
 sim_node's CPU per simulated second over the whole job and while the arm moves (from
 its "executing a T s trajectory" to its "trajectory done" lines, against the T's), and
-how many picks were planned ahead (asked as the fingers let go or after the retreat,
-used or dropped: ``task.ahead``), and the planner's refusals by service and error code.
+how many picks were planned ahead (asked as the descent to the slot started, as the
+fingers let go or after the retreat, used or dropped: ``task.ahead``), and the
+planner's refusals by service and error code.
 Compare two code versions by running this in both workspaces at the same time (the
 machine's load then weighs on both alike) and taking ratios: docs/SPEED.md.
 
@@ -174,8 +175,9 @@ def summarize(args, result: dict, moving: tuple[float, float]) -> dict:
         ),
         "arm_moving_simulated_s": round(moving_sim, 1),
         "planned_ahead": {
-            key: summary.get(f"planned_ahead_{key}")
-            for key in ("early", "after_retreat", "used", "dropped")
+            key.removeprefix("planned_ahead_"): n
+            for key, n in summary.items()
+            if key.startswith("planned_ahead_")
         },
     }
 

@@ -169,6 +169,28 @@ def test_a_failed_cycle_ends_the_cycles_and_the_exit_status_is_the_worst() -> No
     assert report.exit_status == EXIT_FAILED and jobs[0].report.exit_status == EXIT_SUCCESS
 
 
+def test_each_cycle_reports_its_own_verdict_after_a_partial_one() -> None:
+    """A cycle built whole after a partial one is a success; only the job's exit status
+    is the worst (arc10_cycles5 seed 2 called cycles 4 and 5 partial, 10/10 toppled)."""
+    cell = toppling_cell()
+    second_slot = LINE[1].y
+
+    def place(request):  # the first cycle's second slot is refused: built around it
+        first_cycle = not cell.strike_requests
+        return (
+            refused()
+            if first_cycle and abs(request.place[1, 3] - second_slot) < 1e-3
+            else planned("place")
+        )
+
+    cell.place = place
+    jobs = run_cycles(cell, [("line", LINE)] * 2, ArmJobSettings(pile=8))
+    report = jobs[-1].report
+    assert [c.exit_status for c in report.cycles] == [EXIT_PARTIAL, EXIT_SUCCESS]
+    assert [c.empty_slots for c in report.cycles] == [[2], []]
+    assert report.exit_status == EXIT_PARTIAL
+
+
 def test_the_worst_cycle_decides_failed_over_partial_over_success() -> None:
     assert worst_status([EXIT_SUCCESS, EXIT_PARTIAL, EXIT_SUCCESS]) == EXIT_PARTIAL
     assert worst_status([EXIT_PARTIAL, EXIT_FAILED, EXIT_SUCCESS]) == EXIT_FAILED

@@ -1,8 +1,8 @@
 """Planning ahead (``task.ahead``): the next slot's first request goes to the planner
-as the fingers let go of the domino just placed (once the look at the pile has
-answered; else after the retreat), before perception has checked the placement, and its
-answer serves that slot's turn only when the turn makes the very same request with the
-arm where the plan starts."""
+as the domino just carried starts down to its slot (once the look at the pile asked for
+as the carry ended has answered; else as the fingers let go, else after the retreat),
+before perception has checked the placement, and its answer serves that slot's turn
+only when the turn makes the very same request with the arm where the plan starts."""
 
 from __future__ import annotations
 
@@ -48,7 +48,8 @@ def line_job(cell: ScriptedCell, count: int = 3, **settings) -> Job:
     """A line along +y from (0.45, 0.10): every slot ~0.41 m from the pile's centre, so
     the pile is looked at while the arm places (``placing.pile_in_view``)."""
     layout = layouts.line((0.45, 0.10), math.pi / 2, count)
-    return Job.new(cell, layout, "line", ArmJobSettings(in_hand_tolerance=0.0, **settings))
+    settings = {"in_hand_tolerance": 0.0, **settings}  # no hand check unless told
+    return Job.new(cell, layout, "line", ArmJobSettings(**settings))
 
 
 def recording_cell() -> tuple[ScriptedCell, list[tuple[int, int, int]]]:
@@ -70,22 +71,83 @@ def retreats(cell: ScriptedCell) -> int:
     return sum(t.joint_names == ARM for t in cell.executed)
 
 
+def ran(cell: ScriptedCell, label: str) -> int:
+    """How many of the segments labelled ``label`` (``scripted_cell.path``) ran."""
+    return sum(t.joint_names == (label,) for t in cell.executed)
+
+
 def slot_of(request: PlaceRequest) -> int:
     """The slot a request places at (slots 28.8 mm apart along +y from y = 0.10)."""
     return round((request.place[1, 3] - 0.10) / 0.0288)
 
 
-def test_the_next_slots_pick_is_asked_for_as_the_fingers_let_go() -> None:
+def counts(
+    descent: int = 0, let_go: int = 0, after_retreat: int = 0, used: int = 0, dropped: int = 0
+) -> dict[str, int]:
+    """The report's planned_ahead."""
+    return {
+        "descent": descent,
+        "let_go": let_go,
+        "after_retreat": after_retreat,
+        "used": used,
+        "dropped": dropped,
+    }
+
+
+def test_the_next_slots_pick_is_asked_for_as_the_descent_starts() -> None:
+    """The look at the pile is asked for as the carry ends above the slot, before the
+    hand check; answered by the time the descent starts, the next slot's first request
+    goes out then, planned from where the retreat will end."""
     cell, asked = recording_cell()
-    report = run(line_job(cell))
+    events: list[str] = []
+    look, checking, planning = cell.detect, cell.check_placement, cell.place
+
+    def detect(not_before: float):
+        events.append(f"look after {ran(cell, 'transfer')} carries")
+        return look(not_before)
+
+    def check_placement(expected, in_hand=False, not_before=0.0):
+        events.append("hand check" if in_hand else "placement check")
+        return checking(expected, in_hand, not_before)
+
+    def place(request: PlaceRequest) -> Plan:
+        events.append(f"request after {ran(cell, 'place')} descents")
+        return planning(request)
+
+    cell.detect, cell.check_placement, cell.place = detect, check_placement, place
+    report = run(line_job(cell, in_hand_tolerance=0.003))
     assert report.built
-    # slot k+1's request went out before slot k's retreat ran, and was not asked again
-    assert asked == [(0, 0, 0), (1, 0, 0), (2, 1, 1)]
-    assert report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 2, "dropped": 0}
+    # slot k+1's request went out before slot k's descent ran, and was not asked again
+    assert asked == [(0, 0, 0), (1, 0, 1), (2, 1, 3)]
+    assert events[:6] == [
+        "look after 0 carries",  # the first look, before anything moved
+        "request after 0 descents",
+        "look after 1 carries",  # as the carry ended above slot 0
+        "hand check",
+        "request after 0 descents",  # slot 1's, as slot 0's descent starts
+        "placement check",
+    ]
+    assert report.planned_ahead == counts(descent=2, used=2)
     first, early = cell.place_requests[:2]
     assert first.start is None  # the planner takes the arm where it stands
     assert early.start == RETREAT_END
     assert len(early.standing) == 1  # slot 0 taken as standing at its target meanwhile
+
+
+def test_a_look_answered_during_the_descent_sends_the_request_as_the_fingers_let_go() -> None:
+    cell, asked = recording_cell()
+    cell.looks_answer_at_once = False
+
+    def motion(trajectory: Trajectory) -> Motion:
+        cell.looks_answer_at_once = trajectory.joint_names == ("place",)
+        return Motion(True)
+
+    cell.motion = motion
+    report = run(line_job(cell))
+    assert report.built
+    assert asked == [(0, 0, 0), (1, 0, 0), (2, 1, 1)]  # before the retreat
+    assert report.planned_ahead == counts(let_go=2, used=2)
+    assert cell.place_requests[1].start == RETREAT_END
 
 
 def test_a_look_not_answered_yet_leaves_the_request_until_after_the_retreat() -> None:
@@ -95,7 +157,7 @@ def test_a_look_not_answered_yet_leaves_the_request_until_after_the_retreat() ->
     report = run(line_job(cell))
     assert report.built
     assert asked == [(0, 0, 0), (1, 1, 0), (2, 2, 1)]  # after the retreat, before the check
-    assert report.planned_ahead == {"early": 0, "after_retreat": 2, "used": 2, "dropped": 0}
+    assert report.planned_ahead == counts(after_retreat=2, used=2)
     assert cell.place_requests[1].start is None
 
 
@@ -104,7 +166,7 @@ def test_without_planning_ahead_each_pick_is_asked_for_after_the_check() -> None
     report = run(line_job(cell, plan_ahead=False))
     assert report.built
     assert asked == [(0, 0, 0), (1, 1, 1), (2, 2, 2)]
-    assert report.planned_ahead == {"early": 0, "after_retreat": 0, "used": 0, "dropped": 0}
+    assert report.planned_ahead == counts()
 
 
 def test_an_answer_asked_for_a_domino_that_then_fell_is_not_used() -> None:
@@ -146,7 +208,7 @@ def test_an_answer_is_not_used_once_the_arm_has_moved() -> None:
     nudging(cell, 2 * ahead.START_TOLERANCE)
     report = run(line_job(cell))
     assert report.built
-    assert report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 0, "dropped": 2}
+    assert report.planned_ahead == counts(descent=2, dropped=2)
     assert [slot for slot, _, _ in asked] == [0, 1, 1, 2, 2]
 
 
@@ -176,7 +238,7 @@ def test_a_retreat_that_failed_drops_the_answer() -> None:
     report = run(line_job(cell))
     assert report.built and report.dominoes[0].attempts == 2
     assert [slot for slot, _, _ in asked] == [0, 1, 0, 1, 2]
-    assert report.planned_ahead == {"early": 3, "after_retreat": 0, "used": 2, "dropped": 1}
+    assert report.planned_ahead == counts(descent=3, used=2, dropped=1)
 
 
 def test_the_same_request_with_the_arm_elsewhere_is_dropped() -> None:
@@ -188,21 +250,16 @@ def test_the_same_request_with_the_arm_elsewhere_is_dropped() -> None:
     request = PlaceRequest(domino=flat(0.5).pose, place=job.releases[1])
     for stands in ([0.2, -0.1], list(RETREAT_END.values())):
         cell.joint_positions = (list(ARM), stands)
-        ahead.send(job, 0, lambda job, index: request, RETREAT_END)
+        ahead.send(job, 0, lambda job, index: request, RETREAT_END, "descent")
         plan = ahead.answer(job, request)
         assert (plan is not None) == (stands == list(RETREAT_END.values()))
-    assert job.report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 1, "dropped": 1}
+    assert job.report.planned_ahead == counts(descent=2, used=1, dropped=1)
 
 
-def ran(cell: ScriptedCell, label: str) -> int:
-    """How many of the segments labelled ``label`` (``scripted_cell.path``) ran."""
-    return sum(t.joint_names == (label,) for t in cell.executed)
-
-
-def test_a_domino_put_back_on_the_pile_drops_the_look_asked_as_its_descent_began() -> None:
-    """Slot 0's descent stalls: the domino is carried back and dropped on the pile, which
-    then lies otherwise than looked at as the descent began. Nothing was asked ahead, and
-    slot 0's next attempt looks at the pile afresh (it used to take that stale look)."""
+def test_a_domino_put_back_on_the_pile_drops_the_look_and_the_request() -> None:
+    """Slot 0's descent stalls after slot 1's request went out: the domino is carried
+    back and dropped on the pile, which then lies otherwise than looked at as the carry
+    ended. The answer is dropped and slot 0's next attempt looks at the pile afresh."""
     cell, _ = recording_cell()
     looked: list[tuple[int, int]] = []  # (slot, looks so far) at each request
     planning = cell.place
@@ -219,5 +276,5 @@ def test_a_domino_put_back_on_the_pile_drops_the_look_asked_as_its_descent_began
     cell.place, cell.motion = place, motion
     report = run(line_job(cell))
     assert report.built and report.dominoes[0].attempts == 2
-    assert looked[:2] == [(0, 1), (0, 3)]  # slot 0 again after a look of its own
-    assert report.planned_ahead == {"early": 2, "after_retreat": 0, "used": 2, "dropped": 0}
+    assert looked[:3] == [(0, 1), (1, 2), (0, 3)]  # slot 0 again after a look of its own
+    assert report.planned_ahead["dropped"] == 1

@@ -12,6 +12,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseArray
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
@@ -40,6 +41,7 @@ class Cameras:
         self.views = views
         self.depth_encoding = "32FC1"
         self.playing = {view.name for view in views}
+        self.held_stamps: dict[str, Time] = {}  # cameras whose frames keep this stamp
         self.publishers = {
             view.name: (
                 self.node.create_publisher(Image, f"/{view.name}/color/image_raw", 2),
@@ -62,7 +64,8 @@ class Cameras:
         stamp = self.node.get_clock().now().to_msg()
         for view in self.views:
             if view.name in self.playing:
-                messages = image_messages(view, stamp, self.depth_encoding)
+                held = self.held_stamps.get(view.name, stamp)
+                messages = image_messages(view, held, self.depth_encoding)
                 for publisher, message in zip(self.publishers[view.name], messages, strict=True):
                     publisher.publish(message)
 
@@ -221,6 +224,44 @@ def test_on_demand_it_listens_only_while_a_request_waits_and_still_detects(
         continuous.bool_value = True
         cameras.set_parameter("continuous", continuous)
     # continuous again: every camera of its ``cameras`` (each one the scenario has)
+    assert spin_until(cameras.node, lambda: len(watched(cameras)) == len(cameras.views), 30)
+
+
+def test_a_placement_check_is_answered_while_a_detect_waits(cameras: Cameras) -> None:
+    """The bring-up asks for the in-hand check while the look at the pile for the next
+    pick runs: perception answers the check beside the detect, not after it. The pile
+    cameras' frames keep an old stamp, so a detect for frames from later waits as long as
+    they do; the check, on camera_2 from now on (subscribed for it: its frames come in on
+    a thread of their own), answers meanwhile; then the pile's stamps move on and the
+    detect answers too."""
+    continuous = ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=False)
+    assert cameras.set_parameter("continuous", continuous).successful
+    old = cameras.node.get_clock().now()
+    cameras.held_stamps = dict.fromkeys(("camera_0", "camera_1"), old.to_msg())
+    try:
+        assert spin_until(cameras.node, lambda: not watched(cameras), timeout=30), watched(cameras)
+        later = (old + Duration(seconds=0.05)).to_msg()
+        detect_client = cameras.node.create_client(DetectDominoes, "/perception/detect")
+        detecting = detect_client.call_async(DetectDominoes.Request(not_before=later))
+        # the detect waits for the pile cameras' frames: it holds them
+        assert spin_until(cameras.node, lambda: "camera_0" in watched(cameras), timeout=60)
+        request = CheckPlacement.Request(
+            expected=[pose_message(STANDING_IN_RUN)],
+            not_before=cameras.node.get_clock().now().to_msg(),
+        )
+        check = cameras.call(CheckPlacement, "/perception/check_placement", request)
+        assert check.success, check.message
+        assert list(check.status) == [CheckPlacement.Response.STANDING]
+        assert not detecting.done(), detecting.result()  # still waiting for a new pile frame
+        cameras.held_stamps = {}
+        assert spin_until(cameras.node, detecting.done, timeout=60)
+        response = detecting.result()
+        assert response.success, response.message
+        assert [d.num_cameras for d in response.detections.detections] == [2], response.message
+    finally:
+        cameras.held_stamps = {}
+        continuous.bool_value = True
+        cameras.set_parameter("continuous", continuous)
     assert spin_until(cameras.node, lambda: len(watched(cameras)) == len(cameras.views), 30)
 
 

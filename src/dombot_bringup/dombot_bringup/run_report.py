@@ -22,6 +22,8 @@ from dombot_bringup.layouts import DOMINO_THICKNESS, DOMINO_WIDTH, DominoPlaceme
 from dombot_bringup.sections import VERDICTS, exit_status, worst_status
 
 LABEL_GAP = 0.008  # m between a domino's end and its number in the picture
+# the report's planned_ahead counts (``task.ahead``): requests sent, by when; answers
+PLANNED_AHEAD = ("descent", "let_go", "after_retreat", "used", "dropped")
 TRUTH_TOLERANCE = (3.0, 3.0)  # mm, deg: "standing where intended" in the simulator's truth
 
 
@@ -186,12 +188,10 @@ class RunReport:
     wall_s: float = 0.0
     node_restarts: dict[str, int] = field(default_factory=dict)  # nodes started again
     # first requests of a turn asked for before the last placement was checked (``ahead``):
-    # how many went out as the fingers let go and how many after the retreat, how many
-    # answers served their turn and how many were dropped (another request came, the arm
-    # stood elsewhere)
-    planned_ahead: dict[str, int] = field(
-        default_factory=lambda: dict.fromkeys(("early", "after_retreat", "used", "dropped"), 0)
-    )
+    # how many went out as the descent to the slot started, as the fingers let go and after
+    # the retreat, how many answers served their turn and how many were dropped (another
+    # request came, the arm stood elsewhere)
+    planned_ahead: dict[str, int] = field(default_factory=lambda: dict.fromkeys(PLANNED_AHEAD, 0))
     # the pile dominoes out of every grasp's and push's reach when a slot last found
     # nothing to pick (empty once a later pick planned)
     pile_out_of_reach: list[PileDomino] = field(default_factory=list)
@@ -206,17 +206,21 @@ class RunReport:
         return self.built and self.toppled_by_perception and self.toppled_by_truth is not False
 
     @property
-    def exit_status(self) -> int:
-        """The arm job's exit status (``sections.exit_status``): 0, 3 partial, or 1; with
-        cycles, the worst of them (``sections.worst_status``)."""
-        own = exit_status(
+    def own_exit_status(self) -> int:
+        """This run's exit status alone (``sections.exit_status``): 0, 3 partial, or 1."""
+        return exit_status(
             len(self.empty_slots),
             len(self.sections),
             sum(s.struck for s in self.sections),
             self.toppled_by_perception,
             self.toppled_by_truth,
         )
-        return worst_status([own, *(c.exit_status for c in self.cycles)])
+
+    @property
+    def exit_status(self) -> int:
+        """The arm job's exit status: this run's, or with cycles, the worst of theirs
+        (``sections.worst_status``)."""
+        return worst_status([self.own_exit_status, *(c.exit_status for c in self.cycles)])
 
     def summary(self) -> dict:
         placed = [d for d in self.dominoes if d.placed]

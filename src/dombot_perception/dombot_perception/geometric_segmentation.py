@@ -13,6 +13,7 @@ on their surfaces (see ``split_oversized``).
 from __future__ import annotations
 
 import hashlib
+import threading
 from collections.abc import Generator
 from dataclasses import dataclass
 from typing import TypeVar
@@ -62,8 +63,11 @@ class GeometricSegmenter:
     def __init__(self, config: GeometricSegmenterConfig | None = None) -> None:
         self.config = config or GeometricSegmenterConfig()
         # each camera's regions of the previous frame and their parts, by content: after a
-        # pick most of the pile looks as it did, and splitting a region is most of the work
+        # pick most of the pile looks as it did, and splitting a region is most of the work.
+        # Read and replaced under the lock: perception_node's placement checks segment
+        # (camera_2) beside its detects (the pile cameras)
         self._previous: dict[str, dict[bytes, list[np.ndarray]]] = {}
+        self._lock = threading.Lock()
 
     def segment(self, view: CameraView, cloud: OrganisedCloud | None) -> list[np.ndarray]:
         """Flat pixel indices of each mask, one per domino candidate."""
@@ -79,17 +83,20 @@ class GeometricSegmenter:
         }
         current: dict[str, dict[bytes, list[np.ndarray]]] = {}
         unsplit = []
+        with self._lock:
+            previous = dict(self._previous)
         for name, regions in found.items():
             if regions is None:
                 continue  # nothing to segment: the view's memory stays as it was
-            known = self._previous.get(name, {})
+            known = previous.get(name, {})
             current[name] = {key: known[key] for key in regions if key in known}
             unsplit += [(name, key) for key in regions if key not in known]
         margin, seed = self.config.oversize_margin, self.config.seed
         splits = [split_steps(*found[name][key], margin, seed) for name, key in unsplit]
         for (name, key), parts in zip(unsplit, run_batched(splits), strict=True):
             current[name][key] = parts
-        self._previous.update(current)
+        with self._lock:
+            self._previous.update(current)
         minimum = self.config.min_pixels
         return [
             [

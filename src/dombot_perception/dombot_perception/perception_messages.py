@@ -43,12 +43,14 @@ class CameraInput:
         self, tolerance: float, not_before: float = -math.inf
     ) -> tuple[Image, Image] | None:
         """The newest colour and depth images whose stamps agree within ``tolerance`` s,
-        stamped at or after ``not_before``."""
-        for color in reversed(self.colors):
+        stamped at or after ``not_before``. Read from copies: the input callbacks append
+        on another thread, and a deque changed while iterated raises."""
+        depths = list(self.depths)[::-1]
+        for color in list(self.colors)[::-1]:
             stamp = stamp_seconds(color.header.stamp)
             if stamp < not_before - STAMP_SLACK:
                 return None
-            for depth in reversed(self.depths):
+            for depth in depths:
                 if abs(stamp_seconds(depth.header.stamp) - stamp) <= tolerance:
                     return color, depth
         return None

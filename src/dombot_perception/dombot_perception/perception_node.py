@@ -15,7 +15,8 @@ driver) then renders nothing while nobody looks, and a streaming camera serves j
 same. Missing, stale or malformed images give an empty result and a warning; the node
 keeps serving.
 ``/perception/check_placement`` looks at where the dominoes of a run should stand
-(``placement_check``), with the build-area camera by default. The parameters and the
+(``placement_check``), with the build-area camera by default; it is served beside a
+running detect, not after it (callback groups of their own). The parameters and the
 pipeline they configure are in ``perception_parameters``, the conversions to and from
 messages in ``perception_messages``.
 """
@@ -88,6 +89,10 @@ WARNING_REPEAT = 10.0  # s: a warning repeated request after request is logged o
 # s a request's not_before may lie after the newest frame; later ones are refused at once
 # (a frame that far ahead does not come within FRESH_WAIT, even from a fast simulation)
 MAX_NOT_BEFORE_AHEAD = 60.0
+# a detect, a placement check and the camera inputs they wait for, at once (each request
+# waits for frames on its own thread: with one thread fewer the inputs starve until the
+# request's FRESH_WAIT runs out)
+EXECUTOR_THREADS = 3
 # tf2_ros's listener QoS: /tf reliable, volatile; /tf_static reliable, transient local
 TF_QOS = QoSProfile(depth=100)
 TF_STATIC_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -131,20 +136,25 @@ class PerceptionNode(Node):
                 self.create_subscription(
                     TFMessage, topic, self._on_transforms, qos, callback_group=self._inputs_group
                 )
-        work = MutuallyExclusiveCallbackGroup()
+        # A detect (and the continuous timer, which runs the same pipeline and its caches)
+        # and a placement check are served side by side: the bring-up asks the in-hand check
+        # while the look at the pile for the next pick runs. A check shares no mutable state
+        # with a detect but the camera inputs (``_input_lock``), the segmenter's memory
+        # (locked in it) and the warning filter (thread-safe): docs/ARCHITECTURE.md.
+        looking, checking = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
         self.create_service(
-            DetectDominoes, "perception/detect", self._on_detect, callback_group=work
+            DetectDominoes, "perception/detect", self._on_detect, callback_group=looking
         )
         self.create_service(
             CheckPlacement,
             "perception/check_placement",
             self._on_check_placement,
-            callback_group=work,
+            callback_group=checking,
         )
         self.last_processed: dict[str, float] = {}
         self.repeated_warnings = RepeatFilter(WARNING_REPEAT)
         self.timer = self.create_timer(
-            1.0 / self.settings.rate, self._on_timer, callback_group=work
+            1.0 / self.settings.rate, self._on_timer, callback_group=looking
         )
         mode = f"continuous at {self.settings.rate} Hz" if self.settings.continuous else ""
         extrinsics = "/tf" if self.settings.extrinsics_from_tf else "the scenario"
@@ -293,7 +303,7 @@ class PerceptionNode(Node):
                 for name in names
             )
         ):
-            time.sleep(0.02)  # the input callbacks run on the executor's other thread
+            time.sleep(0.02)  # the input callbacks run on another executor thread
 
     def _collect_views(
         self, names: list[str], not_before: float
@@ -346,7 +356,7 @@ class PerceptionNode(Node):
         pair = camera.latest_pair(tolerance, not_before)
         deadline = time.monotonic() + (SYNC_WAIT if math.isinf(not_before) else FRESH_WAIT)
         while pair is None and time.monotonic() < deadline and self.context.ok():
-            time.sleep(0.02)  # the input callbacks run on the executor's other thread
+            time.sleep(0.02)  # the input callbacks run on another executor thread
             pair = camera.latest_pair(tolerance, not_before)
         if pair is None:
             fresh = "" if math.isinf(not_before) else f", stamped after {not_before:.2f} s"
@@ -519,7 +529,7 @@ def main(args: list[str] | None = None) -> None:
         print(f"perception_node: cannot start: {error}", flush=True)
         rclpy.try_shutdown()
         raise SystemExit(2) from None
-    spin_until_shutdown(node, num_threads=2)
+    spin_until_shutdown(node, num_threads=EXECUTOR_THREADS)
 
 
 if __name__ == "__main__":

@@ -4,13 +4,14 @@ perception_node warns about every camera it leaves out of a request. A client th
 again and again while a camera is not there yet (a bring-up waiting for the first
 frames, a test polling /perception/detect) made it log two lines every few milliseconds:
 600 requests filled a 64 KiB stdout pipe nobody read, and the node hung in the write.
-The reason stays in each response; the log says it once per period. ROS-free; not
-thread-safe (the node calls it from one mutually exclusive callback group).
+The reason stays in each response; the log says it once per period. ROS-free;
+thread-safe (the node's detects and placement checks run on threads of their own).
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Callable
 
@@ -22,10 +23,15 @@ class RepeatFilter:
         self.period = period
         self._clock = clock
         self._seen: dict[str, tuple[float, int]] = {}  # message → (last let through, held)
+        self._lock = threading.Lock()
 
     def admit(self, message: str) -> str | None:
         """``message`` if it was not let through within the last period (then with the
         count of repeats held back since), else None."""
+        with self._lock:
+            return self._admit(message)
+
+    def _admit(self, message: str) -> str | None:
         now = self._clock()
         last, held = self._seen.get(message, (-math.inf, 0))
         if now - last < self.period:

@@ -2,23 +2,27 @@
 is checked, and its answer is used when the next attempt makes that very request with
 the arm where the plan starts.
 
-The request goes out as the fingers let go of the domino on its slot (``ask_early``),
-starting where the retreat still to run ends (PlanPlace's start_state): the planner
-works on it while the arm retreats and perception checks the placement. That needs the
-look at the pile made while the arm placed to have answered already; it is never waited
-for there (the arm would stand still meanwhile), the request then goes out after the
-retreat (``ask``), from where the arm stands (the planner reads /joint_states).
+The request goes out as the descent to the slot starts or, failing that, as the fingers
+let go of the domino there (``ask_early``), starting where the retreat still to run ends
+(PlanPlace's start_state): the planner works on it while the arm places and retreats and
+perception checks the placement. That needs the look at the pile asked for as the
+carry ended above the slot (before the hand check, ``placing.look_while_placing``) to
+have answered already; it is never waited for there (the arm would stand still
+meanwhile), the request then goes out after the retreat (``ask``), from where the arm
+stands (the planner reads /joint_states).
 
 Why an answer asked for so early is right when it is used:
 * the request is the one the next slot's turn makes first if the placement stands: the
-  pile has been still since the lift and was looked at while the arm placed, and a domino
-  that stands where it should is kept at its target pose for the planner
+  pile has been still since the lift and was looked at with the arm above the slot, and
+  a domino that stands where it should is kept at its target pose for the planner
   (``checks.check``). When the check says otherwise (the domino fell, stands off target,
-  another slot comes next) the turn's request differs and the answer is dropped;
-* the plan starts where the arm stands: any motion after the request but the retreat it
-  was asked from drops the answer (``drop``, as ``placing.execute`` starts), and when the
-  turn starts the arm must stand within START_TOLERANCE of the plan's start (a retreat
-  that stopped short left it elsewhere: dropped).
+  another slot comes next) the turn's request differs and the answer is dropped; a
+  domino put back on the pile drops it at once (``placing.put_back``);
+* the plan starts where the arm stands: any motion after the request but the descent,
+  release and retreat it was asked from drops the answer (``drop``, as
+  ``placing.execute`` starts, or in a put back), and when the turn starts the arm must
+  stand within START_TOLERANCE of the plan's start (a retreat that stopped short left it
+  elsewhere: dropped).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from dombot_bringup.task.state import Job, log
 START_TOLERANCE = 0.01
 
 RequestFor = Callable[[Job, int], PlaceRequest | None]
+AFTER_RETREAT = "after_retreat"  # ``ask``'s count in the report's planned_ahead
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,25 +56,35 @@ class PlanAhead:
     answer: Later[Plan]
 
 
-def ask_early(job: Job, index: int, request_for: RequestFor, start: Mapping[str, float]) -> None:
-    """As the fingers let go of slot ``index``'s domino: the next slot's first request
-    (``request_for``), planned from ``start`` (where the retreat ends), if the look at the
-    pile made while placing has answered."""
+def ask_early(
+    job: Job, index: int, request_for: RequestFor, when: str, start: Mapping[str, float]
+) -> None:
+    """As slot ``index``'s domino starts down to it or is let go there (``when``, counted
+    by that name): the next slot's first request (``request_for``), planned from ``start``
+    (where the retreat ends), unless it went out already, if the look at the pile made
+    while placing has answered."""
     look = job.pile_look
-    if look is not None and look.answered():
-        send(job, index, request_for, start)
+    if job.ahead is None and look is not None and look.answered():
+        send(job, index, request_for, start, when)
 
 
 def ask(job: Job, index: int, request_for: RequestFor) -> None:
     """After the retreat, unless it went out as the fingers let go: the next slot's first
     request, planned from where the arm stands."""
     if job.ahead is None:
-        send(job, index, request_for, None)
+        send(job, index, request_for, None, AFTER_RETREAT)
 
 
-def send(job: Job, index: int, request_for: RequestFor, start: Mapping[str, float] | None) -> None:
+def send(
+    job: Job,
+    index: int,
+    request_for: RequestFor,
+    start: Mapping[str, float] | None,
+    when: str,
+) -> None:
     """Send the next slot's first request (``request_for``, with slot ``index`` taken as
-    standing at its target), planned from ``start`` (None: where the arm stands)."""
+    standing at its target), planned from ``start`` (None: where the arm stands); counted
+    as ``when`` in the report's planned_ahead."""
     upcoming = job.upcoming
     if not job.settings.plan_ahead or upcoming is None or upcoming == index:
         return
@@ -91,7 +106,7 @@ def send(job: Job, index: int, request_for: RequestFor, start: Mapping[str, floa
     except CellError as error:
         log(f"planning ahead: {error}")
         return
-    job.report.planned_ahead["after_retreat" if start is None else "early"] += 1
+    job.report.planned_ahead[when] += 1
     job.ahead = PlanAhead(request, joints_now(job) if start is None else start, answer)
 
 

@@ -347,8 +347,8 @@ def pick(
     turn = [s for s in plan.segments if s.label.startswith(REGRASP_PREFIX)]
     look_again = bool(turn) and candidate.run_index is None and not turned
     segments = turn if look_again else plan.segments
-    held, letting_go = plan.held_above_place, partial(let_go, job, index, candidate)
-    hold = None if held is None else Hold(index, held, candidate.pose, letting_go)
+    held, asking = plan.held_above_place, partial(ask_ahead, job, index, candidate)
+    hold = None if held is None else Hold(index, held, candidate.pose, asking)
     execution = execute(job, segments, hold)
     write_pick_record(job, record, execution.why or ("turned in place only" if look_again else ""))
     if execution.ran is not Ran.FAILED:
@@ -374,16 +374,19 @@ def pick(
     if look_again:
         log(f"{job.domino(index)}: turned it in place; looking again")
         return attempt(job, index, failed, ignore_pile, turned=True)
-    ahead.ask(job, index, first_request)  # unless asked as the fingers let go
+    ahead.ask(job, index, first_request)  # unless asked as the descent started or at let-go
     placed = Outcome.PLACED if check(job, index) else Outcome.NOT_PLACED
     return Attempt(placed, job.report.dominoes[index].check)
 
 
-def let_go(job: Job, index: int, candidate: Candidate, start: Mapping[str, float]) -> None:
-    """As the fingers let go of ``candidate`` on slot ``index``: the next slot's first
-    pick asked for ahead, from ``start``, the arm's joints where the plan ends."""
+def ask_ahead(
+    job: Job, index: int, candidate: Candidate, when: str, start: Mapping[str, float]
+) -> None:
+    """As ``candidate`` starts down to slot ``index`` or is let go there (``when``): the
+    next slot's first pick asked for ahead, from ``start``, the arm's joints where the plan
+    ends."""
     carried_away(job, candidate)  # no longer where it lay, for that request
-    ahead.ask_early(job, index, first_request, start)
+    ahead.ask_early(job, index, first_request, when, start)
 
 
 def carried_away(job: Job, candidate: Candidate) -> None:

@@ -95,7 +95,7 @@ def cycle_outcome(
         empty_slots=summary["empty_slots"],
         toppled_by_perception=sum(s.toppled_by_perception for s in report.sections),
         toppled_by_truth=report.toppled_by_truth,
-        exit_status=summary["exit_status"],
+        exit_status=report.own_exit_status,  # the job's is the worst cycle's so far
         simulated_s=report.simulated_s,
         wall_s=report.wall_s,
         rss_mb={name: round(mb, 1) for name, mb in rss.items()},

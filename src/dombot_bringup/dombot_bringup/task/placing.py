@@ -34,6 +34,8 @@ HOLD_CHECK_SEGMENT = "transfer"
 OPEN_SEGMENT = "open_gripper"  # the fingers open for the approach that follows
 PLACE_SEGMENT = "place"  # the fingers let go of the domino on its slot once it ends
 REGRASP_PREFIX = "regrasp_"  # the planner's turn in place before the pick proper
+# when ``Hold.ask_ahead`` is called: as the descent to the slot starts, as the fingers let go
+DESCENT, LET_GO = "descent", "let_go"
 # What the in-hand check says when it cannot measure the held domino.
 IN_HAND_WORDS = {
     Seen.FALLEN: "no upright domino fitted below the pads",
@@ -65,12 +67,14 @@ class Execution:
 class Hold:
     """A domino being carried to slot ``index``: where the plan holds it above the slot,
     where it was picked (a fallen run domino is no obstacle there any more), and what to
-    do as the fingers let go of it there, given where the arm's joints end (name → rad)."""
+    do as its descent starts and as the fingers let go of it there (the next pick asked
+    ahead), given which of the two (DESCENT, LET_GO) and where the arm's joints end
+    (name → rad)."""
 
     index: int
     held_above: Pose
     picked: Pose
-    let_go: Callable[[Mapping[str, float]], None] | None = None
+    ask_ahead: Callable[[str, Mapping[str, float]], None] | None = None
 
 
 @dataclass(frozen=True)
@@ -94,8 +98,11 @@ def execute(
     (``opens_while_moving``). A close that should hold a domino is checked by where the
     fingers stopped (the strike closes them on nothing). When a grasp fails, the arm
     backs out the way it came before anything else is tried. With a ``hold``, the domino
-    is looked at in the hand where "transfer" ends above its slot (``in_hand``), and
-    ``hold.let_go`` is told where the plan ends as the fingers let go of it on the slot.
+    is looked at in the hand where "transfer" ends above its slot (``in_hand``); at a slot
+    the pile cameras see past, the next look at the pile is asked for just before it
+    (``look_while_placing``; perception answers the hand check beside it, not after it),
+    and ``hold.ask_ahead`` is told where the plan ends as the descent starts and as the
+    fingers let go of the domino on the slot.
     The descent to the place stops as soon as a joint falls ``place_path_tolerance``
     behind it (the held domino or a pad pressing on something): the arm backs up the
     line, still holding the domino, and puts it back on the pile along the transfers it
@@ -109,8 +116,11 @@ def execute(
     opening: Later[float] | None = None  # the fingers opening while the approach moves
     for index, segment in enumerate(segments):
         approach = is_approach(segment)
-        if hold is not None and segment.label == PLACE_SEGMENT and pile_in_view(job, hold.index):
-            look_while_placing(job)
+        if hold is not None and segment.label == PLACE_SEGMENT:
+            if job.pile_look is None and pile_in_view(job, hold.index):
+                look_while_placing(job)  # no transfer before it
+            if hold.ask_ahead is not None:
+                hold.ask_ahead(DESCENT, end_of(segments))
         if moves(segment):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             placing = segment.label == PLACE_SEGMENT
@@ -146,9 +156,11 @@ def execute(
                 grip(job, segment.gripper_position, 0.0)
             if segment.label == PLACE_SEGMENT:
                 job.let_go_at = cell.sim_time
-                if hold is not None and hold.let_go is not None:
-                    hold.let_go(end_of(segments))
+                if hold is not None and hold.ask_ahead is not None:
+                    hold.ask_ahead(LET_GO, end_of(segments))
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
+            if pile_in_view(job, hold.index):
+                look_while_placing(job)
             verdict = in_hand(job, hold)
             if verdict.put_back:
                 put_back(job, (*carried, *transfers(segments[: index + 1])))
@@ -240,9 +252,10 @@ def in_hand(job: Job, hold: Hold) -> InHand:
 
 
 def pile_in_view(job: Job, index: int) -> bool:
-    """Whether the pile cameras see the pile past the arm placing at slot ``index``: the
-    slot at least look_while_placing from the pile's centre. The pile has been still
-    since the lift, so a look from then on serves the next pick."""
+    """Whether the pile cameras see the pile past the arm holding a domino above slot
+    ``index`` or placing it there: the slot at least look_while_placing from the pile's
+    centre. The pile has been still since the lift, so a look from then on serves the
+    next pick."""
     slot = job.releases[index][:2, 3]
     return bool(np.hypot(*(slot - job.settings.pile_center)) >= job.settings.look_while_placing)
 
@@ -274,9 +287,10 @@ def put_back(job: Job, carried: Sequence[Segment]) -> None:
     where it was picked (the way it came, with this hold), let it drop onto the pile from
     there, and go back along the first: out of the cameras' view of the pile before the
     next look, where the next plan starts as after a placement. The pile changes: the
-    look at it asked for as the descent began is dropped."""
+    look at it made while placing and the pick asked ahead are dropped."""
     log("put back on the pile: carrying it back to where it was picked and letting it drop")
     job.pile_look = None
+    ahead.drop(job, "the domino is put back on the pile")
     for transfer in reversed(carried):
         move(job, transfer.trajectory.reversed(BACK_OUT_LEAD), "putting it back")
     grip(job, LET_GO_OPENING, 0.0)

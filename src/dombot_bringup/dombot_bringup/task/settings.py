@@ -75,12 +75,13 @@ class ArmJobSettings:
     # Placing at a slot this far from the pile's centre, the arm leaves the pile cameras'
     # view of it clear (perception looks within 0.16 m of the centre, from beyond the
     # pile's far side; the hand and the held domino reach ~0.15 m around the TCP), so the
-    # next pick's look at the pile is asked for as the descent starts and made while the
-    # arm places, retreats and the placement settles.
+    # next pick's look at the pile is asked for as the carry ends above the slot (before
+    # the hand check, which perception serves beside it) and made while the arm holds the
+    # domino there and places it.
     look_while_placing: float = 0.32  # m
-    # Ask for the next slot's first pick as the fingers let go of a domino (``ahead``): the
-    # planner then plans on the other core while the arm retreats and perception checks the
-    # placement. False: asked once the check has answered.
+    # Ask for the next slot's first pick as a domino starts down to its slot or is let go
+    # (``ahead``): the planner then plans on the other core while the arm places and
+    # retreats and perception checks the placement. False: asked once the check answered.
     plan_ahead: bool = True
     # A pick whose every grasp the planner would refuse before any IK (the pads' path on
     # seen points, or the pads beyond its pile_nudge in a pile domino: the planner's own
