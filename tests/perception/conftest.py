@@ -13,7 +13,7 @@ import pytest
 from dombot_perception.frames import CameraView
 
 PILE_CAMERAS = ("camera_0", "camera_1")
-PLACEMENT_CAMERAS = ("camera_2",)  # perception_node's placement_cameras: the run from its end
+PLACEMENT_CAMERAS = ("camera_2", "camera_3")  # perception_node's placement_cameras: the run
 collect_ignore = [] if importlib.util.find_spec("dombot_msgs") else ["test_perception_node.py"]
 
 
@@ -44,8 +44,14 @@ def render_scene(world):
 
 @pytest.fixture(scope="session")
 def render_build_area(world):
-    """Dominoes at exact poses, seen by the placement camera (camera_2)."""
+    """Dominoes at exact poses, seen by the placement cameras (camera_2, camera_3)."""
     return renderer(world, PLACEMENT_CAMERAS)
+
+
+@pytest.fixture(scope="session")
+def render_camera_2(world):
+    """Dominoes at exact poses, seen by camera_2 alone (the run from its end)."""
+    return renderer(world, ("camera_2",))
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,4 @@
-"""Placement checks on a rendered run seen by the build-area camera."""
+"""Placement checks on a rendered run seen by the build-area cameras."""
 
 from __future__ import annotations
 
@@ -94,25 +94,55 @@ def facing(point: np.ndarray, towards: np.ndarray) -> np.ndarray:
     return pose
 
 
+def occluder(place: np.ndarray, camera: str, views) -> np.ndarray:
+    """A domino floating a third of the way from ``place`` to ``camera``, facing it."""
+    eye = next(v for v in views if v.name == camera).X_WC[:3, 3]
+    return facing(place + (eye - place) / 3.0, eye)
+
+
 def test_a_place_hidden_behind_something_is_not_seen_rather_than_missing(
-    run_poses, pipeline, render_build_area
+    run_poses, pipeline, render_camera_2
 ) -> None:
     """The arm above a domino just placed can hide its neighbours from the camera: no
     evidence that they fell (a run was rebuilt into a domino that still stood)."""
-    camera = next(v for v in render_build_area({}) if v.name == "camera_2").X_WC[:3, 3]
-    place = run_poses[1][:3, 3]
-    occluder = facing(place + (camera - place) / 3.0, camera)  # floats a third of the way
+    hiding = occluder(run_poses[1][:3, 3], "camera_2", render_camera_2({}))
     empty = check_placements(
-        run_poses[:2], render_build_area({0: run_poses[0]}), pipeline, PlacementConfig()
+        run_poses[:2], render_camera_2({0: run_poses[0]}), pipeline, PlacementConfig()
     )
     hidden = check_placements(
-        run_poses[:2],
-        render_build_area({0: run_poses[0], 1: occluder}),
-        pipeline,
-        PlacementConfig(),
+        run_poses[:2], render_camera_2({0: run_poses[0], 1: hiding}), pipeline, PlacementConfig()
     )
     assert [r.status for r in empty] == [STANDING, MISSING]
     assert [r.status for r in hidden] == [STANDING, NOT_SEEN]
+
+
+def test_a_domino_hidden_from_camera_2_is_read_standing_by_camera_3(
+    run_poses, pipeline, render_build_area
+) -> None:
+    """camera_3, 49° round from camera_2, sees past what hides a place from camera_2; its
+    own fit is taken, not one of both cameras' points together (their offsets twist the
+    box)."""
+    hiding = occluder(run_poses[1][:3, 3], "camera_2", render_build_area({}))
+    views = render_build_area({0: run_poses[0], 1: run_poses[1], 2: hiding})
+    camera_2 = [v for v in views if v.name == "camera_2"]
+    alone = check_placements(run_poses[:2], camera_2, pipeline, PlacementConfig())
+    results = check_placements(run_poses[:2], views, pipeline, PlacementConfig())
+    assert [r.status for r in alone] == [STANDING, NOT_SEEN]
+    assert [r.status for r in results] == [STANDING, STANDING]
+    for result, truth in zip(results, run_poses, strict=False):
+        foot, tilt = foot_and_tilt_errors(result.measured, truth)
+        assert foot < FOOT_TOLERANCE and tilt < np.radians(0.5), (foot, np.degrees(tilt))
+
+
+def test_a_place_hidden_from_both_placement_cameras_is_not_seen(
+    run_poses, pipeline, render_build_area
+) -> None:
+    place = run_poses[1][:3, 3]
+    nothing = render_build_area({})
+    hiding = [occluder(place, camera, nothing) for camera in ("camera_2", "camera_3")]
+    views = render_build_area({0: run_poses[0], 1: hiding[0], 2: hiding[1]})
+    results = check_placements(run_poses[:2], views, pipeline, PlacementConfig())
+    assert [r.status for r in results] == [STANDING, NOT_SEEN]
 
 
 # ---------------------------------------------------------------- held by the gripper
@@ -124,7 +154,7 @@ CLOSED = 0.024  # m: the fingers closed on the domino's width
 
 
 @pytest.fixture(scope="module")
-def hold(world, render_build_area, render_every_camera):
+def hold(world, render_camera_2, render_every_camera):
     """hold(target, turn, shift, lean, neighbours, every_camera) -> (views, truth): the
     views of camera_2 (``every_camera``: of all cameras) and the domino at
     ``target`` held at the canonical place grasp with the gripper leaning over the
@@ -173,7 +203,7 @@ def hold(world, render_build_area, render_every_camera):
         truth = (lift @ domino).GetAsMatrix4()
         poses = {0: truth} if holding else {}
         poses |= {i + 1: pose for i, pose in enumerate(neighbours)}
-        render = render_every_camera if every_camera else render_build_area
+        render = render_every_camera if every_camera else render_camera_2
         return render(poses), truth
 
     yield held
@@ -287,7 +317,7 @@ SLOT_7_HELD_IN_TCP = np.array(
 
 @pytest.mark.parametrize("turn", [0.0, 5.0])
 def test_a_held_domino_at_a_planned_s_curve_slot_is_measured(
-    world, pipeline, render_build_area, turn
+    world, pipeline, render_camera_2, turn
 ) -> None:
     heading = np.radians(80.99368)
     lead = 0.00075 * np.array([np.cos(heading), np.sin(heading)])  # released ahead
@@ -304,7 +334,7 @@ def test_a_held_domino_at_a_planned_s_curve_slot_is_measured(
         domino = (tcp @ in_tcp @ turned @ RigidTransform(-pinch)).GetAsMatrix4()
         corners = CORNERS * [HALF_LENGTH, 0.012, HALF_THICKNESS] @ domino[:3, :3].T
         domino[2, 3] += 0.0002 - domino[2, 3] - corners[:, 2].min()
-        views = render_build_area({0: domino, 1: behind})
+        views = render_camera_2({0: domino, 1: behind})
         [held] = check_placements([release], views, pipeline, PlacementConfig(in_hand=True))
     finally:
         world.set_robot_positions()

@@ -60,7 +60,7 @@ from dombot_sim.world import CellWorld
 
 # perception_node's default cameras for each question
 DETECT_CAMERAS = ("camera_0", "camera_1")
-PLACEMENT_CAMERAS = ("camera_2",)
+PLACEMENT_CAMERAS = ("camera_2", "camera_3")
 IN_HAND_CAMERAS = ("camera_0", "camera_1", "camera_2", "camera_3")
 TICK = 0.01  # s simulated between goal checks: sim_node's tick (joint_state_rate 100 Hz)
 GOAL_TIME_TOLERANCE = 1.0  # s: what cell_client sends as goal_time_tolerance

@@ -35,7 +35,9 @@ class PerceptionParameters:
         ("camera_0", "camera_1"), "cameras that watch the pile"
     )
     placement_cameras: tuple[str, ...] = described(
-        ("camera_2",), "cameras of placement checks (their points fitted together)"
+        ("camera_2", "camera_3"),
+        "cameras of placement checks, in order of preference (each fitted alone; the first "
+        "camera's fit taken)",
     )
     in_hand_cameras: tuple[str, ...] = described(
         ("camera_0", "camera_1", "camera_2", "camera_3"),

@@ -3,8 +3,10 @@
 Each expected pose is a strong prior, so a standing domino is found by fitting the
 known box to the points around its expected place *starting from the expected pose*
 (the same point-to-plane ICP as ``box_fit``, with points shared between neighbouring
-places handed to the nearest expected box). Only the visible part of a domino is
-needed, which matters in a run where neighbours hide each other's lower halves. A
+places handed to the nearest expected box), in each camera's points alone, the first
+camera whose fit stands there taken (``_camera_fits``; camera_2, then camera_3 where the
+arm hides the place from camera_2). Only the visible part of a domino is needed, which
+matters in a run where neighbours hide each other's lower halves. A
 place where that local fit fails is looked up in the full pipeline's detections,
 each detection going to at most one place, the one its foot stands on or fell from
 (a fallen domino lies somewhere near); with no detection there either, the place is
@@ -37,6 +39,7 @@ detections cannot tell a held domino from the pads around it.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -111,12 +114,12 @@ def check_placements(
         # ceiling (the pile's height) would cut the part below the pads off
         ceiling = max(_foot_height(pose) for pose in expected) + config.in_hand_fit_height
         region = replace(region, max_height=max(region.max_height, ceiling + config.fit_margin))
-        return [
-            _held(pose, views, region, pipeline.config.depth_range, config) for pose in expected
-        ]
     clouds = [organised_cloud(v, region, pipeline.config.depth_range) for v in views]
-    seen = [c.valid_points() for c in clouds if c is not None]
-    points = np.concatenate(seen) if seen else np.zeros((0, 3))
+    seen = [np.zeros((0, 3)) if c is None else c.valid_points() for c in clouds]
+    points = np.concatenate([np.zeros((0, 3)), *seen])
+    camera = np.repeat(np.arange(len(seen)), [p.shape[0] for p in seen])  # index in views
+    if config.in_hand:
+        return [_held(pose, points, camera, views, config) for pose in expected]
     owner = _nearest_expected(points, expected)
     upright = [i for i, pose in enumerate(expected) if tilt_from_vertical(pose) <= config.max_tilt]
     detections: list[Detection] | None = None
@@ -130,9 +133,10 @@ def check_placements(
             results.append(Placement(MISSING, pose, 0.0, 0.0))
             continue
         near = _around_box(points, pose, config.fit_margin) & (owner == index)
-        fitted = _local_fit(pose, points[near], views, config)
+        # the first camera's fit: ``views`` in order of preference
+        fitted = next(_camera_fits(pose, points[near], camera[near], views, config), None)
         if fitted is not None:
-            results.append(_placement(STANDING, fitted, pose))
+            results.append(_placement(STANDING, fitted[0], pose))
             continue
         if detections is None:
             filtering = replace(pipeline.config.filtering, min_coverage=config.min_lying_coverage)
@@ -256,41 +260,53 @@ def _on(pose: np.ndarray, points: np.ndarray, distance: float) -> np.ndarray:
 
 def _held(
     expected: np.ndarray,
+    points: np.ndarray,
+    camera: np.ndarray,
     views: list[CameraView],
-    region: WorkRegion,
-    depth_range: tuple[float, float],
     config: PlacementConfig,
 ) -> Placement:
-    """A domino still in the gripper, fitted in each camera's points alone: the fit that
-    pins its turn about the pinch axis best (``_turn_support``), else NOT_SEEN.
+    """A domino still in the gripper, fitted in each camera's points below the pads alone
+    (``_camera_fits``): the fit that pins its turn about the pinch axis best
+    (``_turn_support``), else NOT_SEEN.
+
+    Every camera, because the gripper leaning over the run's free side hides the domino
+    from camera_2 at some slots where another camera sees it. No fit is no evidence
+    (NOT_SEEN): the pipeline's detections cannot tell a held domino from the pads around
+    it.
+    """
+    below_pads = points[:, 2] < _foot_height(expected) + config.in_hand_fit_height
+    near = _around_box(points, expected, config.fit_margin) & below_pads
+    fits = _camera_fits(expected, points[near], camera[near], views, config)
+    best = max(fits, key=lambda fit: _turn_support(*fit), default=None)
+    if best is None:
+        return Placement(NOT_SEEN, expected, 0.0, 0.0)
+    return _placement(STANDING, best[0], expected)
+
+
+def _camera_fits(
+    expected: np.ndarray,
+    points: np.ndarray,
+    camera: np.ndarray,
+    views: list[CameraView],
+    config: PlacementConfig,
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The box fitted from ``expected`` in each camera's ``points`` alone (``camera``: the
+    index in ``views`` of each point's camera) and the points on it, for each camera
+    whose image holds the expected centre and whose fit stands there (``_local_fit``,
+    seen through by none of its own pixels), in the order of ``views``, each fitted when
+    asked for.
 
     Each camera alone, because each camera's points carry their own ~0.6-0.9 mm offset,
-    partly along its view direction: fused from two sides they twisted the box by up to
-    2° at S-curve slots, each camera alone was within 0.2°. Every camera, because the
-    gripper leaning over the run's free side hides the domino from camera_2 at some
-    slots where a pile camera sees it. No fit is no evidence (NOT_SEEN): the pipeline's
-    detections cannot tell a held domino from the pads around it.
+    partly along its view direction: fused from two sides they twisted a held box by up
+    to 2° at S-curve slots (each camera alone: within 0.2°), a standing one by up to 1°.
     """
-    best, best_support = None, 0.0
-    for view in views:
-        cloud = organised_cloud(view, region, depth_range) if _in_view(expected, view) else None
-        if cloud is None:
+    for index, view in enumerate(views):
+        if not _in_view(expected, view):
             continue
-        points = cloud.valid_points()
-        below_pads = points[:, 2] < _foot_height(expected) + config.in_hand_fit_height
-        points = points[_around_box(points, expected, config.fit_margin) & below_pads]
-        fitted = _local_fit(expected, points, [view], config)
-        if fitted is None:
-            continue
-        on_box = np.abs(box_signed_distance((points - fitted[:3, 3]) @ fitted[:3, :3]))
-        support = _turn_support(fitted, points[on_box < config.inlier_distance])
-        if support > best_support:
-            best, best_support = fitted, support
-    return (
-        Placement(NOT_SEEN, expected, 0.0, 0.0)
-        if best is None
-        else _placement(STANDING, best, expected)
-    )
+        own = points[camera == index]
+        fitted = _local_fit(expected, own, [view], config)
+        if fitted is not None:
+            yield fitted, own[_on(fitted, own, config.inlier_distance)]
 
 
 def _claim(
