@@ -310,6 +310,7 @@ def test_a_slot_that_cannot_be_filled_is_built_around_and_what_stands_struck_in_
         "struck": True,
         "toppled_by_perception": 1,
         "message": "",
+        "round": 1,
     }
 
 

@@ -141,6 +141,7 @@ class SectionOutcome:
     struck: bool = False
     toppled_by_perception: int = 0  # of its dominoes, seen down after every strike
     message: str = ""  # why it was not struck
+    round: int = 1  # 2, 3, ...: struck again, what the strikes before left standing
 
 
 @dataclass

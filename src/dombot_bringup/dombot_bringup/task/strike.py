@@ -4,11 +4,11 @@ fell, and where it lies."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from dombot_bringup.run_report import SectionOutcome
 from dombot_bringup.sections import Section, sections_of, strike_order
-from dombot_bringup.task.cell import Seen, StrikeRequest
+from dombot_bringup.task.cell import PlacementCheck, Pose, Seen, StrikeRequest
 from dombot_bringup.task.checks import remember_fallen, settle
 from dombot_bringup.task.placing import execute
 from dombot_bringup.task.records import take_picture
@@ -19,30 +19,37 @@ from dombot_description import tipped_pose
 def strike(job: Job, standing: Sequence[int]) -> None:
     """Knock over the dominoes at layout indices ``standing`` as sections, in
     ``sections.strike_order`` so that no strike reaches a section still standing; then one
-    look by perception counts what fell, section by section. A full run is one section."""
+    look by perception counts what fell, section by section. What it sees still standing
+    (a chain broken by a domino kept off its target, arc10_cycles5 seed 3) is struck again
+    the same way from where it stands, up to ``settings.strike_again`` times, so the run
+    still ends down. A full run is one section."""
     built = sorted(standing)
-    sections = sections_of(built)
     report = job.report
-    report.sections = [SectionOutcome(s.first + 1, s.last + 1) for s in sections]
-    outcomes = dict(zip(sections, report.sections, strict=True))
-    for section in strike_order(sections, job.layout):
-        outcome = outcomes[section]
-        outcome.message = strike_section(job, section, built)
-        outcome.struck = not outcome.message
-        if outcome.message:
-            words = f"{section}: {outcome.message}"
-            report.message = "; ".join(m for m in (report.message, words) if m)
-            log(words)
-    if not any(s.struck for s in report.sections):
+    report.sections = []
+    poses = {i: job.targets[i] for i in built}  # where each stands, as far as known
+    upright, answer = built, None
+    for again in range(job.settings.strike_again + 1):
+        if again:
+            names = ", ".join(str(i + 1) for i in upright)
+            log(f"still standing after the strike: {names}; striking again where they stand")
+        if not strike_sections(job, upright, poses, again + 1):
+            break
+        answer = look_after_strike(job, built)
+        if not answer.success:
+            break
+        status = dict(zip(built, answer.status, strict=True))
+        upright = [i for i in built if status[i] == Seen.STANDING]
+        if not upright:
+            break
+        poses.update({i: answer.measured[built.index(i)] for i in upright})
+    if answer is None:
         return
     report.struck = all(s.struck for s in report.sections)
-    fresh = settle(job, job.settings.topple_wait)
-    take_picture(job, "after_strike", fresh)
-    answer = job.cell.check_placement([job.targets[i] for i in built], not_before=fresh)
     down = [s != Seen.STANDING for s in answer.status] if answer.success else [False] * len(built)
     fallen = dict(zip(built, down, strict=True))
-    for section, outcome in outcomes.items():
-        outcome.toppled_by_perception = sum(fallen[i] for i in section.slots)
+    for outcome in report.sections:
+        slots = range(outcome.first_slot - 1, outcome.last_slot)
+        outcome.toppled_by_perception = sum(fallen[i] for i in slots)
     report.toppled_by_perception = answer.success and all(fallen.values())
     log(f"after the strike perception sees {sum(fallen.values())}/{len(built)} dominoes down")
     unfitted = []  # one line for them all: after a strike most lie in a heap
@@ -62,15 +69,44 @@ def strike(job: Job, standing: Sequence[int]) -> None:
         )
 
 
-def strike_section(job: Job, section: Section, built: Sequence[int]) -> str:
-    """Strike ``section``'s first domino, every other of the ``built`` slots an obstacle;
-    "" once the arm pushed it, or why not."""
-    whole = len(built) == len(job.layout)
+def strike_sections(
+    job: Job, upright: Sequence[int], poses: Mapping[int, Pose], strike_round: int
+) -> bool:
+    """Strike the sections of the ``upright`` slots (at ``poses``) in ``strike_order``,
+    each outcome added to the report; whether any was struck."""
+    sections = sections_of(upright)
+    report = job.report
+    outcomes = {s: SectionOutcome(s.first + 1, s.last + 1, round=strike_round) for s in sections}
+    report.sections.extend(outcomes.values())
+    for section in strike_order(sections, job.layout):
+        outcome = outcomes[section]
+        outcome.message = strike_section(job, section, upright, poses)
+        outcome.struck = not outcome.message
+        if outcome.message:
+            words = f"{section}: {outcome.message}"
+            report.message = "; ".join(m for m in (report.message, words) if m)
+            log(words)
+    return any(outcome.struck for outcome in outcomes.values())
+
+
+def look_after_strike(job: Job, built: Sequence[int]) -> PlacementCheck:
+    """Perception's look at every slot struck, once what fell has settled."""
+    fresh = settle(job, job.settings.topple_wait)
+    take_picture(job, "after_strike", fresh)
+    return job.cell.check_placement([job.targets[i] for i in built], not_before=fresh)
+
+
+def strike_section(
+    job: Job, section: Section, upright: Sequence[int], poses: Mapping[int, Pose]
+) -> str:
+    """Strike ``section``'s first domino, every other of the ``upright`` slots an
+    obstacle, each at ``poses``; "" once the arm pushed it, or why not."""
+    whole = len(upright) == len(job.layout)
     log("the run stands: knocking it down" if whole else f"knocking down {section}")
     plan = job.cell.plan_strike(
         StrikeRequest(
-            domino=job.targets[section.first],
-            standing=tuple(job.targets[i] for i in built if i != section.first),
+            domino=poses[section.first],
+            standing=tuple(poses[i] for i in upright if i != section.first),
             time_budget=job.settings.plan_budget,
         )
     )
