@@ -1,9 +1,10 @@
-"""Refusals told before any IK: the pads' place and path against the pile
-(dombot_planner.pads, foreseen_refusal) agree with the planner's answers."""
+"""Refusals told before any IK: the pads' place and path against the pile, the wrist's
+reach (dombot_planner.pads, foreseen_refusal) agree with the planner's answers."""
 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,8 +13,10 @@ from pydrake.math import RigidTransform, RotationMatrix
 from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import OrientedBox, flat_pose, pick_grasps, upright_pose
 from dombot_description.scenario import load_scenario
+from dombot_planner.arm_reach import WristReach
 from dombot_planner.errors import ErrorCode, PlanningError
 from dombot_planner.foreseen_refusal import foreseen_refusal
+from dombot_planner.motion import WRIST_OUT
 from dombot_planner.pads import pads_in_pile
 from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
@@ -24,6 +27,7 @@ SCENARIO = load_scenario()
 SETTINGS = PlannerSettings(default_time_budget=UNHURRIED)
 DOMINO = flat_pose(0.60, -0.28, 0.4)
 SIZE = np.asarray(DOMINO_SIZE)
+BENCHMARKS = Path(__file__).parents[2] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
@@ -95,3 +99,42 @@ def test_the_pads_path_among_seen_points_is_foreseen() -> None:
     points = grid.reshape(-1, 3) + DOMINO.translation() * [1, 1, 0]
     why = foreseen_refusal(pick(pile_points=points), SETTINGS)
     assert "pads' path meets pile points" in why
+
+
+@pytest.fixture(scope="module")
+def recorded() -> list[PickPlaceRequest]:
+    """The bring-up's recorded /plan_place requests (benchmarks/data/plan_requests.npz)."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.syspath_prepend(str(BENCHMARKS))
+        from bench_plan_replay import DEFAULT_FILE, load_requests
+
+        return load_requests(DEFAULT_FILE)
+
+
+@pytest.mark.parametrize(
+    ("index", "refused"),
+    [
+        (4, True),  # the pads' path on seen points, or the wrist beyond the elbow's reach
+        (53, True),  # the pads in a pile domino, or the wrist beyond the elbow's reach
+        (72, False),  # half its canonical grasps beyond the reach: the others plan
+    ],
+)
+def test_the_wrist_beyond_reach_is_foreseen(
+    planner, recorded: list[PickPlaceRequest], index: int, refused: bool
+) -> None:
+    """Recorded pile requests whose every grasp the pads' tests leave has the wrist beyond
+    the elbow's reach, at the grasp or along every lift, are foreseen given the planner's
+    wrist shell (not by the pads alone) and refused by the planner; one with half its
+    grasps beyond the reach is not foreseen and plans."""
+    request = dataclasses.replace(recorded[index], time_budget=UNHURRIED)
+    reach = WristReach.of_scenario(SCENARIO)
+    assert not foreseen_refusal(request, SETTINGS)
+    why = foreseen_refusal(request, SETTINGS, reach)
+    assert (WRIST_OUT in why) == refused
+    if refused:
+        with pytest.raises(PlanningError) as refusal:
+            planner.plan(request)
+        assert refusal.value.code == ErrorCode.GRASP_UNREACHABLE
+        assert WRIST_OUT in refusal.value.message
+    else:
+        assert planner.plan(request).segments

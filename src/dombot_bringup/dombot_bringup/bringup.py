@@ -229,8 +229,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         dest="foresee_refusals",
         action="store_false",
         help="ask the planner for every offered pick (default: a pick whose every grasp "
-        "the planner refuses before any IK, its pads in the pile, is taken as refused "
-        "without asking)",
+        "the planner refuses before any IK, its pads in the pile or its wrist beyond "
+        "the elbow's reach, is taken as refused without asking)",
     )
     cell.add_argument(
         "--visual",

@@ -10,6 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.math import RigidTransform
 
+from dombot_description import DOMINO_SIZE
+from dombot_description.cell import ShadowPlant, build_shadow_plant
+from dombot_description.scenario import Scenario
 from dombot_planner.scene import (
     Scene,
 )
@@ -64,6 +67,15 @@ class WristReach:
         ):
             return cls(shoulder, wrist_in_tcp, 0.0, np.inf)
         return cls(shoulder, wrist_in_tcp, min(measured[0][2], measured[1][2]), measured[2][2])
+
+    @classmethod
+    def of_scenario(cls, scenario: Scenario, shadow: ShadowPlant | None = None) -> WristReach:
+        """The shell of ``scenario``'s arm at its home position, measured on ``shadow``
+        (default: a shadow plant built for it; any finger opening, only the arm counts)."""
+        shadow = shadow or build_shadow_plant(scenario, DOMINO_SIZE[1])
+        return cls.of(
+            Scene(shadow, scenario.tcp_frame), scenario.arm_joints, scenario.home_position
+        )
 
     def reaches(self, tcp: RigidTransform, offset: np.ndarray | None = None) -> bool:
         """Whether the wrist point stays in the shell (REACH_TOLERANCE outside passes) with

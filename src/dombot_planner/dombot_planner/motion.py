@@ -101,11 +101,7 @@ class ArmPlanner:
         self.plants = plants or ShadowPlants(scenario)
         plant = self.plants.get(DOMINO_SIZE[1]).plant  # any opening: only the arm's limits
         self.table = table_top(self.plants.get(DOMINO_SIZE[1]))
-        self.wrist_reach = WristReach.of(
-            Scene(self.plants.get(DOMINO_SIZE[1]), scenario.tcp_frame),
-            scenario.arm_joints,
-            scenario.home_position,
-        )
+        self.wrist_reach = WristReach.of_scenario(scenario, self.plants.get(DOMINO_SIZE[1]))
         self.lower = plant.GetPositionLowerLimits()
         self.upper = plant.GetPositionUpperLimits()
         self.velocity_limits = plant.GetVelocityUpperLimits()

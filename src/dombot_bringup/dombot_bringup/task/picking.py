@@ -3,6 +3,7 @@ to the planner in tiers of how the pile is treated, until one plans."""
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -34,6 +35,8 @@ from dombot_bringup.task.geometry import (
 )
 from dombot_bringup.task.state import Job, log
 from dombot_description import tilt_from_vertical
+from dombot_description.scenario import load_scenario
+from dombot_planner.arm_reach import WristReach
 from dombot_planner.errors import ErrorCode
 from dombot_planner.foreseen_refusal import foreseen_refusal
 from dombot_planner.settings import PlannerSettings
@@ -284,16 +287,24 @@ def first_plan(
     return None, refused
 
 
+@functools.cache
+def planner_reach() -> WristReach:
+    """The planner's wrist shell: its arm as the scenario the bring-up runs has it
+    (measured once on a shadow plant, ~0.1 s CPU)."""
+    return WristReach.of_scenario(load_scenario())
+
+
 def foreseen(job: Job, request: PlaceRequest) -> Plan | None:
     """The planner's refusal of ``request`` when it is told without asking the planner
     (``dombot_planner.foreseen_refusal``: every grasp it would try has its pads' path on seen
-    points or its pads beyond pile_nudge in a pile domino, before any IK), else None
-    (settings foresee_refusals). Of 68 recorded pile requests, 21 of the 34 refused were
-    told so, in ~0.05 s CPU each; the planner took 0.05-0.91 s CPU to refuse them, and
-    the bring-up waited that and a service round trip (docs/PLANNER.md)."""
+    points, its pads beyond pile_nudge in a pile domino, or its wrist beyond the elbow's
+    reach at the grasp or on every lift line, before any IK), else None (settings
+    foresee_refusals). Of 68 recorded pile requests, 21 of the 34 refused were told by
+    the pads alone, in ~0.05 s CPU each; the planner took 0.05-0.91 s CPU to refuse
+    them, and the bring-up waited that and a service round trip (docs/PLANNER.md)."""
     if not job.settings.foresee_refusals or request.holding:
         return None
-    why = foreseen_refusal(planner_request(request, np.zeros(0)), PLANNER_SETTINGS)
+    why = foreseen_refusal(planner_request(request, np.zeros(0)), PLANNER_SETTINGS, planner_reach())
     if not why:
         return None
     return Plan(False, ErrorCode.GRASP_UNREACHABLE, f"foreseen: {why}", foreseen=True)

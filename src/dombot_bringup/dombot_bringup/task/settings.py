@@ -84,9 +84,10 @@ class ArmJobSettings:
     # retreats and perception checks the placement. False: asked once the check answered.
     plan_ahead: bool = True
     # A pick whose every grasp the planner would refuse before any IK (the pads' path on
-    # seen points, or the pads beyond its pile_nudge in a pile domino: the planner's own
-    # tests, ``dombot_planner.foreseen_refusal``) is taken as refused without asking it
-    # (``picking.foreseen``), and not asked ahead. False: every offer is asked.
+    # seen points, the pads beyond its pile_nudge in a pile domino, or the wrist beyond the
+    # elbow's reach: the planner's own tests, ``dombot_planner.foreseen_refusal``) is taken
+    # as refused without asking it (``picking.foreseen``), and not asked ahead. False:
+    # every offer is asked.
     foresee_refusals: bool = True
     section: int = 4  # dominoes between safety gaps, which are filled last (0: run order)
     # Before the build, the planner is asked to place a flat pile domino at each safety
