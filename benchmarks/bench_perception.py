@@ -9,13 +9,16 @@ of the paper's flatness-only ranking, plus predicted-vs-actual grasp success.
 Latency is given per stage as wall time and as this process's CPU time (on a shared
 machine the wall time mostly measures the load).
 
-Placement checks (``/perception/check_placement``, camera_2): runs laid out as the
-bring-up lays them (``dombot_bringup.layouts``: a line, an arc and an S-curve in the
-build area) are put in the simulator while being built (the dominoes placed so far,
-shifted and turned by a few mm and degrees, some knocked away, the last one
-sometimes tipping forward or back), complete, and struck; the simulator lets them
-settle (or topple) and the check's status, position and tilt are compared with the
-final true poses.
+Placement checks (``/perception/check_placement``): runs laid out as the bring-up lays
+them (``dombot_bringup.layouts``: a line, an arc and an S-curve in the build area) are put
+in the simulator while being built (the dominoes placed so far, shifted and turned by a
+few mm and degrees, some knocked away, the last one sometimes tipping forward or back),
+complete, and struck; the simulator lets them settle (or topple), every camera of
+``--placement-cameras`` (perception_node's ``placement_cameras``) renders the scene once,
+and the check is run on each camera alone and on all of them (the node's check), its
+status, position and tilt compared with the final true poses: per camera set, and per
+scene kind what went wrong (standing called fallen or missing, fallen called standing,
+not seen).
 
 Prints one JSON object on stdout (progress on stderr). ``--figures DIR`` writes a
 mask overlay and a detection picture of the first 30-domino pile into DIR.
@@ -49,6 +52,7 @@ from dombot_perception.evaluation import (
 )
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.grasp_scoring import predicted_success
+from dombot_perception.perception_parameters import PerceptionParameters
 from dombot_perception.pipeline import STAGES, PerceptionPipeline, build_pipeline
 from dombot_perception.placement_check import (
     FALLEN,
@@ -391,28 +395,50 @@ def true_status(target: np.ndarray, pose: np.ndarray | None, config: PlacementCo
     return FALLEN if offset <= config.search_radius + DOMINO_SIZE[0] / 2 else MISSING
 
 
+def camera_sets(cameras: list[str]) -> dict[str, tuple[str, ...]]:
+    """Each camera alone, then all of them in their order (the node's check)."""
+    sets = {camera: (camera,) for camera in cameras}
+    if len(cameras) > 1:
+        sets[" + ".join(cameras)] = tuple(cameras)
+    return sets
+
+
 def evaluate_run(
-    world: CellWorld, pipeline: PerceptionPipeline, scene: dict, offset: float
-) -> list[dict]:
-    """One row per expected place: true and reported status, errors, check latency."""
+    world: CellWorld,
+    pipeline: PerceptionPipeline,
+    scene: dict,
+    cameras: list[str],
+    offset: float,
+) -> dict[str, list[dict]]:
+    """Per camera set (``camera_sets``), one row per expected place: true and reported
+    status, errors, check latency; the settled scene rendered once for all sets."""
     config = PlacementConfig()
     truth = settle_run(world, scene)
-    views = views_of(world.render(["camera_2"]), offset)
-    started = time.perf_counter()
-    results = check_placements(scene["expected"], views, pipeline, config)
-    latency = time.perf_counter() - started
-    rows = []
-    for index, (target, result) in enumerate(zip(scene["expected"], results, strict=True)):
-        pose = truth.get(index)
-        row = {"true": true_status(target, pose, config), "reported": result.status}
-        if pose is not None:
-            row["true_offset"] = float(np.hypot(*(pose[:2, 3] - target[:2, 3])))
-            row["true_tilt"] = tilt_from_vertical(pose)
-            row["position_error"] = float(np.hypot(*(result.measured[:2, 3] - pose[:2, 3])))
-            row["reported_offset"], row["reported_tilt"] = result.position_error, result.tilt
-            row["measured_pose"] = not np.array_equal(result.measured, target)
-        rows.append(row)
-    return [{**row, "latency": latency} for row in rows]
+    views = views_of(world.render(cameras), offset)
+    rows = {}
+    for name, chosen in camera_sets(cameras).items():
+        started = time.perf_counter()
+        results = check_placements(
+            scene["expected"], [v for v in views if v.name in chosen], pipeline, config
+        )
+        latency = time.perf_counter() - started
+        rows[name] = [
+            {**placement_row(target, truth.get(index), result, config), "latency": latency}
+            for index, (target, result) in enumerate(zip(scene["expected"], results, strict=True))
+        ]
+    return rows
+
+
+def placement_row(target: np.ndarray, pose: np.ndarray | None, result, config) -> dict:
+    """True and reported status of a place, and the errors of the reported pose."""
+    row = {"true": true_status(target, pose, config), "reported": result.status}
+    if pose is not None:
+        row["true_offset"] = float(np.hypot(*(pose[:2, 3] - target[:2, 3])))
+        row["true_tilt"] = tilt_from_vertical(pose)
+        row["position_error"] = float(np.hypot(*(result.measured[:2, 3] - pose[:2, 3])))
+        row["reported_offset"], row["reported_tilt"] = result.position_error, result.tilt
+        row["measured_pose"] = not np.array_equal(result.measured, target)
+    return row
 
 
 def summarise_placements(rows: list[dict]) -> dict:
@@ -449,6 +475,24 @@ def summarise_placements(rows: list[dict]) -> dict:
     }
 
 
+def wrong_calls(rows: list[dict]) -> dict:
+    """The calls the bring-up acts on wrongly (a standing domino picked up again, a fallen
+    one left), and the places without evidence."""
+    return {
+        "places": len(rows),
+        "standing_called_fallen": sum(
+            r["true"] == STANDING and r["reported"] == FALLEN for r in rows
+        ),
+        "standing_called_missing": sum(
+            r["true"] == STANDING and r["reported"] == MISSING for r in rows
+        ),
+        "fallen_called_standing": sum(
+            r["true"] == FALLEN and r["reported"] == STANDING for r in rows
+        ),
+        "not_seen": sum(r["reported"] == NOT_SEEN for r in rows),
+    }
+
+
 def _accepted(row: dict, offset: str, tilt: str) -> bool:
     return row[offset] <= BRINGUP_TOLERANCE[0] and row[tilt] <= BRINGUP_TOLERANCE[1]
 
@@ -463,25 +507,39 @@ def _spread(values: list[float]) -> dict | None:
     }
 
 
-def placement_benchmark(seeds: list[int], offset: float) -> dict:
-    """Every layout × seed: a run being built; seeds' first half also complete and struck."""
+def placement_benchmark(seeds: list[int], cameras: list[str], offset: float) -> dict:
+    """Every layout × seed: a run being built; seeds' first half also complete and struck;
+    each checked by every camera set (``camera_sets``)."""
     world = CellWorld(WorldConfig(cameras=True, domino_capacity=RUN_LENGTH))
     pipeline = build_pipeline(world.scenario)
     area = layouts.BuildArea(
         *world.scenario.build_x, *world.scenario.build_y, *world.scenario.build_reach
     )
-    rows, scenes = [], []
+    sets = camera_sets(cameras)
+    rows = {name: {kind: [] for kind in KINDS} for name in sets}
+    scenes = []
     for shape, (name, targets) in enumerate(run_layouts(area).items()):
         for seed in seeds:
             kinds = KINDS if seed <= len(seeds) // 2 else KINDS[:1]
             for kind in kinds:
                 rng = np.random.default_rng([seed, shape, KINDS.index(kind)])
                 scene = run_scene(kind, targets, rng)
-                found = evaluate_run(world, pipeline, scene, offset)
-                rows += found
-                scenes.append({"layout": name, "seed": seed, "kind": kind, "places": len(found)})
-                log(f"  {name} seed {seed} {kind}: " + _statuses(found))
-    return {"scenes": scenes, "summary": summarise_placements(rows)}
+                found = evaluate_run(world, pipeline, scene, cameras, offset)
+                for cameras_name, found_rows in found.items():
+                    rows[cameras_name][kind] += found_rows
+                    log(f"  {name} seed {seed} {kind} {cameras_name}: " + _statuses(found_rows))
+                places = len(next(iter(found.values())))
+                scenes.append({"layout": name, "seed": seed, "kind": kind, "places": places})
+    return {
+        "scenes": scenes,
+        "by_cameras": {
+            name: {
+                "summary": summarise_placements([r for k in KINDS for r in by_kind[k]]),
+                "wrong_by_kind": {k: wrong_calls(by_kind[k]) for k in KINDS if by_kind[k]},
+            }
+            for name, by_kind in rows.items()
+        },
+    }
 
 
 def _statuses(rows: list[dict]) -> str:
@@ -524,6 +582,12 @@ def main() -> None:
         default=[1, 2, 3, 4],
         help="run scenes per layout (none: skip the placement checks)",
     )
+    parser.add_argument(
+        "--placement-cameras",
+        nargs="+",
+        default=list(PerceptionParameters().placement_cameras),
+        help="cameras of the placement checks, in order of preference (each alone and all)",
+    )
     parser.add_argument("--figures", type=Path, default=None)
     parser.add_argument(
         "--principal-point-offset",
@@ -549,7 +613,10 @@ def main() -> None:
     if args.placement_seeds:
         report["placement"] = {
             "seeds": args.placement_seeds,
-            **placement_benchmark(args.placement_seeds, args.principal_point_offset),
+            "cameras": args.placement_cameras,
+            **placement_benchmark(
+                args.placement_seeds, args.placement_cameras, args.principal_point_offset
+            ),
         }
     report["load_average_end"] = os.getloadavg()
     print(json.dumps(report, indent=1, default=float))
