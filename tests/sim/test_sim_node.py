@@ -51,7 +51,7 @@ class Probe:
         self.gripper = ActionClient(self.node, GripperCommand, GRIPPER_ACTION)
         self.reset = self.node.create_client(ResetSim, "/sim/reset")
 
-    def _subscribe(self, topic: str, kind):
+    def _subscribe(self, topic: str, kind: type):
         return self.node.create_subscription(
             kind, topic, lambda msg: self.latest.__setitem__(topic, msg), 5
         )
