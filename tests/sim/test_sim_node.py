@@ -32,31 +32,42 @@ ARM = list(SCENARIO.arm_joints)
 FINGERS = ["wsg_left_finger_joint", "wsg_right_finger_joint"]
 TRAJECTORY_ACTION = "/arm_controller/follow_joint_trajectory"
 GRIPPER_ACTION = "/gripper_controller/gripper_cmd"
+STATE_TOPICS = {"/joint_states": JointState, "/sim/domino_ground_truth": DominoStateArray}
+CAMERA_TOPICS = {
+    "/camera_0/color/image_raw": Image,
+    "/camera_0/depth/image_raw": Image,
+    "/camera_0/color/camera_info": CameraInfo,
+    "/camera_1/depth/image_raw": Image,
+}
 
 
 class Probe:
     def __init__(self) -> None:
         self.node = Node("sim_probe")
         self.latest: dict[str, object] = {}
-        topics = {
-            "/joint_states": JointState,
-            "/sim/domino_ground_truth": DominoStateArray,
-            "/camera_0/color/image_raw": Image,
-            "/camera_0/depth/image_raw": Image,
-            "/camera_0/color/camera_info": CameraInfo,
-            "/camera_1/depth/image_raw": Image,
-        }
-        for topic, kind in topics.items():
-            self.node.create_subscription(
-                kind, topic, lambda msg, topic=topic: self.latest.__setitem__(topic, msg), 5
-            )
+        for topic, kind in STATE_TOPICS.items():
+            self._subscribe(topic, kind)
         self.trajectory = ActionClient(self.node, FollowJointTrajectory, TRAJECTORY_ACTION)
         self.gripper = ActionClient(self.node, GripperCommand, GRIPPER_ACTION)
         self.reset = self.node.create_client(ResetSim, "/sim/reset")
 
+    def _subscribe(self, topic: str, kind: type):
+        return self.node.create_subscription(
+            kind, topic, lambda msg: self.latest.__setitem__(topic, msg), 5
+        )
+
     def fresh(self, topic: str, timeout: float = 120.0):
+        """The next message on ``topic``; a camera topic is subscribed only meanwhile (sim_node
+        renders the cameras someone watches: watched all along, they cost the node a
+        render a period through every test)."""
         self.latest.pop(topic, None)
-        assert spin_until(self.node, lambda: topic in self.latest, timeout), f"nothing on {topic}"
+        camera = self._subscribe(topic, CAMERA_TOPICS[topic]) if topic in CAMERA_TOPICS else None
+        try:
+            got = spin_until(self.node, lambda: topic in self.latest, timeout)
+            assert got, f"nothing on {topic}"
+        finally:
+            if camera is not None:
+                self.node.destroy_subscription(camera)
         return self.latest[topic]
 
     def positions(self, names: list[str]) -> np.ndarray:

@@ -231,7 +231,7 @@ SIM_ARGUMENTS = ("domino_count:=3", "camera_rate:=2.0", "ground_truth_rate:=1.0"
 FUZZED_NODES = {
     "planner_node": ("dombot_planner", ()),
     "sim_node": ("dombot_sim", SIM_ARGUMENTS),
-    "perception_node": ("dombot_perception", ("use_sim_time:=true",)),
+    "perception_node": ("dombot_perception", ("use_sim_time:=true", "continuous:=false")),
     "layer_node": ("dombot_layer", ()),
 }
 NEEDS = {"perception_node": {"sim_node"}}  # its images and clock
@@ -242,7 +242,8 @@ def fuzzed_nodes(
     logs: Path, serving: Collection[str] = tuple(FUZZED_NODES)
 ) -> Iterator[dict[str, Popen]]:
     """The ``serving`` nodes and those they need: planner_node, sim_node (3 dominoes),
-    perception_node (sim time), layer_node, each its own process, logging to
+    perception_node (sim time; on demand, as the bring-up runs it: streaming, it kept
+    sim_node rendering four cameras all along), layer_node, each its own process, logging to
     ``logs``/NAME.log (a fuzzed node logs every refusal: a pipe nobody reads would fill up
     and block it)."""
     wanted = set(serving).union(*(NEEDS.get(name, set()) for name in serving))
