@@ -57,6 +57,9 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
         for direction, distance in sweep_pushes(pose, job.layout[index], margin):
             name = "toppled domino" if k is None else f"domino {k + 1}"
             what = f"{name} lying at {spot_of(pose).round(3).tolist()}"
+            push = distance * np.asarray(direction)[:2]
+            if state.sweep_refused(spot_of(pose), push):
+                continue  # refused as it is now: not asked again (logged then)
             along = carried_along(
                 pose, others, standing, direction, distance, clearance, settings.carry_clearance
             )
@@ -65,6 +68,7 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
             kept = [p for m, p in enumerate(others) if m not in along]
             swept = sweep(job, pose, kept, direction, distance, what, where)
             if swept is None:
+                state.unswept.append((spot_of(pose), push, frozenset(state.standing)))
                 continue
             job.report.dominoes[index].sweeps.append(swept)
             log(f"{job.domino(index)}: {swept}")

@@ -53,6 +53,11 @@ class BuildState:
     pushed: list[np.ndarray] = field(default_factory=list)
     # why the pile domino at (x, y) is out of reach: the last refusal of it or its push
     reasons: list[tuple[np.ndarray, str]] = field(default_factory=list)
+    # debris sweeps the planner refused: the domino's (x, y), the push (x, y direction
+    # times distance) and the slots standing then; not asked again while those still stand
+    # and nothing near it moved (arc cycle 5: one toppled domino's two sweeps refused 26
+    # times over the turns of the three slots it blocked)
+    unswept: list[tuple[np.ndarray, np.ndarray, frozenset[int]]] = field(default_factory=list)
 
     def lying(self) -> list[Pose]:
         """Every domino known to lie in the build area: the run's fallen, the toppled, the
@@ -68,6 +73,17 @@ class BuildState:
         self.cored = [u for u in self.cored if not near(u, spot, DISTURBED_RADIUS)]
         self.pushed = [u for u in self.pushed if not near(u, spot, DISTURBED_RADIUS)]
         self.reasons = [r for r in self.reasons if not near(r[0], spot, DISTURBED_RADIUS)]
+        self.unswept = [u for u in self.unswept if not near(u[0], spot, DISTURBED_RADIUS)]
+
+    def sweep_refused(self, spot: np.ndarray, push: np.ndarray) -> bool:
+        """Whether the same sweep (``push``: direction times distance) of the domino at
+        ``spot`` was refused with no fewer obstacles than now: nothing near it moved since
+        and every domino then standing still stands."""
+        standing = set(self.standing)
+        return any(
+            near(spot, at, SAME_SPOT) and np.allclose(push, then, atol=1e-6) and was <= standing
+            for at, then, was in self.unswept
+        )
 
     def remember_why(self, spot: np.ndarray, why: str) -> None:
         """The pile domino at ``spot`` is out of reach for now, because ``why``."""
