@@ -382,9 +382,9 @@ def pick(
 def ask_ahead(
     job: Job, index: int, candidate: Candidate, when: str, start: Mapping[str, float]
 ) -> None:
-    """As ``candidate`` starts down to slot ``index`` or is let go there (``when``): the
-    next slot's first pick asked for ahead, from ``start``, the arm's joints where the plan
-    ends."""
+    """As ``candidate`` starts down to slot ``index``, or while it is placed there
+    (``when``): the next slot's first pick asked for ahead, from ``start``, the arm's
+    joints where the plan ends."""
     carried_away(job, candidate)  # no longer where it lay, for that request
     ahead.ask_early(job, index, first_request, when, start)
 
