@@ -4,7 +4,8 @@ the arm where the plan starts.
 
 The request goes out as the descent to the slot starts or, failing that, the moment the
 look at the pile answers while the arm descends, lets go of the domino and retreats
-(``ask_early``, polled while each of those motions runs: ``placing.execute``), starting
+(``ask_early``, polled on the job's own thread while each of those motions runs, as
+the cell waits for its end: ``placing.execute``, ``Cell.execute``'s meanwhile), starting
 where the retreat ends (PlanPlace's start_state): the planner works on it while the arm
 places and retreats and perception checks the placement. That needs the look asked for
 as the carry ended above the slot (before the hand check, ``placing.look_while_placing``)
