@@ -1,6 +1,7 @@
 """Planning ahead (``task.ahead``): the next slot's first request goes to the planner
 as the domino just carried starts down to its slot (once the look at the pile asked for
-as the carry ended has answered; else as the fingers let go, else after the retreat),
+as the carry ended has answered; else the moment it answers while the arm descends,
+lets go and retreats, else after the retreat),
 before perception has checked the placement, and its answer serves that slot's turn
 only when the turn makes the very same request with the arm where the plan starts."""
 
@@ -10,11 +11,14 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+import pytest
 
 from dombot_bringup import layouts
 from dombot_bringup.task import ahead
 from dombot_bringup.task.cell import (
+    Detections,
     GripperEvent,
+    Later,
     Motion,
     PlacementCheck,
     PlaceRequest,
@@ -82,12 +86,16 @@ def slot_of(request: PlaceRequest) -> int:
 
 
 def counts(
-    descent: int = 0, let_go: int = 0, after_retreat: int = 0, used: int = 0, dropped: int = 0
+    descent: int = 0,
+    look_answered: int = 0,
+    after_retreat: int = 0,
+    used: int = 0,
+    dropped: int = 0,
 ) -> dict[str, int]:
     """The report's planned_ahead."""
     return {
         "descent": descent,
-        "let_go": let_go,
+        "look_answered": look_answered,
         "after_retreat": after_retreat,
         "used": used,
         "dropped": dropped,
@@ -134,20 +142,84 @@ def test_the_next_slots_pick_is_asked_for_as_the_descent_starts() -> None:
     assert len(early.standing) == 1  # slot 0 taken as standing at its target meanwhile
 
 
-def test_a_look_answered_during_the_descent_sends_the_request_as_the_fingers_let_go() -> None:
+def answering_while(cell: ScriptedCell, moving: str) -> list[tuple[int, str]]:
+    """Each look at the pile answers once polled while ``moving`` moves (``waiting_on``:
+    "place", the descent; "gripper"; "a1", the retreat; an approach...), not before; for
+    each request: (slot, what moved as it went out: "" between motions)."""
+    sent: list[tuple[int, str]] = []
+    looking, planning = cell.detect_later, cell.place
+
+    def detect_later(not_before: float) -> Later[Detections]:
+        look, came = looking(not_before), []
+
+        def answered() -> bool:
+            if cell.waiting_on == moving:
+                came.append(moving)
+            return bool(came)
+
+        return Later(look.wait, answered)
+
+    def place(request: PlaceRequest) -> Plan:
+        sent.append((slot_of(request), cell.waiting_on))
+        return planning(request)
+
+    cell.detect_later, cell.place = detect_later, place
+    return sent
+
+
+@pytest.mark.parametrize("moving", ["place", "gripper", "a1"])
+def test_a_look_answered_while_the_arm_places_sends_the_request_then(moving: str) -> None:
+    """The look asked for as the carry ended answers during the descent, the release or
+    the retreat: the next slot's request goes out that moment, from the retreat's end."""
+    cell, _ = recording_cell()
+    sent = answering_while(cell, moving)
+    report = run(line_job(cell))
+    assert report.built
+    assert sent == [(0, ""), (1, moving), (2, moving)]
+    assert report.planned_ahead == counts(look_answered=2, used=2)
+    assert cell.place_requests[1].start == RETREAT_END
+
+
+@pytest.mark.parametrize("moving", ["approach_grasp", "transfer"])
+def test_no_request_goes_out_ahead_while_the_arm_picks_or_carries(moving: str) -> None:
+    """Only the descent, the release and the retreat ask: a look answered while the next
+    pick's approach or carry runs was answered too late (the request after the retreat
+    waited for it), and it serves no request asked before that motion."""
+    cell, _ = recording_cell()
+    sent = answering_while(cell, moving)
+    report = run(line_job(cell))
+    assert report.built
+    assert sent == [(0, ""), (1, ""), (2, "")]
+    assert report.planned_ahead == counts(after_retreat=2, used=2)
+
+
+def test_without_planning_ahead_a_look_answered_mid_descent_sends_nothing() -> None:
     cell, asked = recording_cell()
-    cell.looks_answer_at_once = False
+    sent = answering_while(cell, "place")
+    report = run(line_job(cell, plan_ahead=False))
+    assert report.built
+    assert sent == [(0, ""), (1, ""), (2, "")]
+    assert asked == [(0, 0, 0), (1, 1, 1), (2, 2, 2)]
+    assert report.planned_ahead == counts()
+
+
+def test_a_request_sent_mid_descent_is_dropped_when_the_descent_stalls() -> None:
+    """The look answers during slot 0's first descent, which then stalls: the domino is
+    carried back onto the pile, and the request sent meanwhile is dropped; none goes
+    out while the arm backs up and puts it back (no motion there asks)."""
+    cell, _ = recording_cell()
+    sent = answering_while(cell, "place")
 
     def motion(trajectory: Trajectory) -> Motion:
-        cell.looks_answer_at_once = trajectory.joint_names == ("place",)
+        if trajectory.joint_names == ("place",) and ran(cell, "place") == 1:
+            return Motion(False, "a joint fell behind")
         return Motion(True)
 
     cell.motion = motion
     report = run(line_job(cell))
-    assert report.built
-    assert asked == [(0, 0, 0), (1, 0, 0), (2, 1, 1)]  # before the retreat
-    assert report.planned_ahead == counts(let_go=2, used=2)
-    assert cell.place_requests[1].start == RETREAT_END
+    assert report.built and report.dominoes[0].attempts == 2
+    assert sent == [(0, ""), (1, "place"), (0, ""), (1, "place"), (2, "place")]
+    assert report.planned_ahead == counts(look_answered=3, used=2, dropped=1)
 
 
 def test_a_look_not_answered_yet_leaves_the_request_until_after_the_retreat() -> None:

@@ -14,6 +14,7 @@ from dombot_bringup.task.cell import (
     Detections,
     GripperEvent,
     Later,
+    Meanwhile,
     Motion,
     PlacementCheck,
     PlaceRequest,
@@ -125,6 +126,9 @@ class ScriptedCell:
     # of those sent without waiting: (opening, trajectories executed before it was sent)
     openings_while_moving: list[tuple[float, int]] = field(default_factory=list)
     truths_asked: list[float] = field(default_factory=list)  # each truth's newer_than
+    # while a motion's ``meanwhile`` runs (once, after ``motion``'s verdict): what moves,
+    # its trajectory's first joint (``path``'s label) or "gripper"; "" otherwise
+    waiting_on: str = ""
 
     def reset(self, pile: int, seed: int) -> str:
         self.resets.append((pile, seed))
@@ -159,11 +163,16 @@ class ScriptedCell:
         return self.strike(request)
 
     def execute(
-        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+        self,
+        trajectory: Trajectory,
+        goal_tolerance: float = 0.0,
+        path_tolerance: float = 0.0,
+        meanwhile: Meanwhile | None = None,
     ) -> Motion:
         self.executed.append(trajectory)
         self.path_tolerances.append(path_tolerance)
         motion = self.motion(trajectory)
+        self.wait(trajectory.joint_names[0] if trajectory.joint_names else "", meanwhile)
         if motion.ok and len(trajectory.times):
             names, positions = self.joint_positions
             joints = dict(zip(names, positions, strict=True))
@@ -171,9 +180,22 @@ class ScriptedCell:
             self.joint_positions = (list(joints), list(joints.values()))
         return motion
 
-    def gripper(self, position: float, max_effort: float) -> float:
+    def gripper(
+        self, position: float, max_effort: float, meanwhile: Meanwhile | None = None
+    ) -> float:
         self.openings.append(position)
+        self.wait("gripper", meanwhile)
         return self.grip if max_effort > 0.0 else position
+
+    def wait(self, moving: str, meanwhile: Meanwhile | None) -> None:
+        """Call ``meanwhile`` once, while ``moving`` moves (``waiting_on``)."""
+        if meanwhile is None:
+            return
+        self.waiting_on = moving
+        try:
+            meanwhile()
+        finally:
+            self.waiting_on = ""
 
     def gripper_later(self, position: float, max_effort: float) -> Later[float]:
         stopped = self.gripper(position, max_effort)

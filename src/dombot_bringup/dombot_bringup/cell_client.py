@@ -58,6 +58,7 @@ from dombot_bringup.task.cell import (
     CellError,
     Detections,
     Later,
+    Meanwhile,
     Motion,
     PlacementCheck,
     PlaceRequest,
@@ -348,12 +349,17 @@ class CellClient:
 
     # ------------------------------------------------------------------ actions
     def execute(
-        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+        self,
+        trajectory: Trajectory,
+        goal_tolerance: float = 0.0,
+        path_tolerance: float = 0.0,
+        meanwhile: Meanwhile | None = None,
     ) -> Motion:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
         point (0: the controller's default) within a second, and stay within
         ``path_tolerance`` of it on the way (0: not checked). The wall-clock timeout is
-        generous: the simulator may run well below real time."""
+        generous: the simulator may run well below real time. ``meanwhile`` is called
+        between polls for the result (``_wait``), on this thread."""
         goal = FollowJointTrajectory.Goal(
             trajectory=trajectory_message(trajectory),
             path_tolerance=[
@@ -367,39 +373,61 @@ class CellClient:
             goal_time_tolerance=Duration(sec=1),
         )
         timeout = trajectory.duration * 60 + 120
-        result = self._run_action(self._trajectory, goal, timeout, TRAJECTORY_ACTION)
+        action = self._action_later(self._trajectory, goal, timeout, TRAJECTORY_ACTION, meanwhile)
+        result = action()
         return Motion(result.error_code == 0, result.error_string)
 
-    def gripper(self, position: float, max_effort: float, timeout: float = 180.0) -> float:
-        """Move the fingers to the opening ``position`` [m] (the gap between them)."""
-        return self.gripper_later(position, max_effort, timeout)()
+    def gripper(
+        self,
+        position: float,
+        max_effort: float,
+        meanwhile: Meanwhile | None = None,
+        timeout: float = 180.0,
+    ) -> float:
+        """Move the fingers to the opening ``position`` [m] (the gap between them);
+        ``meanwhile`` as ``execute``'s."""
+        return self.gripper_later(position, max_effort, timeout, meanwhile)()
 
     def gripper_later(
-        self, position: float, max_effort: float, timeout: float = 180.0
+        self,
+        position: float,
+        max_effort: float,
+        timeout: float = 180.0,
+        meanwhile: Meanwhile | None = None,
     ) -> Later[float]:
-        """``gripper(position, max_effort)`` sent now; taking the answer waits for it."""
+        """``gripper(position, max_effort)`` sent now; taking the answer waits for it,
+        calling ``meanwhile`` (as ``execute``'s)."""
         command = GripperGoal(position=float(position), max_effort=float(max_effort))
         goal = GripperCommand.Goal(command=command)
-        result = self._action_later(self._gripper, goal, timeout, GRIPPER_ACTION)
+        result = self._action_later(self._gripper, goal, timeout, GRIPPER_ACTION, meanwhile)
         return Later(lambda: result().position, result.answered)
 
-    def _run_action(self, client: ActionClient, goal, timeout: float, name: str):
-        return self._action_later(client, goal, timeout, name)()
-
-    def _action_later(self, client: ActionClient, goal, timeout: float, name: str) -> Later[Any]:
+    def _action_later(
+        self,
+        client: ActionClient,
+        goal,
+        timeout: float,
+        name: str,
+        meanwhile: Meanwhile | None = None,
+    ) -> Later[Any]:
         """``goal`` sent now; taking the answer waits for its acceptance and result (only
-        that wait counts as ``name``'s activity: the arm may move meanwhile)."""
+        that wait counts as ``name``'s activity: the arm may move meanwhile), calling
+        ``meanwhile`` between polls."""
         if not client.wait_for_server(timeout_sec=10.0):
             raise CellError(f"{name} is not available")
         sent = client.send_goal_async(goal)
 
         def result():
             with self._spending(name):
-                handle = self._wait(lambda: sent.result() if sent.done() else None, 10.0, name)
+                handle = self._wait(
+                    lambda: sent.result() if sent.done() else None, 10.0, name, meanwhile
+                )
                 if not handle.accepted:
                     raise CellError(f"{name} refused the goal")
                 answer = handle.get_result_async()
-                done = self._wait(lambda: answer.result() if answer.done() else None, timeout, name)
+                done = self._wait(
+                    lambda: answer.result() if answer.done() else None, timeout, name, meanwhile
+                )
                 return done.result
 
         return Later(result, sent.done)
@@ -413,12 +441,16 @@ class CellClient:
         finally:
             self.simulated_by_activity[ACTIVITIES[name]] += self.sim_time - start
 
-    def _wait(self, poll, timeout: float, what: str):
+    def _wait(self, poll, timeout: float, what: str, meanwhile: Meanwhile | None = None):
+        """``poll()``'s first value but None, polled every 10 ms; ``meanwhile`` is called
+        between polls (on this thread: the caller's, not the spinner's)."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             value = poll()
             if value is not None:
                 return value
             self._watchdog()
+            if meanwhile is not None:
+                meanwhile()
             time.sleep(0.01)
         raise CellError(f"no answer from {what} within {timeout:.0f} s")

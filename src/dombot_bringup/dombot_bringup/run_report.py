@@ -23,7 +23,7 @@ from dombot_bringup.sections import VERDICTS, exit_status, worst_status
 
 LABEL_GAP = 0.008  # m between a domino's end and its number in the picture
 # the report's planned_ahead counts (``task.ahead``): requests sent, by when; answers
-PLANNED_AHEAD = ("descent", "let_go", "after_retreat", "used", "dropped")
+PLANNED_AHEAD = ("descent", "look_answered", "after_retreat", "used", "dropped")
 TRUTH_TOLERANCE = (3.0, 3.0)  # mm, deg: "standing where intended" in the simulator's truth
 
 
@@ -189,9 +189,10 @@ class RunReport:
     wall_s: float = 0.0
     node_restarts: dict[str, int] = field(default_factory=dict)  # nodes started again
     # first requests of a turn asked for before the last placement was checked (``ahead``):
-    # how many went out as the descent to the slot started, as the fingers let go and after
-    # the retreat, how many answers served their turn and how many were dropped (another
-    # request came, the arm stood elsewhere)
+    # how many went out as the descent to the slot started, the moment the pile look
+    # answered while the arm placed and retreated, and after the retreat, how many answers
+    # served their turn and how many were dropped (another request came, the arm stood
+    # elsewhere)
     planned_ahead: dict[str, int] = field(default_factory=lambda: dict.fromkeys(PLANNED_AHEAD, 0))
     # the pile dominoes out of every grasp's and push's reach when a slot last found
     # nothing to pick (empty once a later pick planned)

@@ -23,6 +23,7 @@ from dombot_bringup.task.cell import (
     Detections,
     GripperEvent,
     Later,
+    Meanwhile,
     Motion,
     PlacementCheck,
     PlaceRequest,
@@ -247,10 +248,15 @@ class SimCell:
 
     # ------------------------------------------------------------------ motion
     def execute(
-        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+        self,
+        trajectory: Trajectory,
+        goal_tolerance: float = 0.0,
+        path_tolerance: float = 0.0,
+        meanwhile: Meanwhile | None = None,
     ) -> Motion:
         """As sim_node's FollowJointTrajectory server: the trajectory checked and splined
-        from where the arm is, then followed until ``goal_monitor`` has its verdict."""
+        from where the arm is, then followed until ``goal_monitor`` has its verdict,
+        ``meanwhile`` called every tick."""
         world = self.world
         velocities = trajectory.velocities if len(trajectory.velocities) else None
         try:
@@ -277,6 +283,8 @@ class SimCell:
         monitor = TrajectoryMonitor(names, world.follow_trajectory(spline), tolerances)
         while True:
             self._advance(TICK, "motion")
+            if meanwhile is not None:
+                meanwhile()
             verdict = monitor.check(
                 world.time, world.joint_state().position[:7], world.desired_arm_state()[0]
             )
@@ -288,13 +296,21 @@ class SimCell:
             ok = verdict.outcome is Outcome.SUCCEEDED
             return Motion(ok, f"{verdict.message or 'goal reached'}; {figures}")
 
-    def gripper(self, position: float, max_effort: float) -> float:
-        return self.gripper_later(position, max_effort)()
+    def gripper(
+        self, position: float, max_effort: float, meanwhile: Meanwhile | None = None
+    ) -> float:
+        return self._gripper_later(position, max_effort, meanwhile)()
 
     def gripper_later(self, position: float, max_effort: float) -> Later[float]:
+        return self._gripper_later(position, max_effort, None)
+
+    def _gripper_later(
+        self, position: float, max_effort: float, meanwhile: Meanwhile | None
+    ) -> Later[float]:
         """As sim_node's GripperCommand server: the fingers move to ``position`` from now
         (while the arm runs a trajectory too); taking the answer advances until they reach
-        it, stall on something at the force limit, or time out: where they stopped [m]."""
+        it, stall on something at the force limit, or time out: where they stopped [m]
+        (``meanwhile`` called every tick)."""
         world = self.world
         try:
             world.command_gripper(position, max_effort)
@@ -306,6 +322,8 @@ class SimCell:
         def stopped() -> float:
             while True:
                 self._advance(TICK, "gripper")
+                if meanwhile is not None:
+                    meanwhile()
                 state = world.gripper_state()
                 verdict = monitor.check(
                     world.time, state.opening, state.opening_rate, state.force, state.force_limit

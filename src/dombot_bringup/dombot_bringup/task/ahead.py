@@ -2,13 +2,15 @@
 is checked, and its answer is used when the next attempt makes that very request with
 the arm where the plan starts.
 
-The request goes out as the descent to the slot starts or, failing that, as the fingers
-let go of the domino there (``ask_early``), starting where the retreat still to run ends
-(PlanPlace's start_state): the planner works on it while the arm places and retreats and
-perception checks the placement. That needs the look at the pile asked for as the
-carry ended above the slot (before the hand check, ``placing.look_while_placing``) to
-have answered already; it is never waited for there (the arm would stand still
-meanwhile), the request then goes out after the retreat (``ask``), from where the arm
+The request goes out as the descent to the slot starts or, failing that, the moment the
+look at the pile answers while the arm descends, lets go of the domino and retreats
+(``ask_early``, polled on the job's own thread while each of those motions runs, as
+the cell waits for its end: ``placing.execute``, ``Cell.execute``'s meanwhile), starting
+where the retreat ends (PlanPlace's start_state): the planner works on it while the arm
+places and retreats and perception checks the placement. That needs the look asked for
+as the carry ended above the slot (before the hand check, ``placing.look_while_placing``)
+to have answered; it is never waited for (the arm would stand still meanwhile): when it
+answers only after the retreat, the request goes out then (``ask``), from where the arm
 stands (the planner reads /joint_states).
 
 Why an answer asked for so early is right when it is used:
@@ -19,7 +21,7 @@ Why an answer asked for so early is right when it is used:
   another slot comes next) the turn's request differs and the answer is dropped; a
   domino put back on the pile drops it at once (``placing.put_back``);
 * the plan starts where the arm stands: any motion after the request but the descent,
-  release and retreat it was asked from drops the answer (``drop``, as
+  release and retreat it was asked during drops the answer (``drop``, as
   ``placing.execute`` starts, or in a put back), and when the turn starts the arm must
   stand within START_TOLERANCE of the plan's start (a retreat that stopped short left it
   elsewhere: dropped).
@@ -59,17 +61,18 @@ class PlanAhead:
 def ask_early(
     job: Job, index: int, request_for: RequestFor, when: str, start: Mapping[str, float]
 ) -> None:
-    """As slot ``index``'s domino starts down to it or is let go there (``when``, counted
-    by that name): the next slot's first request (``request_for``), planned from ``start``
-    (where the retreat ends), unless it went out already, if the look at the pile made
-    while placing has answered."""
+    """As slot ``index``'s domino starts down to it, or while it is placed there and the
+    arm retreats (``when``, counted by that name): the next slot's first request
+    (``request_for``), planned from ``start`` (where the retreat ends), unless it went out
+    already, if the look at the pile made while placing has answered. Cheap until then:
+    it is polled while the arm moves."""
     look = job.pile_look
     if job.ahead is None and look is not None and look.answered():
         send(job, index, request_for, start, when)
 
 
 def ask(job: Job, index: int, request_for: RequestFor) -> None:
-    """After the retreat, unless it went out as the fingers let go: the next slot's first
+    """After the retreat, unless it went out while the arm placed: the next slot's first
     request, planned from where the arm stands."""
     if job.ahead is None:
         send(job, index, request_for, None, AFTER_RETREAT)

@@ -44,7 +44,7 @@ from dombot_bringup.task.picking import (
     is_among,
     place_request,
 )
-from dombot_bringup.task.placing import REGRASP_PREFIX, Hold, Ran, execute
+from dombot_bringup.task.placing import DESCENT, REGRASP_PREFIX, Hold, Ran, execute
 from dombot_bringup.task.records import nearest_truth, pick_record, truth, write_pick_record
 from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
@@ -382,10 +382,11 @@ def pick(
 def ask_ahead(
     job: Job, index: int, candidate: Candidate, when: str, start: Mapping[str, float]
 ) -> None:
-    """As ``candidate`` starts down to slot ``index`` or is let go there (``when``): the
-    next slot's first pick asked for ahead, from ``start``, the arm's joints where the plan
-    ends."""
-    carried_away(job, candidate)  # no longer where it lay, for that request
+    """As ``candidate`` starts down to slot ``index``, or while it is placed there
+    (``when``): the next slot's first pick asked for ahead, from ``start``, the arm's
+    joints where the plan ends. Polled while the arm places: cheap but at the descent."""
+    if when == DESCENT:
+        carried_away(job, candidate)  # no longer where it lay, for that request
     ahead.ask_early(job, index, first_request, when, start)
 
 

@@ -214,6 +214,12 @@ def planner_strike_request(
     )
 
 
+# What a caller does while it waits for a motion to end: called again and again until it
+# ends, on the caller's own thread (the job's state as the caller left it); it neither
+# moves the arm or the fingers nor waits long.
+Meanwhile = Callable[[], None]
+
+
 @dataclass(frozen=True)
 class Motion:
     """How a trajectory ran: ``error`` says why it did not reach its end."""
@@ -262,16 +268,24 @@ class Cell(Protocol):
     def plan_strike(self, request: StrikeRequest) -> Plan: ...
 
     def execute(
-        self, trajectory: Trajectory, goal_tolerance: float = 0.0, path_tolerance: float = 0.0
+        self,
+        trajectory: Trajectory,
+        goal_tolerance: float = 0.0,
+        path_tolerance: float = 0.0,
+        meanwhile: Meanwhile | None = None,
     ) -> Motion:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
         point (0: the controller's default). With ``path_tolerance``, a joint that falls
         that far [rad] behind the trajectory aborts it at once, the arm held where it is
-        (something pressed against: 0, not checked)."""
+        (something pressed against: 0, not checked). ``meanwhile`` is called now and
+        then until it has ended (``Meanwhile``)."""
         ...
 
-    def gripper(self, position: float, max_effort: float) -> float:
-        """Move the fingers to the opening ``position`` [m]; where they stopped [m]."""
+    def gripper(
+        self, position: float, max_effort: float, meanwhile: Meanwhile | None = None
+    ) -> float:
+        """Move the fingers to the opening ``position`` [m]; where they stopped [m].
+        ``meanwhile`` as ``execute``'s."""
         ...
 
     def gripper_later(self, position: float, max_effort: float) -> Later[float]:

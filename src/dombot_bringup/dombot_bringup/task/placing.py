@@ -8,6 +8,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
+from functools import partial
 
 import numpy as np
 
@@ -16,6 +17,7 @@ from dombot_bringup.task.cell import (
     CellError,
     GripperEvent,
     Later,
+    Meanwhile,
     PlaceRequest,
     Pose,
     Seen,
@@ -34,8 +36,9 @@ HOLD_CHECK_SEGMENT = "transfer"
 OPEN_SEGMENT = "open_gripper"  # the fingers open for the approach that follows
 PLACE_SEGMENT = "place"  # the fingers let go of the domino on its slot once it ends
 REGRASP_PREFIX = "regrasp_"  # the planner's turn in place before the pick proper
-# when ``Hold.ask_ahead`` is called: as the descent to the slot starts, as the fingers let go
-DESCENT, LET_GO = "descent", "let_go"
+# when ``Hold.ask_ahead`` is called: as the descent to the slot starts; then while the arm
+# descends, lets go and retreats (each motion's ``meanwhile``), for the look to answer
+DESCENT, LOOK_ANSWERED = "descent", "look_answered"
 # What the in-hand check says when it cannot measure the held domino.
 IN_HAND_WORDS = {
     Seen.FALLEN: "no upright domino fitted below the pads",
@@ -67,9 +70,9 @@ class Execution:
 class Hold:
     """A domino being carried to slot ``index``: where the plan holds it above the slot,
     where it was picked (a fallen run domino is no obstacle there any more), and what to
-    do as its descent starts and as the fingers let go of it there (the next pick asked
-    ahead), given which of the two (DESCENT, LET_GO) and where the arm's joints end
-    (name → rad)."""
+    do as its descent starts and, from then on, while the arm waits for the descent, the
+    release and the retreat to end (the next pick asked ahead), given when (DESCENT,
+    LOOK_ANSWERED) and where the arm's joints end (name → rad)."""
 
     index: int
     held_above: Pose
@@ -101,8 +104,10 @@ def execute(
     is looked at in the hand where "transfer" ends above its slot (``in_hand``); at a slot
     the pile cameras see past, the next look at the pile is asked for just before it
     (``look_while_placing``; perception answers the hand check beside it, not after it),
-    and ``hold.ask_ahead`` is told where the plan ends as the descent starts and as the
-    fingers let go of the domino on the slot.
+    and ``hold.ask_ahead`` is told where the plan ends as the descent starts and again and
+    again while the descent, the release and the retreat run (their ``meanwhile``: on this
+    thread, between polls for their end), so the next pick goes out the moment that look
+    answers.
     The descent to the place stops as soon as a joint falls ``place_path_tolerance``
     behind it (the held domino or a pad pressing on something): the arm backs up the
     line, still holding the domino, and puts it back on the pile along the transfers it
@@ -114,6 +119,7 @@ def execute(
     job.still_since = job.let_go_at = job.pile_look = None
     cell = job.cell
     opening: Later[float] | None = None  # the fingers opening while the approach moves
+    asking: Meanwhile | None = None  # from the descent on: the next pick, once looked
     for index, segment in enumerate(segments):
         approach = is_approach(segment)
         if hold is not None and segment.label == PLACE_SEGMENT:
@@ -121,11 +127,12 @@ def execute(
                 look_while_placing(job)  # no transfer before it
             if hold.ask_ahead is not None:
                 hold.ask_ahead(DESCENT, end_of(segments))
+                asking = partial(hold.ask_ahead, LOOK_ANSWERED, end_of(segments))
         if moves(segment):
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             placing = segment.label == PLACE_SEGMENT
             path = job.settings.place_path_tolerance if placing else 0.0
-            motion = cell.execute(segment.trajectory, tolerance, path)
+            motion = cell.execute(segment.trajectory, tolerance, path, asking)
             if opening is not None:
                 job.fingers, opening = opening(), None
             if not motion.ok:
@@ -153,11 +160,9 @@ def execute(
             if opens_while_moving(job, segment, segments[index + 1 : index + 2]):
                 opening = cell.gripper_later(segment.gripper_position, 0.0)
             else:
-                grip(job, segment.gripper_position, 0.0)
+                grip(job, segment.gripper_position, 0.0, asking)
             if segment.label == PLACE_SEGMENT:
                 job.let_go_at = cell.sim_time
-                if hold is not None and hold.ask_ahead is not None:
-                    hold.ask_ahead(LET_GO, end_of(segments))
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
             if pile_in_view(job, hold.index):
                 look_while_placing(job)
@@ -270,9 +275,9 @@ def look_while_placing(job: Job) -> None:
         log(f"perception while placing: {error}")
 
 
-def grip(job: Job, position: float, max_effort: float) -> float:
+def grip(job: Job, position: float, max_effort: float, meanwhile: Meanwhile | None = None) -> float:
     """``cell.gripper``, remembering where the fingers stopped (``job.fingers``)."""
-    job.fingers = job.cell.gripper(position, max_effort)
+    job.fingers = job.cell.gripper(position, max_effort, meanwhile)
     return job.fingers
 
 

@@ -79,9 +79,10 @@ class ArmJobSettings:
     # the hand check, which perception serves beside it) and made while the arm holds the
     # domino there and places it.
     look_while_placing: float = 0.32  # m
-    # Ask for the next slot's first pick as a domino starts down to its slot or is let go
-    # (``ahead``): the planner then plans on the other core while the arm places and
-    # retreats and perception checks the placement. False: asked once the check answered.
+    # Ask for the next slot's first pick as a domino starts down to its slot, or once the
+    # pile look answers while it is placed (``ahead``): the planner then plans on the other
+    # core while the arm places and retreats and perception checks the placement. False:
+    # asked once the check answered.
     plan_ahead: bool = True
     # A pick whose every grasp the planner would refuse before any IK (the pads' path on
     # seen points, the pads beyond its pile_nudge in a pile domino, or the wrist beyond the

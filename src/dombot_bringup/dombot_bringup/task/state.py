@@ -120,7 +120,7 @@ class Job:
     # commanded yet, e.g. as poured at the start).
     fingers: float | None = None
     # The slot whose turn comes next if the one being built stands (``loop.build``), and
-    # its first request sent as the fingers let go or after the retreat (``ahead``).
+    # its first request sent while the arm placed or after the retreat (``ahead``).
     upcoming: int | None = None
     ahead: PlanAhead | None = None
     pictures: dict[str, np.ndarray] = field(default_factory=dict)  # for the report
