@@ -23,7 +23,7 @@ Exit status: 0 the run was built and knocked down; 3 partial: slots that could n
 filled were left empty (report: ``empty_slots`` and why), the rest was built and knocked
 down section by section, every domino seen down; 1 otherwise (nothing stood, a strike
 failed or left dominoes standing, a node died); with ``--cycles``, the worst of the
-cycles'; 2 layout or options refused; 130 Ctrl-C.
+cycles'; 2 layout or options refused; 130 Ctrl-C or SIGTERM (the nodes stopped first).
 """
 
 from __future__ import annotations
