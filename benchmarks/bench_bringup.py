@@ -24,6 +24,7 @@ import argparse
 import json
 import os
 import shlex
+import signal
 import subprocess
 import sys
 import threading
@@ -34,6 +35,7 @@ import numpy as np
 from ament_index_python.packages import get_package_prefix
 
 from dombot_bringup.bringup import parse_args
+from dombot_bringup.process_group import end_process
 
 CASES = {
     "arc10": ["--layout", "arc", "--count", "10", "--pile", "30"],
@@ -72,6 +74,9 @@ DEFAULT_CASES = ("arc10", "arc10_cycles5", "s_curve20")
 SEEDS = (1, 2, 3)
 CYCLE_TIMEOUT = 3600.0  # s of wall time per cycle (a --cycles run has as many) ...
 WALL_PER_DOMINO = 240.0  # ... or per domino of a cycle, if more (30 dominoes: 7200 s)
+# s a bring-up told to stop has for its nodes (SIGINT, SIGTERM, SIGKILL 5 s apart) before
+# it is killed itself
+STOP_GRACE = 60.0
 
 
 def run_timeout(arguments: list[str]) -> float:
@@ -91,14 +96,15 @@ def run_logged(
     command: list[str], log_path: Path, name: str, timeout: float
 ) -> tuple[int, str, bool]:
     """Run the bring-up, its output into ``log_path`` and its own progress lines (not the
-    nodes') onto stderr as they come; killed after ``timeout`` s. Exit code, last lines,
-    and whether the limit killed it."""
+    nodes') onto stderr as they come; stopped after ``timeout`` s, or when the benchmark
+    is interrupted (Ctrl-C, SIGTERM): SIGTERM, on which the bring-up stops its nodes, and
+    SIGKILL STOP_GRACE s later. Exit code, last lines, and whether the limit stopped it."""
     lines: list[str] = []
     killed = threading.Event()
 
     def kill(process: subprocess.Popen) -> None:
         killed.set()
-        process.kill()
+        end_process(process, STOP_GRACE)
 
     with (
         log_path.open("w") as log_file,
@@ -108,12 +114,17 @@ def run_logged(
     ):
         watchdog = threading.Timer(timeout, kill, args=(process,))
         watchdog.start()
-        for line in process.stdout:
-            log_file.write(line)
-            lines = [*lines[-19:], line]
-            if line.startswith("[bringup]"):
-                log(f"{name}: {line.rstrip()}")
-        watchdog.cancel()
+        try:
+            for line in process.stdout:
+                log_file.write(line)
+                lines = [*lines[-19:], line]
+                if line.startswith("[bringup]"):
+                    log(f"{name}: {line.rstrip()}")
+        except BaseException:  # not left running, nor its nodes
+            end_process(process, STOP_GRACE)
+            raise
+        finally:
+            watchdog.cancel()
     return process.returncode, "".join(lines), killed.is_set()
 
 
@@ -366,6 +377,8 @@ def main() -> None:
         "--ledger-only", action="store_true", help="run nothing: report the ledger's runs"
     )
     args = parser.parse_args()
+    # SIGTERM as Ctrl-C: the running bring-up is stopped (run_logged), not left behind
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     if args.ledger_only and args.ledger is None:
         parser.error("--ledger-only needs --ledger")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -406,4 +419,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:
+        print("bench_bringup: interrupted; the bring-up was stopped", file=sys.stderr)
+        sys.exit(130)

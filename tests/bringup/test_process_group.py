@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -110,6 +112,75 @@ def test_nodes_do_not_outlive_a_killed_supervisor(tmp_path) -> None:
     while _alive(child):
         assert time.monotonic() < deadline, "the node outlived its killed supervisor"
         time.sleep(0.05)
+
+
+STUBBORN = (
+    "import signal, time\n"
+    "for s in (signal.SIGINT, signal.SIGTERM): signal.signal(s, signal.SIG_IGN)\n"
+    "print('ready', flush=True)\nwhile True: time.sleep(0.1)"
+)
+# the bring-up's shape: nodes started, rclpy initialised, the job waiting for an answer
+BRINGUP_LIKE = """
+import sys, time
+import rclpy
+from dombot_bringup.process_group import ProcessGroup
+try:
+    with ProcessGroup(stop_timeout=1.0) as group:
+        children = [group.start('sleeper', [sys.executable, '-c', {sleeper!r}]),
+                    group.start('stubborn', [sys.executable, '-c', {stubborn!r}])]
+        rclpy.init()
+        group.wait_until(lambda: all('ready' in c.tail for c in children), 60, 'ready')
+        pids = ' '.join(str(c.process.pid) for c in children)
+        open({pid_file!r}, 'w').write(pids)
+        time.sleep(600)
+except KeyboardInterrupt:
+    sys.exit(130)
+"""
+
+
+@pytest.mark.parametrize(
+    ("to", "signum"),
+    [
+        ("supervisor", signal.SIGTERM),
+        ("supervisor", signal.SIGINT),
+        ("group", signal.SIGTERM),
+        ("group and supervisor", signal.SIGTERM),  # `ros2 run` forwards the group's
+    ],
+)
+def test_a_signal_to_the_supervisor_stops_every_node(tmp_path, to: str, signum: int) -> None:
+    """As the bring-up: nodes in sessions of their own (a kill of the bring-up's process
+    group does not reach them), rclpy initialised (its SIGTERM handler alone only shut its
+    context down), the job waiting for an answer; one node ignores SIGINT and SIGTERM.
+    A SIGTERM (CI, kill) or SIGINT (Ctrl-C) stops them all, the stubborn one with SIGKILL."""
+    pid_file, output = tmp_path / "children.pid", tmp_path / "supervisor.out"
+    supervisor = BRINGUP_LIKE.format(sleeper=SLEEPER, stubborn=STUBBORN, pid_file=str(pid_file))
+    with output.open("w") as sink:
+        process = subprocess.Popen(python(supervisor), stdout=sink, start_new_session=True)
+    children: list[int] = []
+    try:
+        deadline = time.monotonic() + 60
+        while not pid_file.exists() or not pid_file.read_text():
+            assert process.poll() is None, output.read_text()
+            assert time.monotonic() < deadline, "the supervisor never started its nodes"
+            time.sleep(0.05)
+        children = [int(pid) for pid in pid_file.read_text().split()]
+        if "group" in to:
+            os.killpg(process.pid, signum)
+        if "supervisor" in to:
+            process.send_signal(signum)
+        assert process.wait(timeout=120) == 130, output.read_text()
+        deadline = time.monotonic() + 30
+        while any(_alive(child) for child in children):
+            assert time.monotonic() < deadline, f"nodes outlived the stop: {output.read_text()}"
+            time.sleep(0.05)
+    finally:  # a failed test leaves nothing running (the stubborn one ignores pdeathsig's)
+        for pid in [process.pid, *children]:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        process.wait()
+    lines = output.read_text().splitlines()
+    assert f"[bringup] {signal.Signals(signum).name}: stopping the nodes" in lines
+    assert "[bringup] stubborn still running after 1 s: sending SIGKILL" in lines
 
 
 def _alive(pid: int) -> bool:

@@ -23,6 +23,7 @@ from dombot_msgs.msg import DominoDetection, DominoDetectionArray
 from dombot_msgs.srv import CheckPlacement, DetectDominoes
 from dombot_perception.domino_model import orientation_error
 from dombot_perception.perception_messages import CameraInput
+from dombot_perception.perception_parameters import PerceptionParameters
 from support.camera_messages import image_messages
 from support.perception_scenes import PILE_CENTRE, flat
 from support.ros_processes import call_service, installed_node, spin_until
@@ -233,9 +234,12 @@ def test_a_placement_check_is_answered_while_a_detect_waits(cameras: Cameras) ->
     cameras' frames keep an old stamp, so a detect for frames from later waits as long as
     they do; the check, on camera_2 from now on (subscribed for it: its frames come in on
     a thread of their own), answers meanwhile; then the pile's stamps move on and the
-    detect answers too."""
+    detect answers too. The detect waits for them as long as it takes here, however loaded
+    the machine (``fresh_frame_timeout``, 10 s by default)."""
     continuous = ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=False)
     assert cameras.set_parameter("continuous", continuous).successful
+    patient = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=600.0)
+    assert cameras.set_parameter("fresh_frame_timeout", patient).successful
     old = cameras.node.get_clock().now()
     cameras.held_stamps = dict.fromkeys(("camera_0", "camera_1"), old.to_msg())
     try:
@@ -262,6 +266,8 @@ def test_a_placement_check_is_answered_while_a_detect_waits(cameras: Cameras) ->
         cameras.held_stamps = {}
         continuous.bool_value = True
         cameras.set_parameter("continuous", continuous)
+        patient.double_value = PerceptionParameters().fresh_frame_timeout
+        cameras.set_parameter("fresh_frame_timeout", patient)
     assert spin_until(cameras.node, lambda: len(watched(cameras)) == len(cameras.views), 30)
 
 
@@ -319,6 +325,10 @@ def test_a_camera_that_stops_publishing_is_left_out_with_a_warning(cameras: Came
         ("backend", ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="sam")),
         ("min_coverage", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=2.0)),
         ("rate", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-1.0)),
+        (
+            "fresh_frame_timeout",
+            ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.0),
+        ),
     ],
 )
 def test_bad_parameters_are_rejected_and_the_node_keeps_serving(

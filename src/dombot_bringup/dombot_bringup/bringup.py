@@ -23,7 +23,7 @@ Exit status: 0 the run was built and knocked down; 3 partial: slots that could n
 filled were left empty (report: ``empty_slots`` and why), the rest was built and knocked
 down section by section, every domino seen down; 1 otherwise (nothing stood, a strike
 failed or left dominoes standing, a node died); with ``--cycles``, the worst of the
-cycles'; 2 layout or options refused; 130 Ctrl-C.
+cycles'; 2 layout or options refused; 130 Ctrl-C or SIGTERM (the nodes stopped first).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from dombot_bringup import layouts
 from dombot_bringup.arm_job import run_arm_job
 from dombot_bringup.layer_job import PathRejectedError, run_layer_job
-from dombot_bringup.process_group import NodeDiedError
+from dombot_bringup.process_group import NodeDiedError, say
 from dombot_bringup.recording import FOXGLOVE_MISSING, foxglove_available
 from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.settings import ArmJobSettings
@@ -68,7 +68,8 @@ def add_layout_options(group: argparse._ArgumentGroup | argparse.ArgumentParser)
         "--count",
         type=int,
         default=10,
-        help="dominoes in the run (default 10; circle: as many as fit around its --radius)",
+        help="dominoes in the run (default 10; circle: not used, as many as fit around its "
+        "--radius at --spacing)",
     )
     group.add_argument("--spacing", type=float, help="centre spacing [m] (default 60%% of height)")
     group.add_argument("--start", type=float, nargs=2, default=(0.45, 0.0), metavar=("X", "Y"))
@@ -280,7 +281,9 @@ def make_layout(args: argparse.Namespace, area: layouts.BuildArea) -> list[layou
     center = area.middle if args.center is None else tuple(args.center)
     if args.layout == "circle":
         radius = 0.1 if args.radius is None else args.radius
-        return layouts.circle(center, radius, args.spacing)
+        placements = layouts.circle(center, radius, args.spacing)
+        say(circle_count(radius, args.spacing, len(placements), args.count))
+        return placements
     if args.layout == "spiral":
         return layouts.spiral(center, args.inner_radius, args.pitch, args.count, args.spacing)
     if args.layout == "s-curve":
@@ -290,6 +293,18 @@ def make_layout(args: argparse.Namespace, area: layouts.BuildArea) -> list[layou
     if args.csv is None:
         raise layouts.LayoutError("--layout csv needs --csv PATH")
     return layouts.from_csv(args.csv, args.count, args.spacing)
+
+
+def circle_count(radius: float, spacing: float | None, count: int, asked: int) -> str:
+    """The line that says how many dominoes a circle of ``radius`` takes (``count``) and
+    why, and that ``--count`` (``asked``) does not set it when it differs."""
+    line = (
+        f"circle: {count} dominoes, as many as fit around its radius of {radius:.3f} m at a "
+        f"spacing of {layouts.resolve_spacing(spacing) * 1e3:.1f} mm, one gap left for the strike"
+    )
+    if asked != count:
+        line += f"; --count {asked} is not used (a circle's count follows --radius and --spacing)"
+    return line
 
 
 def cycle_layouts(

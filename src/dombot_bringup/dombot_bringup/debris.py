@@ -13,8 +13,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.math import RigidTransform
-from scipy.spatial import ConvexHull
 
+from dombot_bringup.footprints import footprints_meet
 from dombot_bringup.layouts import DOMINO_WIDTH, DominoPlacement
 from dombot_description import domino_corners
 from dombot_description.pusher import MAX_SWEEP_DISTANCE as MAX_SWEEP
@@ -76,15 +76,3 @@ def carried_along(
             return None
         carried.append(n)
     return carried
-
-
-def footprints_meet(a: np.ndarray, b: np.ndarray, gap: float) -> bool:
-    """Whether the convex hulls of points ``a`` and ``b`` (N×2) come within ``gap`` of
-    each other: no edge normal of either separates them by more (separating axes; near
-    two corners it errs towards meeting)."""
-    for points, other in ((a, b), (b, a)):
-        # each edge of the hull: normal · p + offset <= 0 inside
-        for normal_x, normal_y, offset in ConvexHull(points, qhull_options="QJ").equations:
-            if np.all(other @ [normal_x, normal_y] + offset > gap):
-                return False
-    return True

@@ -20,6 +20,8 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+from dombot_bringup.footprints import footprints_meet
+
 DOMINO_LENGTH = 0.048  # m, standing height
 DOMINO_WIDTH = 0.024  # m, across the run
 DOMINO_THICKNESS = 0.0075  # m, along the run
@@ -343,27 +345,12 @@ def _footprint_corners(placement: DominoPlacement) -> np.ndarray:
     return np.array([centre + a + b for a in (along, -along) for b in (across, -across)])
 
 
-def _footprints_overlap(a: np.ndarray, b: np.ndarray) -> bool:
-    """Separating-axis test for two convex quadrilaterals."""
-    for polygon in (a, b):
-        hull = polygon[[0, 1, 3, 2]]
-        for i in range(4):
-            edge = hull[(i + 1) % 4] - hull[i]
-            normal = np.array([-edge[1], edge[0]])
-            pa, pb = a @ normal, b @ normal
-            if pa.max() < pb.min() or pb.max() < pa.min():
-                return False
-    return True
-
-
 def _check_overlaps(placements: list[DominoPlacement]) -> None:
     centres = np.array([[p.x, p.y] for p in placements])
     reach = math.hypot(DOMINO_WIDTH, DOMINO_THICKNESS)
     pairs = sorted(cKDTree(centres).query_pairs(reach))
     for i, j in pairs:
-        if _footprints_overlap(
-            _footprint_corners(placements[i]), _footprint_corners(placements[j])
-        ):
+        if footprints_meet(_footprint_corners(placements[i]), _footprint_corners(placements[j])):
             raise LayoutError(
                 f"domino {placements[j].index} at ({placements[j].x:.3f}, {placements[j].y:.3f}) m "
                 f"overlaps domino {placements[i].index}"

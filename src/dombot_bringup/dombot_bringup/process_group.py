@@ -5,7 +5,11 @@ so the bring-up starts its nodes with this small supervisor: each child gets its
 own process group, its output is forwarded line by line with a ``[name]`` prefix
 (the bring-up's own lines, ``say``, are ``[bringup]``; no two lines interleave),
 the last lines are kept for the report when a node dies, and stopping sends
-SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses. A process
+SIGINT, then SIGTERM, then SIGKILL, the escalation ros2 launch uses. Inside ``with
+ProcessGroup()`` a SIGINT or SIGTERM to the bring-up raises KeyboardInterrupt, so the
+block unwinds and its nodes are stopped (in their own sessions, a signal to the
+bring-up's process group does not reach them; rclpy's own SIGTERM handler would only
+shut its context down, and the job waited for answers for minutes). A process
 started ``restartable`` (a stateless server: perception, planner) is started again
 when it dies, like launch's ``respawn``; the caller sees its ``restarts`` count grow
 and sends again what it had asked of it. On Linux each
@@ -24,23 +28,27 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import FrameType
 from typing import TextIO
 
 TAIL_LINES = 20
 MAX_RESTARTS = 3  # per process: one that keeps dying is reported, not restarted forever
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)  # Ctrl-C; a CI's or a user's kill
 BRINGUP = "bringup"  # the name on the bring-up's own lines, beside its nodes' names
-# one line at a time into the output, from the forwarding threads and the bring-up alike
-_LINE_LOCK = threading.Lock()
+# one line at a time into the output, from the forwarding threads and the bring-up alike;
+# reentrant: a signal handler's line may come while the main thread writes one
+_LINE_LOCK = threading.RLock()
 
 
 def write_line(name: str, line: str, sink: TextIO | None = None) -> None:
     """``line`` as ``[name] line`` into ``sink`` (default: the current sys.stdout), whole."""
     sink = sys.stdout if sink is None else sink
-    with _LINE_LOCK:
+    # the reader of the output gone (a killed benchmark): the line is lost, not the stop
+    with _LINE_LOCK, contextlib.suppress(BrokenPipeError):
         sink.write(f"[{name}] {line}\n")
         sink.flush()
 
@@ -61,6 +69,32 @@ def resident_mb(pid: int | str = "self") -> float | None:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024.0  # kB
     return None
+
+
+@contextlib.contextmanager
+def handling(handler: Callable[[int, FrameType | None], None]) -> Iterator[None]:
+    """``handler`` for SIGINT and SIGTERM while the block runs, the previous handlers
+    after; nothing off the main thread (Python runs handlers there only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {signum: signal.signal(signum, handler) for signum in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for signum, old in previous.items():
+            if old is not None:  # None: a handler not set from Python (rclpy's, in C)
+                signal.signal(signum, old)
+
+
+def end_process(process: subprocess.Popen, grace: float) -> int:
+    """Stop ``process``: SIGTERM, then SIGKILL after ``grace`` s; its exit code."""
+    process.terminate()
+    try:
+        return process.wait(timeout=grace)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.wait()
 
 
 def _die_with_parent() -> None:
@@ -149,6 +183,7 @@ class ProcessGroup:
         self._sink = sink
         self._stop_timeout = stop_timeout
         self.processes: list[ManagedProcess] = []
+        self._interrupted = False  # a SIGINT or SIGTERM is unwinding the with block
 
     def start(
         self,
@@ -207,20 +242,49 @@ class ProcessGroup:
             time.sleep(0.1)
 
     def stop(self) -> dict[str, int | None]:
-        """Stop every process (SIGINT → SIGTERM → SIGKILL); return their exit codes."""
-        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-            alive = [p for p in self.processes if p.returncode is None]
-            if not alive:
-                break
-            for managed in alive:
-                managed.signal(signum)
-            deadline = time.monotonic() + self._stop_timeout
-            for managed in alive:
-                managed.wait(timeout=max(0.0, deadline - time.monotonic()))
+        """Stop every process (SIGINT → SIGTERM → SIGKILL, ``stop_timeout`` s apart; each
+        step past SIGINT logged); return their exit codes. A SIGINT or SIGTERM meanwhile
+        is logged, not obeyed: it would cut the escalation short."""
+        with handling(self._already_stopping):
+            for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+                alive = [p for p in self.processes if p.returncode is None]
+                if not alive:
+                    break
+                if signum != signal.SIGINT:
+                    names = ", ".join(managed.name for managed in alive)
+                    say(
+                        f"{names} still running after {self._stop_timeout:.0f} s: "
+                        f"sending {signal.Signals(signum).name}",
+                        self._sink,
+                    )
+                for managed in alive:
+                    managed.signal(signum)
+                deadline = time.monotonic() + self._stop_timeout
+                for managed in alive:
+                    managed.wait(timeout=max(0.0, deadline - time.monotonic()))
         return {p.name: p.returncode for p in self.processes}
 
+    def _interrupt(self, signum: int, frame: FrameType | None) -> None:
+        """SIGINT or SIGTERM to the bring-up: unwind the ``with`` block, which stops the
+        nodes; once only (``ros2 run`` forwards a group's SIGTERM as a second one, which
+        must not cut the unwinding short before the stop)."""
+        if self._interrupted:
+            self._already_stopping(signum, frame)
+            return
+        self._interrupted = True
+        say(f"{signal.Signals(signum).name}: stopping the nodes", self._sink)
+        raise KeyboardInterrupt
+
+    def _already_stopping(self, signum: int, _frame: FrameType | None) -> None:
+        say(f"{signal.Signals(signum).name}: already stopping the nodes", self._sink)
+
     def __enter__(self) -> ProcessGroup:
+        self._handlers = contextlib.ExitStack()
+        self._handlers.enter_context(handling(self._interrupt))
         return self
 
     def __exit__(self, *exc_info: object) -> None:
-        self.stop()
+        try:
+            self.stop()
+        finally:
+            self._handlers.close()

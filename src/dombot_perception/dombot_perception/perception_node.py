@@ -70,6 +70,7 @@ from dombot_perception.perception_parameters import (
     START_UP_PARAMETERS,
     PerceptionParameters,
     configured_pipeline,
+    default_settings,
     optical_pose,
 )
 from dombot_perception.pipeline import PipelineResult, build_pipeline
@@ -81,17 +82,14 @@ from dombot_perception.transforms import TransformBuffer
 SYNC_WAIT = 1.0  # s to wait for a matching pair when a loaded CPU delivered one stream late
 # s (wall) to wait for a camera's first frames after subscribing (discovery, first render)
 FIRST_FRAME_WAIT = 10.0
-# s (wall) to wait for frames stamped after a request's not_before: on a loaded CPU the
-# images of a frame arrive well after the joint states that tell the caller its time has
-# come (a stale frame from before a placement once made a standing domino MISSING)
-FRESH_WAIT = 10.0
 WARNING_REPEAT = 10.0  # s: a warning repeated request after request is logged once per this
 # s a request's not_before may lie after the newest frame; later ones are refused at once
-# (a frame that far ahead does not come within FRESH_WAIT, even from a fast simulation)
+# (a frame that far ahead does not come within fresh_frame_timeout, even from a fast
+# simulation)
 MAX_NOT_BEFORE_AHEAD = 60.0
 # a detect, a placement check and the camera inputs they wait for, at once (each request
 # waits for frames on its own thread: with one thread fewer the inputs starve until the
-# request's FRESH_WAIT runs out)
+# request's fresh_frame_timeout runs out)
 EXECUTOR_THREADS = 3
 # tf2_ros's listener QoS: /tf reliable, volatile; /tf_static reliable, transient local
 TF_QOS = QoSProfile(depth=100)
@@ -123,6 +121,7 @@ class PerceptionNode(Node):
             self.pipeline = configured_pipeline(self.scenario, self.settings)
         except (ValueError, SegmenterError, OSError, RuntimeError) as error:
             self.get_logger().error(f"bad parameters ({error}); using the default settings")
+            self.settings = default_settings(self.settings)
             self.pipeline = build_pipeline(self.scenario)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -354,7 +353,11 @@ class PerceptionNode(Node):
             )
         tolerance = float(self.settings.sync_tolerance)
         pair = camera.latest_pair(tolerance, not_before)
-        deadline = time.monotonic() + (SYNC_WAIT if math.isinf(not_before) else FRESH_WAIT)
+        # frames stamped after not_before: on a loaded CPU the images of a frame arrive well
+        # after the joint states that tell the caller its time has come (a stale frame from
+        # before a placement once made a standing domino MISSING)
+        wait = SYNC_WAIT if math.isinf(not_before) else float(self.settings.fresh_frame_timeout)
+        deadline = time.monotonic() + wait
         while pair is None and time.monotonic() < deadline and self.context.ok():
             time.sleep(0.02)  # the input callbacks run on another executor thread
             pair = camera.latest_pair(tolerance, not_before)

@@ -53,6 +53,11 @@ class PerceptionParameters:
     continuous: bool = described(True, "process new frames at 'rate' without being asked")
     rate: float = described(1.0, "continuous processing rate [Hz]")
     max_frame_age: float = described(5.0, "frames older than this [s] count as a stopped camera")
+    fresh_frame_timeout: float = described(
+        10.0,
+        "[s] (wall) a request with not_before waits this long for frames stamped after it: on "
+        "a loaded CPU the images arrive well after the joint states that told the caller",
+    )
     sync_tolerance: float = described(0.05, "colour and depth stamps may differ by this [s]")
     max_fit_error: float = described(
         0.0015, "reject boxes whose RMS point distance exceeds this [m]"
@@ -80,6 +85,12 @@ class PerceptionParameters:
     )
 
 
+def default_settings(values: PerceptionParameters) -> PerceptionParameters:
+    """The declared defaults, but ``values``' scenario and cameras (in use once the node
+    has read them): what the node runs with when its start-up parameters are wrong."""
+    return replace(PerceptionParameters(), scenario=values.scenario, cameras=values.cameras)
+
+
 def configured_pipeline(scenario: Scenario, values: PerceptionParameters) -> PerceptionPipeline:
     """A pipeline for these parameter values; raises ValueError naming a bad one."""
     if values.image_reliability not in IMAGE_QOS:
@@ -87,7 +98,14 @@ def configured_pipeline(scenario: Scenario, values: PerceptionParameters) -> Per
             f"image_reliability must be one of {sorted(IMAGE_QOS)}, "
             f"got {values.image_reliability!r}"
         )
-    for name in ("rate", "max_frame_age", "sync_tolerance", "max_fit_error", "min_coverage"):
+    for name in (
+        "rate",
+        "max_frame_age",
+        "fresh_frame_timeout",
+        "sync_tolerance",
+        "max_fit_error",
+        "min_coverage",
+    ):
         value = getattr(values, name)
         if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
             raise ValueError(f"{name} must be a positive number, got {value!r}")

@@ -7,9 +7,9 @@ import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
-from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
+from dombot_bringup.footprints import footprints_meet
 from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement
 from dombot_bringup.offers import NEIGHBOUR_RADIUS
 from dombot_bringup.task.cell import Pose
@@ -64,19 +64,15 @@ def foot_distance(measured: Pose, expected: Pose) -> float:
 
 def in_the_way(lying: Pose, target: Pose, along: float, across: float) -> bool:
     """Whether the footprint of the domino lying at ``lying`` (its corners seen from above)
-    reaches into the keep-out of the domino to stand at ``target``: its footprint grown
-    ``along`` the run (perception's error on a lying domino) and ``across`` it (the pads
-    beside it, and that error). Separating axes of the keep-out and the footprint's hull."""
+    meets the keep-out of the domino to stand at ``target``: its footprint grown ``along``
+    the run (perception's error on a lying domino) and ``across`` it (the pads beside it,
+    and that error); touching it is in the way."""
     frame = np.column_stack([target[:2, 2], target[:2, 1]])  # along (thickness), across
     frame /= np.linalg.norm(frame, axis=0)
     corners = (domino_corners(lying)[:, :2] - target[:2, 3]) @ frame
     half = np.array([DOMINO_SIZE[2] / 2 + along, DOMINO_SIZE[1] / 2 + across])
-    if np.any(corners.min(axis=0) >= half) or np.any(corners.max(axis=0) <= -half):
-        return False
     keep_out = half * np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
-    # each edge of the hull: normal · p + offset <= 0 inside
-    equations = ConvexHull(corners, qhull_options="QJ").equations
-    return not any(np.all(keep_out @ e[:2] + e[2] >= 0.0) for e in equations)
+    return footprints_meet(keep_out, corners)
 
 
 def distinct(poses: Iterable[Pose]) -> list[Pose]:
