@@ -77,6 +77,9 @@ def test_three_dominoes_in_a_line_are_built_and_knocked_down_through_node_restar
                     assert node is not None, f"no {package} process to kill"
                     os.kill(node, signal.SIGKILL)
             process.wait(timeout=900)
+        except BaseException:  # pytest-timeout's too: say where the run was
+            print("".join(stdout)[-6000:])
+            raise
         finally:
             if process.poll() is None:
                 process.kill()

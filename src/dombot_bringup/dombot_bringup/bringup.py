@@ -280,10 +280,7 @@ def make_layout(args: argparse.Namespace, area: layouts.BuildArea) -> list[layou
         return layouts.arc(center, radius, start, args.count, args.spacing)
     center = area.middle if args.center is None else tuple(args.center)
     if args.layout == "circle":
-        radius = 0.1 if args.radius is None else args.radius
-        placements = layouts.circle(center, radius, args.spacing)
-        say(circle_count(radius, args.spacing, len(placements), args.count))
-        return placements
+        return layouts.circle(center, circle_radius(args), args.spacing)
     if args.layout == "spiral":
         return layouts.spiral(center, args.inner_radius, args.pitch, args.count, args.spacing)
     if args.layout == "s-curve":
@@ -293,6 +290,18 @@ def make_layout(args: argparse.Namespace, area: layouts.BuildArea) -> list[layou
     if args.csv is None:
         raise layouts.LayoutError("--layout csv needs --csv PATH")
     return layouts.from_csv(args.csv, args.count, args.spacing)
+
+
+def circle_radius(args: argparse.Namespace) -> float:
+    """A circle's radius [m]: ``--radius``, or 0.1 m."""
+    return 0.1 if args.radius is None else args.radius
+
+
+def say_circle_count(args: argparse.Namespace, placements: list[layouts.DominoPlacement]) -> None:
+    """For a circle, the log's line of ``circle_count`` (not ``make_layout``'s: benchmarks
+    that print JSON build layouts with it too)."""
+    if args.layout == "circle":
+        say(circle_count(circle_radius(args), args.spacing, len(placements), args.count))
 
 
 def circle_count(radius: float, spacing: float | None, count: int, asked: int) -> str:
@@ -317,10 +326,12 @@ def cycle_layouts(
     if args.next_layout is not None and args.cycles < 2:
         raise layouts.LayoutError("--next-layout is built from the second cycle on: --cycles 2+")
     first = (args.layout, make_layout(args, area))
+    say_circle_count(args, first[1])
     following = first
     if args.next_layout is not None:
         after = next_layout_args(args)
         following = (after.layout, make_layout(after, area))
+        say_circle_count(after, following[1])
     chosen = [first] + [following] * (args.cycles - 1)
     for number, (name, placements) in enumerate(chosen[:2], 1):
         where = f"cycle {number} ('{name}'): " if following is not first else ""
