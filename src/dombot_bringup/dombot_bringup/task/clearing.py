@@ -76,7 +76,7 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
                 state.forget_refusals_near(spot_of(others[m]))
             if k is None:  # not a slot perception checks: taken to lie where it was pushed
                 moved = pose.copy()  # (until looked at again, ``checks.look_again``)
-                moved[:2, 3] += distance * np.asarray(direction)[:2]
+                moved[:2, 3] += push
                 state.toppled = [moved if p is pose else p for p in state.toppled]
                 state.unfitted = [moved if p is pose else p for p in state.unfitted]
             else:

@@ -37,11 +37,12 @@ def strike(job: Job, standing: Sequence[int]) -> None:
         answer = look_after_strike(job, built)
         if not answer.success:
             break
-        status = dict(zip(built, answer.status, strict=True))
-        upright = [i for i in built if status[i] == Seen.STANDING]
-        if not upright:
+        seen = zip(built, answer.status, answer.measured, strict=True)
+        still = {i: measured for i, status, measured in seen if status == Seen.STANDING}
+        if not still:
             break
-        poses.update({i: answer.measured[built.index(i)] for i in upright})
+        upright = list(still)  # in run order, as ``built``
+        poses.update(still)
     if answer is None:
         return
     report.struck = all(s.struck for s in report.sections)
