@@ -60,6 +60,8 @@ class DominoOutcome:
     put_back: list[str] = field(default_factory=list)
     # Fallen dominoes no grasp reached, pushed out of this slot's way.
     sweeps: list[str] = field(default_factory=list)
+    # Standing neighbours picked up and stood beside the pile to reach what lay in its way.
+    set_aside: list[str] = field(default_factory=list)
     # Crowded pile dominoes pushed apart when no pick planned (before ignoring the pile).
     spreads: list[str] = field(default_factory=list)
     # Pile dominoes that planned only ignoring their pile, pushed out of their crowd first.
