@@ -87,6 +87,7 @@ def test_a_domino_lying_between_standing_neighbours_is_reached_by_setting_one_as
     assert 7 not in job.state.standing and not job.report.dominoes[7].placed
     assert job.report.dominoes[8].set_aside[0].startswith("domino 8 set aside beside the pile")
     assert job.report.dominoes[8].placed
+    assert job.report.summary()["set_aside"] == 1
     assert cell.place_requests[-1].domino is fallen  # picked for its slot after
 
 

@@ -242,6 +242,7 @@ class RunReport:
             "corrected_in_hand": sum(len(d.corrected_in_hand) for d in self.dominoes),
             "put_back_on_pile": sum(len(d.put_back) for d in self.dominoes),
             "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
+            "set_aside": sum(len(d.set_aside) for d in self.dominoes),
             "pile_spread": sum(len(d.spreads) for d in self.dominoes),
             "pile_isolated": sum(len(d.isolations) for d in self.dominoes),
             "pile_laid_flat": sum(len(d.laid_flat) for d in self.dominoes),
