@@ -340,7 +340,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=2026, help="seed of the pair set")
     parser.add_argument("--time-budget", type=float, default=0.0, help="s; 0: default")
     parser.add_argument("--settings", help="JSON object of PlannerSettings overrides")
-    parser.add_argument("--figure", help="also write the grasp figure of docs/PLANNER.md here")
+    parser.add_argument("--figure", help="also write docs/PLANNER_GRASPS.md's grasp figure here")
     parser.add_argument(
         "--no-optimal",
         dest="optimal",

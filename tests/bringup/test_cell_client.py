@@ -6,6 +6,7 @@ import numpy as np
 from geometry_msgs.msg import Pose
 
 from dombot_adapters.pose_messages import pose_message
+from dombot_bringup.cell_client import CellClient
 from dombot_bringup.cell_messages import (
     detection_of,
     geometry_pose,
@@ -18,6 +19,7 @@ from dombot_bringup.task.cell import GripperEvent, Posture, Trajectory
 from dombot_msgs.msg import DominoDetection, TrajectorySegment
 from dombot_msgs.srv import PlanPlace
 from dombot_planner.errors import ErrorCode
+from support.cell_protocol import differences
 
 
 def test_a_trajectory_goes_to_its_message_and_back_unchanged() -> None:
@@ -59,3 +61,9 @@ def test_a_detection_and_a_plan_arrive_in_plain_types() -> None:
     assert plan.error is ErrorCode.GRASP_UNREACHABLE
     (segment,) = plan.segments
     assert segment.gripper_after is GripperEvent.OPEN and segment.trajectory.duration == 0.0
+
+
+def test_cell_client_takes_the_cell_protocols_arguments() -> None:
+    """As the task core passes them: ``meanwhile`` by keyword (``gripper`` and
+    ``gripper_later`` took it before and after their timeout)."""
+    assert differences(CellClient) == []

@@ -167,6 +167,7 @@ class ScriptedCell:
         trajectory: Trajectory,
         goal_tolerance: float = 0.0,
         path_tolerance: float = 0.0,
+        *,
         meanwhile: Meanwhile | None = None,
     ) -> Motion:
         self.executed.append(trajectory)
@@ -181,7 +182,7 @@ class ScriptedCell:
         return motion
 
     def gripper(
-        self, position: float, max_effort: float, meanwhile: Meanwhile | None = None
+        self, position: float, max_effort: float, *, meanwhile: Meanwhile | None = None
     ) -> float:
         self.openings.append(position)
         self.wait("gripper", meanwhile)

@@ -353,6 +353,7 @@ class CellClient:
         trajectory: Trajectory,
         goal_tolerance: float = 0.0,
         path_tolerance: float = 0.0,
+        *,
         meanwhile: Meanwhile | None = None,
     ) -> Motion:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
@@ -381,18 +382,20 @@ class CellClient:
         self,
         position: float,
         max_effort: float,
-        meanwhile: Meanwhile | None = None,
         timeout: float = 180.0,
+        *,
+        meanwhile: Meanwhile | None = None,
     ) -> float:
         """Move the fingers to the opening ``position`` [m] (the gap between them);
         ``meanwhile`` as ``execute``'s."""
-        return self.gripper_later(position, max_effort, timeout, meanwhile)()
+        return self.gripper_later(position, max_effort, timeout, meanwhile=meanwhile)()
 
     def gripper_later(
         self,
         position: float,
         max_effort: float,
         timeout: float = 180.0,
+        *,
         meanwhile: Meanwhile | None = None,
     ) -> Later[float]:
         """``gripper(position, max_effort)`` sent now; taking the answer waits for it,

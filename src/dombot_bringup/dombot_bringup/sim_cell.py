@@ -252,6 +252,7 @@ class SimCell:
         trajectory: Trajectory,
         goal_tolerance: float = 0.0,
         path_tolerance: float = 0.0,
+        *,
         meanwhile: Meanwhile | None = None,
     ) -> Motion:
         """As sim_node's FollowJointTrajectory server: the trajectory checked and splined
@@ -297,7 +298,7 @@ class SimCell:
             return Motion(ok, f"{verdict.message or 'goal reached'}; {figures}")
 
     def gripper(
-        self, position: float, max_effort: float, meanwhile: Meanwhile | None = None
+        self, position: float, max_effort: float, *, meanwhile: Meanwhile | None = None
     ) -> float:
         return self._gripper_later(position, max_effort, meanwhile)()
 

@@ -112,7 +112,7 @@ class PickPlacePlanner(ArmPlanner):
 
         In a heap few dominoes leave a pad's width free beside them; a pad that reaches a
         few millimetres into a neighbour's box pushes it aside (measured in
-        docs/PLANNER.md), while a bump of the gripper body or arm stops the arm short of
+        docs/PLANNER_MEASURED.md), while a bump of the gripper body or arm stops the arm short of
         the grasp, so those keep their clearance either way.
         """
         try:

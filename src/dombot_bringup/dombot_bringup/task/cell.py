@@ -272,6 +272,7 @@ class Cell(Protocol):
         trajectory: Trajectory,
         goal_tolerance: float = 0.0,
         path_tolerance: float = 0.0,
+        *,
         meanwhile: Meanwhile | None = None,
     ) -> Motion:
         """Run ``trajectory``; each joint must end within ``goal_tolerance`` rad of its last
@@ -282,7 +283,7 @@ class Cell(Protocol):
         ...
 
     def gripper(
-        self, position: float, max_effort: float, meanwhile: Meanwhile | None = None
+        self, position: float, max_effort: float, *, meanwhile: Meanwhile | None = None
     ) -> float:
         """Move the fingers to the opening ``position`` [m]; where they stopped [m].
         ``meanwhile`` as ``execute``'s."""

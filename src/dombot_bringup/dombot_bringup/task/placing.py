@@ -132,7 +132,7 @@ def execute(
             tolerance = job.settings.approach_goal_tolerance if approach else 0.0
             placing = segment.label == PLACE_SEGMENT
             path = job.settings.place_path_tolerance if placing else 0.0
-            motion = cell.execute(segment.trajectory, tolerance, path, asking)
+            motion = cell.execute(segment.trajectory, tolerance, path, meanwhile=asking)
             if opening is not None:
                 job.fingers, opening = opening(), None
             if not motion.ok:
@@ -160,7 +160,7 @@ def execute(
             if opens_while_moving(job, segment, segments[index + 1 : index + 2]):
                 opening = cell.gripper_later(segment.gripper_position, 0.0)
             else:
-                grip(job, segment.gripper_position, 0.0, asking)
+                grip(job, segment.gripper_position, 0.0, meanwhile=asking)
             if segment.label == PLACE_SEGMENT:
                 job.let_go_at = cell.sim_time
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
@@ -275,9 +275,11 @@ def look_while_placing(job: Job) -> None:
         log(f"perception while placing: {error}")
 
 
-def grip(job: Job, position: float, max_effort: float, meanwhile: Meanwhile | None = None) -> float:
+def grip(
+    job: Job, position: float, max_effort: float, *, meanwhile: Meanwhile | None = None
+) -> float:
     """``cell.gripper``, remembering where the fingers stopped (``job.fingers``)."""
-    job.fingers = job.cell.gripper(position, max_effort, meanwhile)
+    job.fingers = job.cell.gripper(position, max_effort, meanwhile=meanwhile)
     return job.fingers
 
 
