@@ -60,6 +60,8 @@ class DominoOutcome:
     put_back: list[str] = field(default_factory=list)
     # Fallen dominoes no grasp reached, pushed out of this slot's way.
     sweeps: list[str] = field(default_factory=list)
+    # Standing neighbours picked up and stood beside the pile to reach what lay in its way.
+    set_aside: list[str] = field(default_factory=list)
     # Crowded pile dominoes pushed apart when no pick planned (before ignoring the pile).
     spreads: list[str] = field(default_factory=list)
     # Pile dominoes that planned only ignoring their pile, pushed out of their crowd first.
@@ -240,6 +242,7 @@ class RunReport:
             "corrected_in_hand": sum(len(d.corrected_in_hand) for d in self.dominoes),
             "put_back_on_pile": sum(len(d.put_back) for d in self.dominoes),
             "debris_swept": sum(len(d.sweeps) for d in self.dominoes),
+            "set_aside": sum(len(d.set_aside) for d in self.dominoes),
             "pile_spread": sum(len(d.spreads) for d in self.dominoes),
             "pile_isolated": sum(len(d.isolations) for d in self.dominoes),
             "pile_laid_flat": sum(len(d.laid_flat) for d in self.dominoes),

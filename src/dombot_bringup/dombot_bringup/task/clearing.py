@@ -47,8 +47,7 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
         if (is_among(pose, way) and (refused[n] or len(way) > 1))
         or (refused[n] and near(spot_of(pose), place, DOMINO_LENGTH))
     )
-    # beyond the run's side by sweep_margin, and out of the slot's way (a millimetre more)
-    margin = max(settings.sweep_margin, settings.clear_margin + settings.clear_pads + 1e-3)
+    margin = sweep_margin(job)
     standing = list(state.standing.values())
     clearance = PLANNER_SETTINGS.coarse_clearance
     for _, _, n in debris:
@@ -84,6 +83,13 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
                 check(job, k, just_placed=False)  # still there (fallen again) or gone
             return True
     return False
+
+
+def sweep_margin(job: Job) -> float:
+    """How far beyond the run's side a sweep leaves debris: sweep_margin, and out of the
+    slot's way (``picking.in_its_way``) by a millimetre more."""
+    settings = job.settings
+    return max(settings.sweep_margin, settings.clear_margin + settings.clear_pads + 1e-3)
 
 
 def spread(job: Job, index: int, candidates: Sequence[Candidate]) -> bool:

@@ -26,6 +26,7 @@ from dombot_bringup.task.gaps import gap_slots
 from dombot_bringup.task.order import build_order
 from dombot_bringup.task.picking import Refusal
 from dombot_bringup.task.records import add_spent, record_truth, take_picture
+from dombot_bringup.task.staging import set_aside
 from dombot_bringup.task.state import Job, log
 from dombot_bringup.task.strike import strike
 
@@ -161,6 +162,10 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
         if not tried.moved and sweeps < settings.max_sweeps and sweep_debris(job, index, failed):
             sweeps += 1
             failed.clear()  # refused while the debris lay there (missed picks: unpickable)
+            refusals.clear()
+            continue
+        if not tried.moved and set_aside(job, index):
+            failed.clear()  # refused beside the neighbour set aside
             refusals.clear()
             continue
         if not tried.moved and may_defer:

@@ -223,6 +223,15 @@ class ArmJobSettings:
     # run until they lie this far beyond its side; at most max_sweeps per slot.
     sweep_margin: float = 0.008  # m
     max_sweeps: int = 2
+    # A slot whose way is still blocked when no pick or sweep of what lies there plans
+    # (pads and pusher too near its standing neighbours) has a standing neighbour picked
+    # up and stood beside the pile (``staging.set_aside``), at most max_set_asides times
+    # a slot (0: never); the neighbour's slot is built again after it. The spot is on the
+    # circle staging_ring about the pile's centre (inside perception's pile region, 0.21 m),
+    # its footprint staging_clearance from every domino and point seen there.
+    max_set_asides: int = 2
+    staging_ring: float = 0.14  # m
+    staging_clearance: float = 0.03  # m
     # The lying dominoes on a sweep's way are pushed along with it (``debris.carried_along``:
     # a shingled row as one blob), unless one of them lies within carry_clearance of a
     # standing domino before or after the push, or would be pushed into one; then the

@@ -1,0 +1,102 @@
+"""Setting a standing neighbour aside (``task.staging``) without ROS: a scripted cell,
+the real slot loop. A run domino lying across its slot between standing neighbours, no
+grasp and no sweep of it planned: a neighbour is stood beside the pile, the lying one is
+picked for the slot, and the neighbour's slot is to be built again."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from dombot_bringup import layouts
+from dombot_bringup.task.geometry import spot_of
+from dombot_bringup.task.loop import Turn, place_slot
+from dombot_bringup.task.settings import ArmJobSettings
+from dombot_bringup.task.staging import blocked_between, staging_spots
+from dombot_bringup.task.state import Job
+from dombot_planner.errors import ErrorCode
+from support.scripted_cell import ScriptedCell, flat, lying, planned, refused
+
+ARC = layouts.arc((0.0, 0.0), 0.6, math.radians(5.0), 10)  # the default run
+PILE_CENTRE = (0.55, -0.30)
+STANDING = (0, 1, 2, 3, 6, 7, 9)  # slot 9 (index 8) empty, 5 and 6 not built yet
+
+
+def fallen_across(x: float, y: float, degrees: float) -> np.ndarray:
+    """A domino lying flat at (x, y), its long side ``degrees`` from the world's x axis."""
+    pose = lying(x, y)
+    pose[:3, :3] = Rotation.from_euler("z", degrees, degrees=True).as_matrix()
+    return pose
+
+
+def enclosed_job(
+    cell: ScriptedCell, settings: ArmJobSettings | None = None
+) -> tuple[Job, np.ndarray]:
+    """arc10_cycles5 seed 1, cycle 2: domino 9 knocked over as domino 10 was placed, lying
+    19 mm outside its slot between the standing 8th and 10th."""
+    job = Job.new(cell, ARC, "arc", settings or ArmJobSettings())
+    job.state.standing = {k: job.targets[k] for k in STANDING}
+    fallen = fallen_across(0.554, 0.27, 0.0)
+    job.state.fallen = {8: fallen}
+    return job, fallen
+
+
+def test_staging_spots_keep_clear_of_the_pile_and_come_nearest_the_slot_first() -> None:
+    pile = [lying(0.55 + 0.14 * math.cos(a), -0.30 + 0.14 * math.sin(a)) for a in (1.4, 1.6)]
+    slot = (0.535, 0.272)
+    spots = staging_spots(PILE_CENTRE, 0.14, slot, pile, np.zeros((0, 3)), 0.03)
+    assert spots, "the ring has free spots"
+    for spot in spots:
+        assert math.dist((spot.x, spot.y), PILE_CENTRE) == pytest.approx(0.14)
+        assert min(math.dist((spot.x, spot.y), spot_of(p)) for p in pile) > 0.04
+    distances = [math.dist((s.x, s.y), slot) for s in spots]
+    assert distances == sorted(distances)
+    # the ring's point nearest the slot lies between the two pile dominoes: not offered
+    assert distances[0] > math.dist(slot, (0.55, -0.16)) + 0.01
+    # a seen point on the ring there rules out the spots around it too
+    near_slot = np.array([[spots[0].x, spots[0].y, 0.0]])
+    assert (spots[0].x, spots[0].y) not in [
+        (s.x, s.y) for s in staging_spots(PILE_CENTRE, 0.14, slot, pile, near_slot, 0.03)
+    ]
+
+
+def test_a_domino_lying_between_standing_neighbours_is_reached_by_setting_one_aside() -> None:
+    aside: list = []
+
+    def place(request):
+        if request.domino is job.state.standing.get(7) and not aside:
+            aside.append(request)
+            return planned("set aside")
+        if aside and request.domino is fallen:
+            return planned("place")
+        return refused(ErrorCode.GRASP_UNREACHABLE)
+
+    cell = ScriptedCell(pile=[flat(0.55)], place=place)
+    job, fallen = enclosed_job(cell)
+    assert place_slot(job, 8, may_defer=True) is Turn.PLACED
+    # its sweeps were refused first (the scripted planner refuses every push)
+    assert cell.strike_requests or job.state.unswept
+    (request,) = aside
+    assert math.dist(spot_of(request.place), PILE_CENTRE) == pytest.approx(0.14)
+    assert math.dist(spot_of(request.place), (0.55, -0.30)) > 0.1  # not in the pile
+    assert any(p is fallen for p in request.standing)  # kept clear of, as it lay
+    # the 8th is no longer standing: its slot is to be built again
+    assert 7 not in job.state.standing and not job.report.dominoes[7].placed
+    assert job.report.dominoes[8].set_aside[0].startswith("domino 8 set aside beside the pile")
+    assert job.report.dominoes[8].placed
+    assert job.report.summary()["set_aside"] == 1
+    assert cell.place_requests[-1].domino is fallen  # picked for its slot after
+
+
+def test_nothing_is_set_aside_when_a_sweep_plans_or_none_is_allowed() -> None:
+    cell = ScriptedCell(pile=[flat(0.55)], strike=lambda request: planned("sweep"))
+    job, _ = enclosed_job(cell)
+    assert blocked_between(job, 8) == []  # no sweep refused yet
+    cell = ScriptedCell(pile=[flat(0.55)])
+    job, _ = enclosed_job(cell, ArmJobSettings(max_set_asides=0))
+    assert place_slot(job, 8, may_defer=False) is Turn.FAILED
+    assert set(job.state.standing) == set(STANDING)
+    assert not job.report.dominoes[8].set_aside
