@@ -12,6 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
+from dombot_bringup.task.cell import Motion
 from dombot_bringup.task.geometry import spot_of
 from dombot_bringup.task.loop import Turn, place_slot
 from dombot_bringup.task.settings import ArmJobSettings
@@ -100,3 +101,19 @@ def test_nothing_is_set_aside_when_a_sweep_plans_or_none_is_allowed() -> None:
     assert place_slot(job, 8, may_defer=False) is Turn.FAILED
     assert set(job.state.standing) == set(STANDING)
     assert not job.report.dominoes[8].set_aside
+
+
+def test_a_set_aside_that_fails_counts_and_the_neighbour_is_looked_at_again() -> None:
+    """Its carry stops short: the neighbour stands where the placement check sees it, the
+    slot's set-asides run out and it is left empty, not tried for ever."""
+    stops = lambda trajectory: Motion(trajectory.joint_names != ("carry",), "stopped short")  # noqa: E731
+    cell = ScriptedCell(pile=[flat(0.55)], motion=stops)
+    cell.place = lambda request: (
+        planned("carry") if request.domino is job.state.standing.get(7) else refused()
+    )
+    job, _ = enclosed_job(cell)
+    assert place_slot(job, 8, may_defer=False) is Turn.FAILED
+    tries = job.report.dominoes[8].set_aside
+    assert len(tries) == 2 and all("stopped short" in t for t in tries), tries
+    assert 7 in job.state.standing  # seen standing by the placement check after each
+    assert len(cell.checks) == 2

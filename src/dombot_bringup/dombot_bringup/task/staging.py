@@ -146,8 +146,10 @@ def set_aside(job: Job, index: int) -> bool:
                 )
                 continue
             execution = execute(job, plan.segments)
-            if not execution.done:  # where is it now: standing, fallen or still held
-                log(f"{job.domino(index)}: setting domino {neighbour + 1} aside: {execution.why}")
+            words = f"domino {neighbour + 1} set aside beside the pile at {where}"
+            if not execution.done:  # counted too: where it is now, standing, fallen or held
+                job.report.dominoes[index].set_aside.append(f"{words}: {execution.why}")
+                log(f"{job.domino(index)}: {words}: {execution.why}")
                 check(job, neighbour, just_placed=False)
                 return True
             state.standing.pop(neighbour)
@@ -155,7 +157,6 @@ def set_aside(job: Job, index: int) -> bool:
             job.report.dominoes[neighbour].placed = False
             state.forget_refusals_near(spot_of(standing))
             state.forget_refusals_near(np.array([spot.x, spot.y]))
-            words = f"domino {neighbour + 1} set aside beside the pile at {where}"
             job.report.dominoes[index].set_aside.append(words)
             log(
                 f"{job.domino(index)}: {words} to reach what lies in its way; "
