@@ -1,5 +1,6 @@
 """Refusals told before any IK: the pads' place and path against the pile, the wrist's
-reach (dombot_planner.pads, foreseen_refusal) agree with the planner's answers."""
+reach, a hold with no place pose between standing neighbours (dombot_planner.pads,
+foreseen_refusal) agree with the planner's answers."""
 
 from __future__ import annotations
 
@@ -15,18 +16,23 @@ from dombot_description.grasp import OrientedBox, flat_pose, pick_grasps, uprigh
 from dombot_description.scenario import load_scenario
 from dombot_planner.arm_reach import WristReach
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.foreseen_refusal import foreseen_refusal
-from dombot_planner.motion import WRIST_OUT
+from dombot_planner.foreseen_refusal import NO_PLACE, foreseen_refusal, no_place
+from dombot_planner.grasp_candidates import ranked_grasps
+from dombot_planner.motion import WRIST_OUT, Deadline
 from dombot_planner.pads import pads_in_pile
 from dombot_planner.planner import PickPlacePlanner
 from dombot_planner.request import PickPlaceRequest
+from dombot_planner.request_planning import RequestPlanning
 from dombot_planner.settings import PlannerSettings
+from dombot_planner.shared_work import SharedWork
 from support.planning_clock import UNHURRIED
 
 SCENARIO = load_scenario()
 SETTINGS = PlannerSettings(default_time_budget=UNHURRIED)
 DOMINO = flat_pose(0.60, -0.28, 0.4)
 SIZE = np.asarray(DOMINO_SIZE)
+PLACE = upright_pose(0.55, 0.15, 0.3)
+SPACING = 0.6 * DOMINO_SIZE[0]  # a run's default (dombot_bringup.layouts)
 BENCHMARKS = Path(__file__).parents[2] / "benchmarks"
 
 
@@ -44,7 +50,7 @@ def pick(**changes) -> PickPlaceRequest:
     return dataclasses.replace(
         PickPlaceRequest(
             domino_pose=DOMINO,
-            place_pose=upright_pose(0.55, 0.15, 0.3),
+            place_pose=PLACE,
             start=SCENARIO.home_position,
         ),
         **changes,
@@ -138,3 +144,47 @@ def test_the_wrist_beyond_reach_is_foreseen(
         assert WRIST_OUT in refusal.value.message
     else:
         assert planner.plan(request).segments
+
+
+def neighbours(*sides: int) -> tuple[RigidTransform, ...]:
+    """Upright dominoes one SPACING before (-1) and after (1) PLACE along its run."""
+    return tuple(PLACE @ RigidTransform([0.0, 0.0, side * SPACING]) for side in sides)
+
+
+def test_a_steeper_hold_has_no_place_between_two_standing_neighbours(planner) -> None:
+    """A safety gap filled last: the holds of the steeper grasps (the gripper leaning
+    further over the run at place) have no place pose between two standing neighbours,
+    the canonical and flatter ones have, and with one neighbour the steeper ones have too.
+    The planner agrees: given one such grasp it reaches the domino and refuses every
+    place pose for the pads' clearance to the neighbours."""
+    gap = pick(standing=neighbours(-1, 1))
+    canonical, (steeper, flatter) = ranked_grasps(gap, SETTINGS)
+    assert steeper and all(no_place(gap, SETTINGS, grasp) for grasp in steeper)
+    assert not any(no_place(gap, SETTINGS, grasp) for grasp in canonical + flatter)
+    one_side = pick(standing=neighbours(-1))
+    assert not any(no_place(one_side, SETTINGS, grasp) for grasp in steeper)
+    for grasp in steeper[:2]:
+        search = RequestPlanning(planner, gap, Deadline(UNHURRIED), SharedWork(planner), [grasp])
+        with pytest.raises(PlanningError) as refused:
+            search.plan()
+        assert refused.value.code == ErrorCode.PLACE_UNREACHABLE
+        assert "in collision at the pose (pads–standing)" in refused.value.message
+
+
+@pytest.mark.parametrize("index", [124, 128])
+def test_turned_holds_with_no_place_are_not_solved_for(
+    planner, recorded: list[PickPlaceRequest], index: int
+) -> None:
+    """Recorded requests at a slot between standing neighbours where only steeper grasps
+    pass the tests before IK, and their holds have no place pose: the planner refuses
+    them without solving for those grasps (it solved their picks and places before,
+    "2 turned grasps reach it, but no place pose suits their hold"), with the same code,
+    and ``foreseen_refusal`` tells the refusal given the wrist shell."""
+    request = dataclasses.replace(recorded[index], time_budget=UNHURRIED)
+    why = foreseen_refusal(request, SETTINGS, WristReach.of_scenario(SCENARIO))
+    assert NO_PLACE in why
+    with pytest.raises(PlanningError) as refusal:
+        planner.plan(request)
+    assert refusal.value.code == ErrorCode.GRASP_UNREACHABLE
+    assert NO_PLACE in refusal.value.message
+    assert "turned grasps reach it" not in refusal.value.message

@@ -14,10 +14,11 @@ from dombot_description import DOMINO_SIZE
 from dombot_description.grasp import flat_pose, gripper_geometry, release_opening
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode, PlanningError
+from dombot_planner.pads import pads_near
 from dombot_planner.request import StrikeRequest
 from dombot_planner.settings import PlannerSettings
 from dombot_planner.strike import StrikePlanner
-from dombot_planner.strike_foresight import foreseen_strike_refusal, pusher_near_standing
+from dombot_planner.strike_foresight import foreseen_strike_refusal
 from support.planning_clock import UNHURRIED
 
 SCENARIO = load_scenario()
@@ -59,10 +60,10 @@ def test_pusher_near_a_domino_beside_a_pad() -> None:
         return pad.pose @ RigidTransform([pad.size[0] / 2 + DOMINO_SIZE[0] / 2 + gap, 0.0, 0.0])
 
     tcp = RigidTransform()
-    assert pusher_near_standing(tcp, [beside(-0.001)], clearance)
-    assert pusher_near_standing(tcp, [beside(0.003)], clearance)
-    assert not pusher_near_standing(tcp, [beside(0.007)], clearance)
-    assert not pusher_near_standing(tcp, [], clearance)
+    assert pads_near(tcp, 0.0, [beside(-0.001)], clearance)
+    assert pads_near(tcp, 0.0, [beside(0.003)], clearance)
+    assert not pads_near(tcp, 0.0, [beside(0.007)], clearance)
+    assert not pads_near(tcp, 0.0, [], clearance)
 
 
 @pytest.mark.parametrize(

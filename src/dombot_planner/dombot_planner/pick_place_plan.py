@@ -49,6 +49,7 @@ class EndSearch:
     place_candidates: int = 0
     picks_found: int = 0
     turned_picks_found: int = 0  # of picks_found, with steeper or flatter grasps
+    unplaced_turned: int = 0  # turned grasps not solved for: their hold has no place pose
     grasp_failures: Counter = field(default_factory=Counter)
     place_failures: Counter = field(default_factory=Counter)
 

@@ -17,7 +17,7 @@ from dombot_description.grasp import (
     place_grasps,
 )
 from dombot_planner.errors import ErrorCode, PlanningError
-from dombot_planner.foreseen_refusal import PADS_IN_PILE, PATH_MEETS_POINTS
+from dombot_planner.foreseen_refusal import NO_PLACE, PADS_IN_PILE, PATH_MEETS_POINTS, no_place
 from dombot_planner.grasp_candidates import (
     finger_openings,
     lift_directions,
@@ -92,14 +92,16 @@ class RequestPlanning(RequestMotions):
         reached it. With the pads clear of the pile they reached no pile domino that no
         canonical or steeper one did (68 recorded pile requests replayed, the same answers)
         but were 8 of the 20 grasps searched before every plan that nudges the pile;
-        nudging, they found 2 of those 68 plans."""
+        nudging, they found 2 of those 68 plans. A turned grasp whose hold has no place
+        pose is not solved for (``_no_place``); that it might have reached the domino is
+        enough for the flatter ones to follow."""
         yield from ((grasp, False) for grasp in self.grasps)
         steeper, flatter = self.turned
         if self.search.picks_found:
             yield from ((grasp, True) for grasp in flatter + steeper)
             return
         yield from ((grasp, True) for grasp in steeper)
-        if self.nudge or self.search.picks_found:
+        if self.nudge or self.search.picks_found or self.search.unplaced_turned:
             yield from ((grasp, True) for grasp in flatter)
 
     def plan(self) -> PickPlacePlan:
@@ -186,6 +188,10 @@ class RequestPlanning(RequestMotions):
             if self._pads_in_pile(grasp):
                 self.search.grasp_failures[PADS_IN_PILE] += 1
                 continue
+            if turned and self._no_place(grasp):
+                self.search.grasp_failures[NO_PLACE] += 1
+                self.search.unplaced_turned += 1
+                continue
             held = domino_in_tcp(grasp, request.domino_pose)
             transfer = self._scene("closed", held_in_tcp=held)
             pick = self._end(
@@ -237,6 +243,19 @@ class RequestPlanning(RequestMotions):
             Grasp(grasp, openings["closed"], openings["pregrasp"]),
             self.request.pile,
             self.settings.pile_nudge,
+        )
+
+    def _no_place(self, grasp: RigidTransform) -> bool:
+        """Whether the hold ``grasp`` gives has no place pose that passes the tests of
+        ``_place_ends`` before IK and the pads' clearance to the standing dominoes at
+        the pose, which every IK solution shares (``foreseen_refusal.no_place``). Asked
+        of turned grasps only: a canonical one reaching the domino makes a refusal
+        PLACE_UNREACHABLE (the slot's, not the domino's), which only IK tells. Kept for
+        the request's later tiers."""
+        key = ("no place", poses_key([self.request.domino_pose, self.request.place_pose, grasp]))
+        reach = self.planner.wrist_reach
+        return self.shared.remember(
+            key, lambda: no_place(self.request, self.settings, grasp, reach)
         )
 
     def _place_ends(

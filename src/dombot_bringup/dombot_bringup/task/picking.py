@@ -298,10 +298,11 @@ def foreseen(job: Job, request: PlaceRequest) -> Plan | None:
     """The planner's refusal of ``request`` when it is told without asking the planner
     (``dombot_planner.foreseen_refusal``: every grasp it would try has its pads' path on seen
     points, its pads beyond pile_nudge in a pile domino, or its wrist beyond the elbow's
-    reach at the grasp or on every lift line, before any IK), else None (settings
-    foresee_refusals). Of 68 recorded pile requests, 21 of the 34 refused were told by
-    the pads alone, in ~0.05 s CPU each; the planner took 0.05-0.91 s CPU to refuse
-    them, and the bring-up waited that and a service round trip (docs/PLANNER.md)."""
+    reach at the grasp or on every lift line, or is a turned grasp whose hold has no place
+    pose at the slot, before any IK), else None (settings foresee_refusals). Of 68
+    recorded pile requests, 21 of the 34 refused were told by the pads alone, in ~0.05 s
+    CPU each; the planner took 0.05-0.91 s CPU to refuse them, and the bring-up waited
+    that and a service round trip (docs/PLANNER.md)."""
     if not job.settings.foresee_refusals or request.holding:
         return None
     why = foreseen_refusal(planner_request(request, np.zeros(0)), PLANNER_SETTINGS, planner_reach())

@@ -85,8 +85,9 @@ class ArmJobSettings:
     # asked once the check answered.
     plan_ahead: bool = True
     # A pick whose every grasp the planner would refuse before any IK (the pads' path on
-    # seen points, the pads beyond its pile_nudge in a pile domino, or the wrist beyond the
-    # elbow's reach: the planner's own tests, ``dombot_planner.foreseen_refusal``) is taken
+    # seen points, the pads beyond its pile_nudge in a pile domino, the wrist beyond the
+    # elbow's reach, a turned grasp's hold with no place pose: the planner's own tests,
+    # ``dombot_planner.foreseen_refusal``) is taken
     # as refused without asking it (``picking.foreseen``), and not asked ahead. False:
     # every offer is asked.
     foresee_refusals: bool = True
