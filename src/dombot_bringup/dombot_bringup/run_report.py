@@ -379,7 +379,7 @@ def plot_run(report: RunReport, path: Path) -> Path:
     axes.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)  # off the run
     axes.grid(alpha=0.3)
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    figure.savefig(path, dpi=120, bbox_inches="tight")  # the legend beside the axes too
     plt.close(figure)
     return path
 
