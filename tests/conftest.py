@@ -31,18 +31,16 @@ _held: list[int] = []  # open lock files: each domain is held until the process 
 # Modules whose tests share no costly fixture and take long each: their tests may run on
 # different workers (any other module's tests run on one, its module fixtures set up once).
 SPREAD = {
-    "tests/bringup/test_arm_job.py",  # two end-to-end runs
     "tests/description/test_console.py",  # each test starts and interrupts a process
     "tests/foundation/test_parameter_files.py",  # each test starts a node
     "tests/sim/test_physics.py",  # a Drake world of its own per test, a quarter of the suite
 }
 # The modules that take longest, longest first (--durations of a whole run, README).
 LONGEST = (
-    "tests/bringup/test_cycles_e2e.py",  # one test, the longest: it must not start last
+    "tests/bringup/test_arm_job.py",  # a two-cycle bring-up, the longest: it must not start last
     "tests/sim/test_physics.py",
     "tests/planner/test_execution.py",
     "tests/bringup/test_partial_build.py",
-    "tests/bringup/test_arm_job.py",
     "tests/perception/test_perception_node.py",
     "tests/reliability/test_fuzz.py",
     "tests/ros2cli/test_ros2cli.py",
