@@ -24,6 +24,7 @@ from dombot_bringup.task.cycles import cycle_line, run_cycles
 from dombot_bringup.task.geometry import distinct, in_the_way, near, placement_pose, spot_of
 from dombot_bringup.task.loop import Turn, place_slot
 from dombot_bringup.task.picking import Candidate, in_its_way, toppled_candidates
+from dombot_bringup.task.records import at_slot
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description import tilt_from_vertical, tipped_pose
@@ -326,6 +327,20 @@ def test_no_pile_domino_is_placed_while_a_toppled_one_no_grasp_takes_lies_in_the
     assert froms[0] == 0.02 and froms[-1] == PILE_Y  # the toppled one first, refused
     assert len(cell.strike_requests) == 1 and sweeps_before[-1] == 1  # swept, then the pile
     assert in_its_way(job, 0) == [] and len(job.state.toppled) == 1  # out of the way, known
+
+
+def test_the_truth_names_what_lay_against_a_slot_but_the_held_domino() -> None:
+    """For the log after a placement fell or stalled: the simulator's dominoes whose
+    footprint comes within 5 mm of the slot's (slot 1: x 0.438-0.462 across the run)."""
+    near_end = {"4 mm off": 0.466, "6 mm off": 0.468}  # their ends towards the slot
+    dominoes = [
+        ("held", lying(0.45, 0.0)),
+        ("under", lying(0.46, 0.01)),
+        *((name, lying(x + 0.024, 0.0)) for name, x in near_end.items()),
+    ]
+    found = at_slot(dominoes, placement_pose(LINE[0]), "held")
+    assert found == "under at [0.46, 0.01] tilted 90°, 4 mm off at [0.49, 0.0] tilted 90°"
+    assert at_slot(dominoes[:1], placement_pose(LINE[0]), "held") == "nothing"
 
 
 def test_of_two_toppled_dominoes_in_a_slots_way_one_is_swept_and_one_becomes_its_domino() -> None:
