@@ -343,6 +343,26 @@ def test_the_truth_names_what_lay_against_a_slot_but_the_held_domino() -> None:
     assert at_slot(dominoes[:1], placement_pose(LINE[0]), "held") == "nothing"
 
 
+def test_a_domino_a_sweep_pushes_into_the_slot_is_swept_before_anything_is_placed() -> None:
+    """Arc cycle 2, slot 6: the toppled domino pushed along with the one swept out of the
+    slot's way was looked for where it had lain, and every placement there fell
+    (presumably it lay in the slot). Pushed the whole way, it is taken to lie where the
+    push left it: in the slot's way, swept in turn (pushing the first back: in line, they
+    are scripted not to move but for the pushes), and no pile domino is placed there
+    meanwhile."""
+    cell, _ = in_the_way_cell(refuse_toppled=True)
+    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    # over slot 1, across the run (swept +x); behind it under the pads, clear of the slot
+    over, behind = lying(0.455, 0.0), lying(0.3915, 0.0)
+    job.state.toppled = [over, behind]
+    assert in_its_way(job, 0) == [over]
+    assert place_slot(job, 0, may_defer=True) is Turn.DEFERRED
+    first, second = cell.strike_requests
+    assert first.domino is over and "1 lying on its way with it" in job.report.dominoes[0].sweeps[0]
+    assert spot_of(second.domino) == pytest.approx([0.3915 + first.push_distance, 0.0])
+    assert all(r.domino[1, 3] != PILE_Y for r in cell.place_requests)
+
+
 def test_of_two_toppled_dominoes_in_a_slots_way_one_is_swept_and_one_becomes_its_domino() -> None:
     cell, sweeps_before = in_the_way_cell(refuse_toppled=False)
     job = Job.new(cell, LINE, "line", ArmJobSettings())
