@@ -24,6 +24,7 @@ from dombot_bringup.task.cycles import cycle_line, run_cycles
 from dombot_bringup.task.geometry import distinct, in_the_way, near, placement_pose, spot_of
 from dombot_bringup.task.loop import Turn, place_slot
 from dombot_bringup.task.picking import Candidate, in_its_way, toppled_candidates
+from dombot_bringup.task.records import at_slot
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description import tilt_from_vertical, tipped_pose
@@ -326,6 +327,40 @@ def test_no_pile_domino_is_placed_while_a_toppled_one_no_grasp_takes_lies_in_the
     assert froms[0] == 0.02 and froms[-1] == PILE_Y  # the toppled one first, refused
     assert len(cell.strike_requests) == 1 and sweeps_before[-1] == 1  # swept, then the pile
     assert in_its_way(job, 0) == [] and len(job.state.toppled) == 1  # out of the way, known
+
+
+def test_the_truth_names_what_lay_against_a_slot_but_the_held_domino() -> None:
+    """For the log after a placement fell or stalled: the simulator's dominoes whose
+    footprint comes within 5 mm of the slot's (slot 1: x 0.438-0.462 across the run)."""
+    near_end = {"4 mm off": 0.466, "6 mm off": 0.468}  # their ends towards the slot
+    dominoes = [
+        ("held", lying(0.45, 0.0)),
+        ("under", lying(0.46, 0.01)),
+        *((name, lying(x + 0.024, 0.0)) for name, x in near_end.items()),
+    ]
+    found = at_slot(dominoes, placement_pose(LINE[0]), "held")
+    assert found == "under at [0.46, 0.01] tilted 90°, 4 mm off at [0.49, 0.0] tilted 90°"
+    assert at_slot(dominoes[:1], placement_pose(LINE[0]), "held") == "nothing"
+
+
+def test_a_domino_a_sweep_pushes_into_the_slot_is_swept_before_anything_is_placed() -> None:
+    """Arc cycle 2, slot 6: the toppled domino pushed along with the one swept out of the
+    slot's way was looked for where it had lain, and every placement there fell
+    (presumably it lay in the slot). Pushed the whole way, it is taken to lie where the
+    push left it: in the slot's way, swept in turn (pushing the first back: in line, they
+    are scripted not to move but for the pushes), and no pile domino is placed there
+    meanwhile."""
+    cell, _ = in_the_way_cell(refuse_toppled=True)
+    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    # over slot 1, across the run (swept +x); behind it under the pads, clear of the slot
+    over, behind = lying(0.455, 0.0), lying(0.3915, 0.0)
+    job.state.toppled = [over, behind]
+    assert in_its_way(job, 0) == [over]
+    assert place_slot(job, 0, may_defer=True) is Turn.DEFERRED
+    first, second = cell.strike_requests
+    assert first.domino is over and "1 lying on its way with it" in job.report.dominoes[0].sweeps[0]
+    assert spot_of(second.domino) == pytest.approx([0.3915 + first.push_distance, 0.0])
+    assert all(r.domino[1, 3] != PILE_Y for r in cell.place_requests)
 
 
 def test_of_two_toppled_dominoes_in_a_slots_way_one_is_swept_and_one_becomes_its_domino() -> None:

@@ -15,7 +15,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from dombot_bringup.footprints import footprints_meet
-from dombot_bringup.layouts import DOMINO_WIDTH, DominoPlacement
+from dombot_bringup.layouts import DOMINO_THICKNESS, DOMINO_WIDTH, DominoPlacement
 from dombot_description import domino_corners
 from dombot_description.pusher import MAX_SWEEP_DISTANCE as MAX_SWEEP
 from dombot_description.pusher import PADS_HALF, PUSHER_STANDOFF
@@ -76,3 +76,20 @@ def carried_along(
             return None
         carried.append(n)
     return carried
+
+
+def pushed_whole_way(debris: np.ndarray, pose: np.ndarray, direction: np.ndarray) -> bool:
+    """Whether the domino lying at ``pose`` (one ``carried_along`` the sweep of ``debris``
+    along ``direction``) is pushed the whole way with ``debris``: it overlaps the lane the
+    sweep clears (``debris``'s extent across the push) by more than a domino's thickness
+    and reaches ahead of the middle of the pads where the push starts (they push it, or
+    land on it and drag it). One that only brushes the lane's side, or lies behind the
+    pads, is not taken to move."""
+    direction = np.asarray(direction, dtype=float)[:2]
+    direction = direction / np.linalg.norm(direction)
+    across = np.array([-direction[1], direction[0]])
+    swept, lying = domino_corners(debris)[:, :2], domino_corners(pose)[:, :2]
+    lane, extent = swept @ across, lying @ across
+    overlap = min(lane.max(), extent.max()) - max(lane.min(), extent.min())
+    pads = (swept @ direction).min() - PUSHER_STANDOFF - PADS_HALF
+    return bool(overlap > DOMINO_THICKNESS and (lying @ direction).max() > pads)

@@ -45,7 +45,14 @@ from dombot_bringup.task.picking import (
     place_request,
 )
 from dombot_bringup.task.placing import DESCENT, REGRASP_PREFIX, Hold, Ran, execute
-from dombot_bringup.task.records import nearest_truth, pick_record, truth, write_pick_record
+from dombot_bringup.task.records import (
+    Truth,
+    at_slot,
+    nearest_truth,
+    pick_record,
+    truth,
+    write_pick_record,
+)
 from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
 
@@ -357,6 +364,7 @@ def pick(
             state.toppled_picked += 1
     if execution.ran is Ran.PUT_BACK:  # an attempt (the arm moved), not a pick that failed
         if execution.stalled:  # picked again, it hung the same way (s-curve seed 3: 3 times)
+            say_what_lay_there(job, index, dominoes, truth_name)
             job.report.dominoes[index].put_back.append(execution.why)
             state.unpickable.append(spot)
             state.remember_why(spot, execution.why)
@@ -375,8 +383,19 @@ def pick(
         log(f"{job.domino(index)}: turned it in place; looking again")
         return attempt(job, index, failed, ignore_pile, turned=True)
     ahead.ask(job, index, first_request)  # unless asked as the descent started or at let-go
-    placed = Outcome.PLACED if check(job, index) else Outcome.NOT_PLACED
-    return Attempt(placed, job.report.dominoes[index].check)
+    if check(job, index):
+        return Attempt(Outcome.PLACED, job.report.dominoes[index].check)
+    say_what_lay_there(job, index, dominoes, truth_name)
+    return Attempt(Outcome.NOT_PLACED, job.report.dominoes[index].check)
+
+
+def say_what_lay_there(job: Job, index: int, dominoes: Truth, held: str) -> None:
+    """After a placement at slot ``index`` fell or its descent stalled: the simulator's
+    dominoes but the ``held`` one that lay against the slot's footprint before the pick
+    (``records.at_slot``; report only: "(truth, ...)" lines are for people)."""
+    if dominoes:
+        there = at_slot(dominoes, job.targets[index], held)
+        log(f"(truth, report only: before the pick, at slot {index + 1}: {there})")
 
 
 def ask_ahead(

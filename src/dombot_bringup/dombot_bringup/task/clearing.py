@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from dombot_bringup.debris import carried_along, sweep_pushes
+from dombot_bringup.debris import carried_along, pushed_whole_way, sweep_pushes
 from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.offers import roomiest_first
 from dombot_bringup.spread import TIP_DISTANCE, lay_flat_pushes, spread_pushes, stir_pushes
@@ -71,13 +71,16 @@ def sweep_debris(job: Job, index: int, failed: list[np.ndarray]) -> bool:
                 continue
             job.report.dominoes[index].sweeps.append(swept)
             log(f"{job.domino(index)}: {swept}")
-            for m in along:  # moved too: looked at again before the next pick
-                state.forget_refusals_near(spot_of(others[m]))
+            # Those pushed the whole way lie where the push left them too, until looked at
+            # again there: remembered where they lay, one behind a domino swept out of a
+            # slot would be pushed into the slot and looked for where it had been.
+            for m in along:
+                if pushed_whole_way(pose, others[m], direction):
+                    state.pushed_along(others[m], push)
+                else:  # brushed: looked at again where it lay
+                    state.forget_refusals_near(spot_of(others[m]))
             if k is None:  # not a slot perception checks: taken to lie where it was pushed
-                moved = pose.copy()  # (until looked at again, ``checks.look_again``)
-                moved[:2, 3] += push
-                state.toppled = [moved if p is pose else p for p in state.toppled]
-                state.unfitted = [moved if p is pose else p for p in state.unfitted]
+                state.pushed_along(pose, push)
             else:
                 state.fallen.pop(k)
                 check(job, k, just_placed=False)  # still there (fallen again) or gone

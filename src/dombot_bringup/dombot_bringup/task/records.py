@@ -10,15 +10,17 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from dombot_bringup.footprints import footprints_meet
 from dombot_bringup.layouts import DOMINO_LENGTH
 from dombot_bringup.run_report import TruthPose
 from dombot_bringup.task.cell import CellError, Plan, Pose, Segment
 from dombot_bringup.task.picking import Candidate, pile_points
 from dombot_bringup.task.state import Job, log
-from dombot_description import tilt_from_vertical
+from dombot_description import domino_corners, tilt_from_vertical
 
 REPORT_CAMERA = "camera_2"  # its frames of the run before and after the strike go in the report
 Truth = list[tuple[str, Pose]]  # the simulator's dominoes: names and poses
+AGAINST = 0.005  # m: a domino whose footprint comes this close to a slot's lies against it
 
 
 def truth(job: Job, since: float | None = None) -> Truth:
@@ -36,6 +38,20 @@ def nearest_truth(dominoes: Truth, pose: Pose) -> tuple[str, float | None]:
     distances = np.linalg.norm(centres - pose[:3, 3], axis=1)
     nearest = int(np.argmin(distances))
     return dominoes[nearest][0], float(distances[nearest] * 1e3)
+
+
+def at_slot(dominoes: Truth, target: Pose, held: str) -> str:
+    """The simulator's dominoes but ``held`` whose footprint comes within AGAINST of the
+    footprint of a domino standing at ``target``: name, where and how tilted, for the log
+    after a placement there fell or its descent stalled (report only: nothing acts on it)."""
+    slot = domino_corners(target)[:, :2]
+    found = [
+        f"{name} at {np.round(pose[:2, 3], 3).tolist()} tilted "
+        f"{math.degrees(tilt_from_vertical(pose)):.0f}°"
+        for name, pose in dominoes
+        if name != held and footprints_meet(slot, domino_corners(pose)[:, :2], AGAINST)
+    ]
+    return ", ".join(found) or "nothing"
 
 
 def take_picture(job: Job, name: str, not_before: float) -> None:

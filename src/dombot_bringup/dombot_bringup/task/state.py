@@ -12,7 +12,7 @@ from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import say
 from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
 from dombot_bringup.task.cell import Cell, Detections, Later, Pose
-from dombot_bringup.task.geometry import SAME_SPOT, distinct, near, placement_pose
+from dombot_bringup.task.geometry import SAME_SPOT, distinct, near, placement_pose, spot_of
 from dombot_bringup.task.settings import ArmJobSettings
 
 if TYPE_CHECKING:
@@ -74,6 +74,23 @@ class BuildState:
         self.pushed = [u for u in self.pushed if not near(u, spot, DISTURBED_RADIUS)]
         self.reasons = [r for r in self.reasons if not near(r[0], spot, DISTURBED_RADIUS)]
         self.unswept = [u for u in self.unswept if not near(u[0], spot, DISTURBED_RADIUS)]
+
+    def pushed_along(self, pose: Pose, push: np.ndarray) -> None:
+        """The lying domino remembered at ``pose`` (and any remembered within SAME_SPOT of
+        it: the same domino) was pushed ``push`` (x, y): taken to lie there now, and looked
+        at again there before the next pick (``checks.look_again``)."""
+        spot = spot_of(pose)
+        moved = pose.copy()
+        moved[:2, 3] += push
+
+        def there(other: Pose) -> bool:
+            return other is pose or near(spot_of(other), spot, SAME_SPOT)
+
+        self.toppled = [moved if there(p) else p for p in self.toppled]
+        self.unfitted = [moved if there(p) else p for p in self.unfitted]
+        self.fallen = {k: moved if there(p) else p for k, p in self.fallen.items()}
+        self.forget_refusals_near(spot)
+        self.forget_refusals_near(spot_of(moved))
 
     def sweep_refused(self, spot: np.ndarray, push: np.ndarray) -> bool:
         """Whether the same sweep (``push``: direction times distance) of the domino at
