@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from pydrake.math import RigidTransform
@@ -14,6 +16,7 @@ from dombot_perception.box_fit import (
     BoxFitConfig,
     BoxFitError,
     fit_domino_box,
+    fit_statistics,
     initial_pose,
     initial_poses,
     min_area_rectangle,
@@ -497,3 +500,13 @@ def test_height_only_ranks_free_dominoes() -> None:
     ranked = score_detections([_detection(low), _detection(high)], scene, GraspScoringConfig())
     assert np.allclose(ranked[0].X_WD, high)
     assert ranked[1].score > 0.5, "the lowest free domino is still a good pick"
+
+
+def test_a_box_with_no_point_on_it_is_a_fit_no_check_accepts() -> None:
+    """A box slid off its points (the depth check's slide to an end) has no inlier: its fit
+    is infinitely bad and sees nothing, where it raised and failed the whole placement
+    check after a 30-domino circle's strike."""
+    points = np.random.default_rng(0).uniform(-0.01, 0.01, (50, 3))
+    fit = fit_statistics(np.eye(4), points, np.zeros(len(points), dtype=bool))
+    assert fit.fit_error == math.inf and fit.inlier_fraction == 0.0
+    assert not fit.extents.any()

@@ -12,6 +12,7 @@ degrees of freedom. The box always lies behind the visible surface, seen from th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,8 +125,12 @@ def fit_statistics(pose: np.ndarray, points: np.ndarray, inliers: np.ndarray) ->
 def _statistics(
     pose: np.ndarray, body: np.ndarray, residuals: np.ndarray, inliers: np.ndarray
 ) -> BoxFit:
-    """``fit_statistics`` from the points in the box frame and their signed distances."""
+    """``fit_statistics`` from the points in the box frame and their signed distances;
+    with no inlier, a fit no check accepts (infinite error, nothing seen: a box slid off
+    its points once raised here and failed a whole placement check)."""
     body = body[inliers]
+    if not len(body):
+        return BoxFit(X_WD=pose, fit_error=math.inf, extents=np.zeros(3), inlier_fraction=0.0)
     return BoxFit(
         X_WD=pose,
         fit_error=float(np.sqrt(np.mean(residuals[inliers] ** 2))),
