@@ -9,7 +9,7 @@ import pytest
 
 from dombot_bringup import layouts
 from dombot_bringup.sections import EXIT_FAILED, EXIT_SUCCESS
-from dombot_bringup.task.cell import Seen
+from dombot_bringup.task.cell import PlacementCheck, Seen
 from dombot_bringup.task.loop import run
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
@@ -68,3 +68,23 @@ def test_a_domino_no_strike_fells_fails_the_run_after_the_strikes_again() -> Non
     assert [s.round for s in report.sections] == [1, 2, 3]
     assert report.struck and not report.toppled_by_perception
     assert report.exit_status == EXIT_FAILED
+
+
+def test_a_look_after_the_strike_that_failed_is_asked_again() -> None:
+    """One check that raised in perception (circle30 seed 6) made a toppled run "0/30 seen
+    down" and the job fail: the look is asked again a camera period on."""
+    cell = cell_whose_strikes_leave_standing(0)
+    looks = cell.placements
+    failed_once = []
+
+    def look(expected, in_hand):
+        if cell.strike_requests and not failed_once:
+            failed_once.append(True)
+            return PlacementCheck(False, "placement check failed: ValueError(...)")
+        return looks(expected, in_hand)
+
+    cell.placements = look
+    report = run(line_job(cell))
+    assert failed_once and len(cell.strike_requests) == 1
+    assert report.toppled_by_perception and report.exit_status == EXIT_SUCCESS
+    assert cell.checks[-1][2] > cell.checks[-2][2]  # its frames a camera period later
