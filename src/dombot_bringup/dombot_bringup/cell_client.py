@@ -213,13 +213,22 @@ class CellClient:
             self._wait(lambda: self.sim_time >= target or None, timeout, "simulated time")
 
     def ready(self, names: Sequence[str]) -> bool:
-        """Are these services (and both actions) available?"""
-        return (
+        """Are these services (and both actions) available? Once they are, each one's
+        request readers are remembered as its server's (``_await_server``): a server
+        killed and counted restarted before this client's first request to it left
+        readers that looked like a server, and the request sent to them was lost (the
+        restart test's bring-up waited an hour for the planner's answer)."""
+        if not (
             all(self._clients[n].service_is_ready() for n in names)
             and self._trajectory.server_is_ready()
             and self._gripper.server_is_ready()
             and self._joint_state is not None
-        )
+        ):
+            return False
+        for name in names:
+            served = (self._server_restarts(name), self._request_readers(name))
+            self._sent_to.setdefault(name, served)
+        return True
 
     # ------------------------------------------------------------------ services
     def call(self, name: str, request, timeout: float):
