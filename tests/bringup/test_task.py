@@ -42,6 +42,7 @@ from dombot_bringup.task.loop import Turn, place_slot, run
 from dombot_bringup.task.picking import Candidate, candidates, debris, look_at_pile, place_request
 from dombot_bringup.task.placing import LET_GO_OPENING, Hold, Ran, execute, grasp_problem
 from dombot_bringup.task.records import (
+    FALLEN_TILT_DEG,
     add_spent,
     nearest_truth,
     pick_record,
@@ -52,6 +53,7 @@ from dombot_bringup.task.records import (
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description import DOMINO_SIZE
+from dombot_perception.placement_check import PlacementConfig
 from dombot_planner.errors import ErrorCode
 from support.scripted_cell import (
     ScriptedCell,
@@ -587,6 +589,31 @@ def test_after_the_strike_each_slot_reports_its_own_domino_not_the_nearest() -> 
     first, second = (d.truth_after_strike for d in run_job.report.dominoes)
     assert first.y == pytest.approx(0.0255) and second.y == pytest.approx(0.0508)
     assert second.error_mm == pytest.approx(22.0) and run_job.report.toppled_by_truth
+
+
+def test_a_domino_struck_onto_debris_resting_tilted_counts_down_as_perception_sees_it() -> None:
+    """Past perception's fallen tilt (15°) a domino has fallen for the truth too: one
+    resting at 41° on what lies beside the run is down, one at 12° still stands."""
+
+    def tilted(y: float, tilt_deg: float) -> np.ndarray:
+        """Its length axis (body x) ``tilt_deg`` from vertical, leaning towards +x."""
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_euler("y", tilt_deg - 90.0, degrees=True).as_matrix()
+        pose[:3, 3] = (0.45, y, 0.02)
+        return pose
+
+    assert math.radians(FALLEN_TILT_DEG) == pytest.approx(PlacementConfig().max_tilt)
+    for resting_deg, down in ((41.0, True), (12.0, False)):
+        cell = ScriptedCell()
+        run_job = job(cell, count=2)
+        cell.dominoes = [("domino_a", tilted(0.0, 0.0)), ("domino_b", tilted(0.0288, 0.0))]
+        record_truth(run_job, before_strike=True)
+        for outcome in run_job.report.dominoes:
+            outcome.placed = True
+        run_job.report.struck = True
+        cell.dominoes = [("domino_a", tilted(0.02, 75.0)), ("domino_b", tilted(0.03, resting_deg))]
+        record_truth(run_job, before_strike=False)
+        assert run_job.report.toppled_by_truth is down
 
 
 def test_the_summary_counts_dominoes_the_simulator_had_within_3_mm_and_3_degrees() -> None:
