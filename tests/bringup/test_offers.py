@@ -54,13 +54,13 @@ class At:
         return np.array([self.x, self.y])
 
 
-def test_the_domino_kept_for_a_slot_comes_first_there_and_last_elsewhere() -> None:
+def test_the_domino_kept_for_a_slot_comes_first_there_and_nowhere_else() -> None:
     """Kept within 10 mm: the same domino seen again."""
     seen = [At(0.50, -0.3), At(0.55, -0.3), At(0.60, -0.3), At(0.65, -0.3)]
     kept = {4: np.array([0.555, -0.3]), 9: np.array([0.65, -0.305])}
-    assert kept_first(seen, kept, 4, 0.01) == [seen[1], seen[0], seen[2], seen[3]]
-    assert kept_first(seen, kept, 9, 0.01) == [seen[3], seen[0], seen[2], seen[1]]
-    assert kept_first(seen, kept, 0, 0.01) == [seen[0], seen[2], seen[1], seen[3]]
+    assert kept_first(seen, kept, 4, 0.01) == [seen[1], seen[0], seen[2]]
+    assert kept_first(seen, kept, 9, 0.01) == [seen[3], seen[0], seen[2]]
+    assert kept_first(seen, kept, 0, 0.01) == [seen[0], seen[2]]
     assert kept_first(seen, {}, 4, 0.01) == seen
     assert kept_first(seen, {4: np.array([0.58, -0.3])}, 4, 0.01) == seen  # not seen now
 

@@ -73,13 +73,14 @@ def kept_first(
     candidates: Sequence[LyingT], kept: Mapping[int, np.ndarray], slot: int, radius: float
 ) -> list[LyingT]:
     """``candidates`` for ``slot`` with the pile dominoes kept for a safety gap's last slot
-    (``kept``: slot → (x, y), the same domino within ``radius``) moved: the one kept for
-    ``slot`` first, those kept for other slots last (taken there only when nothing else
-    plans). A gap's last slot goes in between two standing neighbours once the pile has
-    thinned, where only holds that do not lean along the run can be placed, and what was
-    left of the pile then often had none (S-curve of 20: 17-23 offers refused or foreseen
-    in that one slot, then pushes through the pile): the domino the planner placed there
-    before the build is kept for it (``task.gaps``)."""
+    (``kept``: slot → (x, y), the same domino within ``radius``): the one kept for ``slot``
+    first, those kept for other slots left out. A gap's last slot goes in between two
+    standing neighbours once the pile has thinned, where only holds that do not lean along
+    the run can be placed, and what was left of the pile then often had none (S-curve of
+    20: 17-23 offers refused or foreseen in that one slot, then pushes through the pile);
+    the domino the planner placed there before the build is kept for it (``task.gaps``).
+    Offered last elsewhere, each was taken by another slot whose other offers were refused
+    (S-curve of 20, seed 0: all three, and two gaps then cost 27 and 33 s simulated)."""
 
     def kept_for(candidate: LyingT) -> int | None:
         spot = candidate.spot()
@@ -87,9 +88,7 @@ def kept_first(
 
     slots = [kept_for(c) for c in candidates]
     mine = [c for c, s in zip(candidates, slots, strict=True) if s == slot]
-    free = [c for c, s in zip(candidates, slots, strict=True) if s is None]
-    others = [c for c, s in zip(candidates, slots, strict=True) if s not in (None, slot)]
-    return mine + free + others
+    return mine + [c for c, s in zip(candidates, slots, strict=True) if s is None]
 
 
 def follow_kept(

@@ -13,10 +13,11 @@ run order. A grasp refusal says nothing of the slot: the next flat domino is ask
 most ``gap_probe_dominoes``); when none answers about the slot, the gap is kept as it is.
 
 The domino that planned at a gap's last slot is kept for it (``BuildState.kept``): offered
-there first and at other slots last (``offers.kept_first``), each gap asked with the
-dominoes kept for none first. Left to the end, the thinned pile often had no domino whose
-hold suits a slot between two standing neighbours (S-curve of 20, seed 0: 25 s simulated
-in one such slot, 23 offers refused or foreseen and two pushes through the pile).
+there first and with its pile at no other slot (``offers.kept_first``), each gap asked
+with the dominoes kept for none first. Left to the end, the thinned pile often had no
+domino whose hold suits a slot between two standing neighbours (S-curve of 20, seed 0: 25
+s simulated in one such slot, 23 offers refused or foreseen and two pushes through the
+pile).
 """
 
 from __future__ import annotations
@@ -28,10 +29,10 @@ from enum import Enum
 import numpy as np
 
 from dombot_bringup.layouts import gap_at, safety_gaps
-from dombot_bringup.offers import PILE_IGNORED, kept_first
+from dombot_bringup.offers import PILE_IGNORED
 from dombot_bringup.run_report import GapDecision
 from dombot_bringup.task.cell import CellError, Detections, Later, Posture
-from dombot_bringup.task.geometry import SAME_SPOT
+from dombot_bringup.task.geometry import near_any
 from dombot_bringup.task.picking import Candidate, look_at_pile, pile_candidate, place_request
 from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
@@ -94,7 +95,7 @@ def decide(job: Job, gaps: list[range], dominoes: list[Candidate]) -> list[range
         later = {i for other in gaps[number + 1 :] for i in other}
         low = decided[-1].stop + 1 if decided else 1
         high = gaps[number + 1].start if number + 1 < len(gaps) else len(job.layout)
-        free = kept_first(dominoes, kept, -1, SAME_SPOT)  # those kept for a gap last
+        free = sorted(dominoes, key=lambda c: near_any(c.spot(), [*kept.values()]))
         asked = probe(job, gap[-1], others_standing(job, gap, later), free)
         plans, now, spot = asked.plans, gap, asked.spot
         if asked.fill is Fill.REFUSED:
@@ -112,7 +113,7 @@ def decide(job: Job, gaps: list[range], dominoes: list[Candidate]) -> list[range
         log(f"safety gap at {names(gap)}: {verdict}{verdict_words(asked, now)}")
         if now is not None:
             decided.append(now)
-        if now is not None and spot is not None:
+        if now is not None and spot is not None and not near_any(spot, [*kept.values()]):
             kept[now[-1]] = spot
             log(f"the pile domino at {spot.round(3).tolist()} kept for {names(now[-1:])}")
     return decided
