@@ -37,9 +37,9 @@ SPREAD = {
     "tests/foundation/test_parameter_files.py",  # each test starts a node
     "tests/sim/test_physics.py",  # a Drake world of its own per test, a quarter of the suite
 }
-# CPU seconds of each module's tests in a whole run (user + sys of its worker and the
-# children it waited for, 2026-11-27; docs/SPEED.md, the test-suite row). Modules not
-# listed took less than 4 s: they are handed out after these, those with slow tests first.
+# CPU seconds of each module's tests in a whole run at 81a0a7a (user + sys of its worker
+# and the children it waited for; docs/SPEED.md, the test-suite row). Modules not listed
+# took less than 4 s: they are handed out after these, those with slow tests first.
 CPU_S = {
     "tests/bringup/test_arm_job.py": 134.5,
     "tests/bringup/test_partial_build.py": 77.9,
