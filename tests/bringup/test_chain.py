@@ -250,12 +250,12 @@ def test_the_domino_just_placed_at_the_end_of_a_long_closed_run_is_not_lifted_ou
     )
     blind = job(8, range(7))
     looks(blind, {7: lean})
-    failed = blind.cell.placements
+    first_look = blind.cell.placements
 
     def once_then_fail(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
         if len(blind.cell.checks) > 1:  # the second look
             return PlacementCheck(False, "no frames", (), (), (), ())
-        return failed(expected, in_hand)
+        return first_look(expected, in_hand)
 
     blind.cell.placements = once_then_fail
     assert not check(blind, 7)

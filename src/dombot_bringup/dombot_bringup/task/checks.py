@@ -85,9 +85,7 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
     if not answer.success:
         job.report.dominoes[index].check = f"placement check failed: {answer.message}"
         return False
-    placed = False
     again = []  # run dominoes seen standing off target: looked at again
-    first: Reading | None = None  # ``index``'s first word, when it is among them
     for position, i in enumerate(indices):
         reading = Reading.of(answer, position)
         hidden = reading.status == Seen.NOT_SEEN and (just_placed or i != index)
@@ -100,17 +98,16 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
                 (None, None) if hidden else (reading.error * 1e3, math.degrees(reading.tilt))
             )
             outcome.off_target = off_target
-            placed = upright
         if upright:
             stands(job, i, reading, off_target, i != index)
         elif reading.status == Seen.STANDING and (i != index or risky_to_lift(job, i)):
             again.append(i)
-            first = reading if i == index else first
         else:
             fell(job, i, index, reading)
-    if again and not second_look(job, again, index) and first is not None:
-        fell(job, index, index, first)  # not looked at again: judged on the first word
-    return placed or index in state.standing
+    if again and not second_look(job, again, index) and index in again:
+        # not looked at again: judged on the first word
+        fell(job, index, index, Reading.of(answer, indices.index(index)))
+    return index in state.standing  # ``stands`` puts it there, ``fell`` takes it out
 
 
 def risky_to_lift(job: Job, index: int) -> bool:
