@@ -8,8 +8,10 @@ other's topics.
 ``./dombot test`` runs the tests in two pytest-xdist workers (``-n 2 --dist loadscope``;
 ``-n 0``: in one process). A module's tests run on one worker, so a module-scoped fixture
 (a node process, a planner) is set up once; the modules in ``SPREAD`` let their
-independent tests run on several workers. The longest modules are handed out first
-(``LONGEST``), then the other modules with slow tests, so that no long one starts last.
+independent tests run on several workers. The suite's wall time is its slower worker's:
+work is handed out costliest first by the CPU each module took in a whole run
+(``CPU_S``), a worker is given more only when it is about to run out, and the cheap
+modules come last to even out the two workers' ends.
 """
 
 from __future__ import annotations
@@ -35,17 +37,34 @@ SPREAD = {
     "tests/foundation/test_parameter_files.py",  # each test starts a node
     "tests/sim/test_physics.py",  # a Drake world of its own per test, a quarter of the suite
 }
-# The modules that take longest, longest first (--durations of a whole run, README).
-LONGEST = (
-    "tests/bringup/test_arm_job.py",  # a two-cycle bring-up, the longest: it must not start last
-    "tests/sim/test_physics.py",
-    "tests/planner/test_execution.py",
-    "tests/bringup/test_partial_build.py",
-    "tests/perception/test_perception_node.py",
-    "tests/reliability/test_fuzz.py",
-    "tests/ros2cli/test_ros2cli.py",
-    "tests/bringup/test_sim_cell.py",
-)
+# CPU seconds of each module's tests in a whole run at 81a0a7a (user + sys of its worker
+# and the children it waited for; docs/SPEED.md, the test-suite row). Modules not listed
+# took less than 4 s: they are handed out after these, those with slow tests first.
+CPU_S = {
+    "tests/bringup/test_arm_job.py": 134.5,
+    "tests/bringup/test_partial_build.py": 77.9,
+    "tests/sim/test_physics.py": 53.5,
+    "tests/reliability/test_fuzz.py": 45.8,
+    "tests/planner/test_execution.py": 25.7,
+    "tests/perception/test_struck_run.py": 22.3,
+    "tests/ros2cli/test_ros2cli.py": 20.0,
+    "tests/planner/test_curved_runs.py": 17.0,
+    "tests/planner/test_planner.py": 14.4,
+    "tests/bringup/test_layer_job.py": 11.4,
+    "tests/sim/test_sim_node.py": 10.8,
+    "tests/bringup/test_sim_cell.py": 10.7,
+    "tests/sim/test_still_cell.py": 10.2,
+    "tests/bringup/test_recording.py": 10.0,
+    "tests/perception/test_perception_node.py": 9.1,
+    "tests/description/test_console.py": 8.6,
+    "tests/layer/test_vehicle_sim.py": 8.6,
+    "tests/planner/test_planner_node.py": 8.3,
+    "tests/perception/test_placement_check.py": 7.8,
+    "tests/planner/test_published_trajectories.py": 7.2,
+    "tests/foundation/test_parameter_files.py": 7.2,
+    "tests/planner/test_stretch_start.py": 5.1,
+    "tests/bringup/test_task.py": 4.3,
+}
 
 
 def _hold_a_free_domain() -> int:
@@ -87,7 +106,8 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_xdist_make_scheduler(config: pytest.Config, log):
     """--dist loadscope, with a module's tests on one worker unless it is in SPREAD, handed
     out in the order pytest_collection_modifyitems gives (xdist's default, the modules with
-    most tests first, started the one-test end-to-end modules last)."""
+    most tests first, started the one-test end-to-end modules last), each unit to the worker
+    that runs out first."""
     if config.getvalue("dist") != "loadscope":
         return None
     from xdist.scheduler import LoadScopeScheduling
@@ -98,6 +118,14 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
         def _split_scope(self, nodeid: str) -> str:
             module = nodeid.split("::", 1)[0]
             return nodeid if module in SPREAD else module
+
+        def _reschedule(self, node) -> None:
+            # xdist gives a worker more once two of its tests are left, so the next unit
+            # waits behind a running test however long while the other worker may be free
+            # first. A worker runs a test once it holds the next (or is told to stop): one
+            # left is when it needs more.
+            if not self.workqueue or self._pending_of(self.assigned_work[node]) <= 1:
+                super()._reschedule(node)
 
     return ModuleScheduling(config, log)
 
@@ -120,10 +148,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     if "PYTEST_XDIST_WORKER" in os.environ:  # the controller hands out in this order
         slow_modules = {_module(item) for item in items if item.get_closest_marker("slow")}
 
-        def rank(item: pytest.Item) -> tuple[int, bool]:
+        def rank(item: pytest.Item) -> tuple[float, bool]:
             module = _module(item)
-            return (LONGEST.index(module) if module in LONGEST else len(LONGEST)), (
-                module not in slow_modules
-            )
+            return -CPU_S.get(module, 0.0), module not in slow_modules
 
         items.sort(key=rank)  # stable: modules stay whole

@@ -224,8 +224,39 @@ def test_a_second_look_that_sees_it_down_or_hidden_is_taken_at_its_word() -> Non
 
 
 def test_the_domino_just_placed_is_judged_as_before_without_a_second_look() -> None:
+    """With replace_risk (3) standing within its reach it is picked up again at once."""
     run = job(6, [0, 1, 2])
     looks(run, {3: (STANDING, 0.0078, 0.0, math.radians(7.3))})
     assert not check(run, 3)
     assert sorted(run.state.fallen) == [3] and len(run.cell.checks) == 1
     assert np.allclose(run.state.fallen[3][:2, 3], run.targets[3][:2, 3] + [0.0078, 0.0])
+
+
+def test_the_domino_just_placed_at_the_end_of_a_long_closed_run_is_not_lifted_out_of_it(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """s_curve30 seed 6 (its safety gaps dropped): the 22nd read 2.7 mm and 5.2° off was
+    picked up again from the end of the 21 standing, knocked over, and felled them all.
+    Now it is looked at again as any run domino: still off, it stays while the run
+    topples through it; a second look that fails judges it on the first word."""
+    lean = (STANDING, 0.0027, 0.0, math.radians(5.2))
+    run = job(8, range(7))
+    looks(run, {7: lean}, {7: lean})
+    assert check(run, 7)
+    assert sorted(run.state.standing) == list(range(8)) and not run.state.fallen
+    assert run.report.dominoes[7].off_target and len(run.cell.checks) == 2
+    assert "domino 8 standing off target (standing, 2.7 mm and 5.2° from the target), " in (
+        capsys.readouterr().out
+    )
+    blind = job(8, range(7))
+    looks(blind, {7: lean})
+    first_look = blind.cell.placements
+
+    def once_then_fail(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
+        if len(blind.cell.checks) > 1:  # the second look
+            return PlacementCheck(False, "no frames", (), (), (), ())
+        return first_look(expected, in_hand)
+
+    blind.cell.placements = once_then_fail
+    assert not check(blind, 7)
+    assert sorted(blind.state.fallen) == [7] and 7 not in blind.state.standing

@@ -566,26 +566,35 @@ def test_a_pick_whose_pads_meet_the_pile_at_every_grasp_is_refused_without_askin
             assert "GRASP_UNREACHABLE (foreseen)" not in refusals
 
 
-def test_after_the_strike_each_slot_reports_its_own_domino_not_the_nearest() -> None:
-    """The first domino falls ~25 mm forward, next to the second slot's target: the
-    second slot is reported with the second domino, where it fell (a new user's run drew
-    the first one's cross at both slots)."""
+def tilted_at(y: float, tilt_deg: float) -> np.ndarray:
+    """A domino at (0.45, ``y``), its length axis (body x) ``tilt_deg`` from vertical."""
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_euler("y", tilt_deg - 90.0, degrees=True).as_matrix()
+    pose[:3, 3] = (0.45, y, 0.02)
+    return pose
 
-    def at(y: float, tilt_deg: float) -> np.ndarray:
-        pose = np.eye(4)
-        pose[:3, :3] = Rotation.from_euler("x", -tilt_deg, degrees=True).as_matrix()
-        pose[:3, 3] = (0.45, y, 0.02)
-        return pose
 
+def struck_pair(after: tuple[tuple[float, float], tuple[float, float]]) -> Job:
+    """Two dominoes built upright 28.8 mm apart, then struck: the truth recorded before
+    the strike and after it, each then lying at (y, tilt in degrees) of ``after``."""
     cell = ScriptedCell()
     run_job = job(cell, count=2)
-    cell.dominoes = [("domino_a", at(0.0, 0.0)), ("domino_b", at(0.0288, 0.0))]
+    cell.dominoes = [("domino_a", tilted_at(0.0, 0.0)), ("domino_b", tilted_at(0.0288, 0.0))]
     record_truth(run_job, before_strike=True)
     for outcome in run_job.report.dominoes:
         outcome.placed = True
     run_job.report.struck = True
-    cell.dominoes = [("domino_a", at(0.0255, 75.0)), ("domino_b", at(0.0508, 75.0))]
+    names = ("domino_a", "domino_b")
+    cell.dominoes = [(name, tilted_at(*pose)) for name, pose in zip(names, after, strict=True)]
     record_truth(run_job, before_strike=False)
+    return run_job
+
+
+def test_after_the_strike_each_slot_reports_its_own_domino_not_the_nearest() -> None:
+    """The first domino falls ~25 mm forward, next to the second slot's target: the
+    second slot is reported with the second domino, where it fell (a new user's run drew
+    the first one's cross at both slots)."""
+    run_job = struck_pair(((0.0255, 75.0), (0.0508, 75.0)))
     first, second = (d.truth_after_strike for d in run_job.report.dominoes)
     assert first.y == pytest.approx(0.0255) and second.y == pytest.approx(0.0508)
     assert second.error_mm == pytest.approx(22.0) and run_job.report.toppled_by_truth
@@ -594,25 +603,9 @@ def test_after_the_strike_each_slot_reports_its_own_domino_not_the_nearest() -> 
 def test_a_domino_struck_onto_debris_resting_tilted_counts_down_as_perception_sees_it() -> None:
     """Past perception's fallen tilt (15°) a domino has fallen for the truth too: one
     resting at 41° on what lies beside the run is down, one at 12° still stands."""
-
-    def tilted(y: float, tilt_deg: float) -> np.ndarray:
-        """Its length axis (body x) ``tilt_deg`` from vertical, leaning towards +x."""
-        pose = np.eye(4)
-        pose[:3, :3] = Rotation.from_euler("y", tilt_deg - 90.0, degrees=True).as_matrix()
-        pose[:3, 3] = (0.45, y, 0.02)
-        return pose
-
     assert math.radians(FALLEN_TILT_DEG) == pytest.approx(PlacementConfig().max_tilt)
     for resting_deg, down in ((41.0, True), (12.0, False)):
-        cell = ScriptedCell()
-        run_job = job(cell, count=2)
-        cell.dominoes = [("domino_a", tilted(0.0, 0.0)), ("domino_b", tilted(0.0288, 0.0))]
-        record_truth(run_job, before_strike=True)
-        for outcome in run_job.report.dominoes:
-            outcome.placed = True
-        run_job.report.struck = True
-        cell.dominoes = [("domino_a", tilted(0.02, 75.0)), ("domino_b", tilted(0.03, resting_deg))]
-        record_truth(run_job, before_strike=False)
+        run_job = struck_pair(((0.02, 75.0), (0.03, resting_deg)))
         assert run_job.report.toppled_by_truth is down
 
 

@@ -10,6 +10,7 @@ from contextlib import contextmanager
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import uninstall_signal_handlers
 
 
 @contextmanager
@@ -31,6 +32,21 @@ def stop_quietly_on_shutdown() -> Iterator[None]:
             raise
 
 
+def stop_signal_thread() -> None:
+    """Uninstall rclpy's signal handlers, which joins the thread they wake; call it first
+    when a node stops, before any executor is shut down.
+
+    On SIGINT rclpy 7.1.6 wakes a thread of its own that triggers each executor's SIGINT
+    guard condition, from a list it reads without a lock, and shuts the contexts down.
+    Meanwhile the main thread, already in KeyboardInterrupt, shuts the executor down and
+    destroys that guard condition: a use-after-free (SIGSEGV in
+    ``rcl_trigger_guard_condition``, 1 Ctrl-C of layer_node in about 60). ``rclpy.try_shutdown``
+    never joins that thread; the process's exit does, after the executors are collected.
+    A Ctrl-C from here on is Python's plain KeyboardInterrupt.
+    """
+    uninstall_signal_handlers()
+
+
 class DrainingExecutor(MultiThreadedExecutor):
     """A MultiThreadedExecutor whose ``shutdown`` waits for the callbacks still running.
 
@@ -50,15 +66,15 @@ class DrainingExecutor(MultiThreadedExecutor):
         return stopped
 
 
-def spin_until_shutdown(node: Node, num_threads: int) -> None:
-    """Serve ``node`` with ``num_threads`` callback threads until Ctrl-C or the
-    supervisor's SIGINT; destroy it only once its running callbacks have returned."""
-    executor = DrainingExecutor(num_threads=num_threads)
-    executor.add_node(node)
+def spin_until_shutdown(node: Node, executor: Executor) -> None:
+    """Serve ``node`` on ``executor`` until Ctrl-C or the supervisor's SIGINT; with a
+    ``DrainingExecutor`` the node is destroyed only once its running callbacks returned."""
     try:
         with stop_quietly_on_shutdown():
+            executor.add_node(node)
             executor.spin()
     finally:
+        stop_signal_thread()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
@@ -96,7 +112,9 @@ class BackgroundSpinner:
 
     def stop(self, timeout_sec: float = 10.0) -> None:
         """Leave the spin loop, then shut the executor down (its running callbacks
-        drain first with a ``DrainingExecutor``)."""
+        drain first with a ``DrainingExecutor``); rclpy's signal thread is joined before
+        (``stop_signal_thread``)."""
         self._stopping.set()
         self._thread.join(timeout=timeout_sec)
+        stop_signal_thread()
         self.executor.shutdown(timeout_sec=timeout_sec)

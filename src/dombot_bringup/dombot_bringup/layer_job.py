@@ -29,6 +29,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from scipy.spatial import cKDTree
 
+from dombot_adapters.node_shutdown import stop_signal_thread
 from dombot_bringup.process_group import ProcessGroup, say
 from dombot_layer.geometry import VehicleGeometry
 from dombot_layer.paths import rig_length
@@ -160,6 +161,7 @@ def run_layer_job(
             spin_for(client, 0.5)
             deposits = client.deposits.copy()
         finally:
+            stop_signal_thread()  # before rclpy's global executor goes with the context
             rclpy.try_shutdown()
     curve = requested_curve(geometry, radius, sweep)
     report = evaluate(

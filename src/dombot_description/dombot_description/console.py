@@ -22,8 +22,20 @@ def run_quietly(module: str, function: str = "main") -> int:
     try:
         status = getattr(importlib.import_module(module), function)()
     except KeyboardInterrupt:
+        _stop_rclpy_signal_thread()  # while the interrupted frames still hold their executors
         return INTERRUPTED
+    _stop_rclpy_signal_thread()
     return status if isinstance(status, int) else 0
+
+
+def _stop_rclpy_signal_thread() -> None:
+    """Join rclpy's signal thread, if rclpy was imported, before the interpreter collects
+    the executors: a Ctrl-C that lands before a node's spin (its finally joins the thread,
+    ``dombot_adapters.node_shutdown.stop_signal_thread``) left the thread triggering a
+    guard condition the exit's garbage collection freed (SIGSEGV)."""
+    signals = sys.modules.get("rclpy.signals")
+    if signals is not None:
+        signals.uninstall_signal_handlers()
 
 
 def run_with_system_malloc(module: str, function: str = "main") -> int:

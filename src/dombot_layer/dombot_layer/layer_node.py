@@ -27,7 +27,7 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64, Float64MultiArray
 
-from dombot_adapters.node_shutdown import stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import spin_until_shutdown
 from dombot_adapters.parameters import DataclassParameters, described
 from dombot_description.allocator import release_memory, tune_allocator
 from dombot_layer.geometry import VehicleGeometry
@@ -268,15 +268,7 @@ def spin(node_class: type[Node], args: list[str] | None = None) -> None:
     # built before the node says it is ready: a Ctrl-C inside an executor's __init__
     # leaves half an executor whose __del__ prints a traceback
     executor = SingleThreadedExecutor()
-    node = node_class()
-    try:
-        with stop_quietly_on_shutdown():
-            executor.add_node(node)
-            executor.spin()
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until_shutdown(node_class(), executor)
 
 
 def main(args: list[str] | None = None) -> None:

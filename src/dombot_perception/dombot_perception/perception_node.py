@@ -44,7 +44,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
 
-from dombot_adapters.node_shutdown import spin_until_shutdown
+from dombot_adapters.node_shutdown import DrainingExecutor, spin_until_shutdown
 from dombot_adapters.parameters import DataclassParameters
 from dombot_adapters.pose_messages import pose_matrix
 from dombot_description.allocator import tune_allocator
@@ -532,7 +532,7 @@ def main(args: list[str] | None = None) -> None:
         print(f"perception_node: cannot start: {error}", flush=True)
         rclpy.try_shutdown()
         raise SystemExit(2) from None
-    spin_until_shutdown(node, num_threads=EXECUTOR_THREADS)
+    spin_until_shutdown(node, DrainingExecutor(num_threads=EXECUTOR_THREADS))
 
 
 if __name__ == "__main__":

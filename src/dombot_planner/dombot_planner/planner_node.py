@@ -30,7 +30,11 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from dombot_adapters.node_shutdown import spin_until_shutdown, stop_quietly_on_shutdown
+from dombot_adapters.node_shutdown import (
+    DrainingExecutor,
+    spin_until_shutdown,
+    stop_quietly_on_shutdown,
+)
 from dombot_adapters.parameters import DataclassParameters
 from dombot_adapters.pose_messages import duration_message, pose_message
 from dombot_description.allocator import release_memory, tune_allocator
@@ -348,7 +352,7 @@ def main(args: list[str] | None = None) -> None:
     if node is None:
         rclpy.try_shutdown()
         return
-    spin_until_shutdown(node, num_threads=EXECUTOR_THREADS)
+    spin_until_shutdown(node, DrainingExecutor(num_threads=EXECUTOR_THREADS))
 
 
 if __name__ == "__main__":

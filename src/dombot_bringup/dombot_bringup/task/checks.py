@@ -71,9 +71,12 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
     where perception measured it, not picked up from within the run; so is one that stays
     within the tolerance of where it was left, and one whose pick-up again failed, up to
     keep_when_stuck. A run domino other than ``index`` seen standing beyond those bounds
-    is looked at again before anything is done about it (``second_look``). A hidden
-    ``index`` not ``just_placed`` (e.g. the slot a fallen domino was swept out of) is not
-    taken as standing."""
+    is looked at again before anything is done about it (``second_look``); so is
+    ``index`` when more than replace_risk standing dominoes have no empty slot between it
+    and them (``chain.at_risk``): s_curve30 seed 6, its safety gaps dropped, had its 22nd
+    picked up again from the end of the 21 standing for 5.2° of lean, knocked it over and
+    felled them all. A hidden ``index`` not ``just_placed`` (e.g. the slot a fallen domino
+    was swept out of) is not taken as standing."""
     state = job.state
     fresh = settle(job, settle_left(job))
     job.still_since = fresh
@@ -82,7 +85,6 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
     if not answer.success:
         job.report.dominoes[index].check = f"placement check failed: {answer.message}"
         return False
-    placed = False
     again = []  # run dominoes seen standing off target: looked at again
     for position, i in enumerate(indices):
         reading = Reading.of(answer, position)
@@ -96,16 +98,22 @@ def check(job: Job, index: int, just_placed: bool = True) -> bool:
                 (None, None) if hidden else (reading.error * 1e3, math.degrees(reading.tilt))
             )
             outcome.off_target = off_target
-            placed = upright
         if upright:
             stands(job, i, reading, off_target, i != index)
-        elif i != index and reading.status == Seen.STANDING:
+        elif reading.status == Seen.STANDING and (i != index or risky_to_lift(job, i)):
             again.append(i)
         else:
             fell(job, i, index, reading)
-    if again:
-        second_look(job, again)
-    return placed
+    if again and not second_look(job, again, index) and index in again:
+        # not looked at again: judged on the first word
+        fell(job, index, index, Reading.of(answer, indices.index(index)))
+    return index in state.standing  # ``stands`` puts it there, ``fell`` takes it out
+
+
+def risky_to_lift(job: Job, index: int) -> bool:
+    """More than replace_risk standing dominoes with no empty slot between them and
+    domino ``index``: a failed pick of it could fell them all."""
+    return len(at_risk(index, job.state.standing)) > job.settings.replace_risk
 
 
 def is_erect(job: Job, reading: Reading) -> bool:
@@ -176,7 +184,7 @@ def fell(job: Job, index: int, placing: int, reading: Reading) -> None:
         log(f"domino {index + 1} is no longer standing ({reading.words})")
 
 
-def second_look(job: Job, again: Sequence[int]) -> None:
+def second_look(job: Job, again: Sequence[int], placing: int = -1) -> bool:
     """Run dominoes ``again``, seen standing but off target beyond what ``check`` keeps,
     looked at again from frames a camera period on (circle30 seed 1: one read 7.8 mm and
     7.3° off while the arm stood over the run, 6 others hidden, was picked from between
@@ -184,26 +192,31 @@ def second_look(job: Job, again: Sequence[int]) -> None:
     hidden: standing as before. Still off: left where it stands while the run topples
     through it (``chain.chain_breaks``); else picked up again, unless more than
     replace_risk standing dominoes stand with no empty slot between them and it
-    (``chain.at_risk``): left then too, the risk told. Down or gone: it fell."""
+    (``chain.at_risk``): left then too, the risk told. Down or gone: it fell. False: the
+    look failed, and each is as it was."""
     fresh = settle(job, 1.0 / job.settings.camera_rate)
     job.still_since = fresh
     answer = job.cell.check_placement([job.targets[i] for i in again], not_before=fresh)
+    if not answer.success:
+        log(f"looking again at dominoes {span(again)} failed ({answer.message}): as they were")
+        return False
     for position, i in enumerate(again):
-        if not answer.success:
-            log(f"looking again at domino {i + 1} failed ({answer.message}): as it was")
-            continue
         reading = Reading.of(answer, position)
+        if i == placing:
+            job.report.dominoes[i].check = reading.words
         off_target = is_off_target(job, i, reading)
         if reading.status == Seen.NOT_SEEN or off_target or on_target(job, reading):
             stands(job, i, reading, off_target, True)
         elif reading.status != Seen.STANDING:
-            fell(job, i, -1, reading)
+            fell(job, i, placing, reading)
         else:
-            standing_off(job, i, reading)
+            standing_off(job, i, reading, placing)
+    return True
 
 
-def standing_off(job: Job, index: int, reading: Reading) -> None:
-    """Domino ``index``, seen twice standing off target: see ``second_look``."""
+def standing_off(job: Job, index: int, reading: Reading, placing: int = -1) -> None:
+    """Domino ``index``, seen twice standing off target (``placing``: the slot being
+    built): see ``second_look``."""
     settings, state = job.settings, job.state
     neighbours = {
         k: state.standing.get(k, job.targets[k])  # an empty slot: where its domino will stand
@@ -215,7 +228,7 @@ def standing_off(job: Job, index: int, reading: Reading) -> None:
     said = f"domino {index + 1} standing off target ({reading.words})"
     if why and len(risk) <= settings.replace_risk:
         log(f"{said}: {why}; picked up again ({len(risk)} standing within its reach)")
-        fell(job, index, -1, reading)
+        fell(job, index, placing, reading)
         return
     if why:
         log(

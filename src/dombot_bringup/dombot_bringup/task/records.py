@@ -19,8 +19,8 @@ from dombot_bringup.task.state import Job, log
 from dombot_description import domino_corners, tilt_from_vertical
 
 # Past this tilt a domino has fallen, for the truth as for perception (its
-# PlacementConfig.max_tilt): one struck onto debris rests at 41° (arc10_cycles5 seed 1,
-# cycle 5), seen down, and counted standing by a 45° line it made the run a failure.
+# PlacementConfig.max_tilt). One struck onto debris rested at 41° (arc10_cycles5 seed 1,
+# cycle 5): seen down, but not down by a 45° line, which made the run a failure.
 FALLEN_TILT_DEG = 15.0
 
 REPORT_CAMERA = "camera_2"  # its frames of the run before and after the strike go in the report
