@@ -10,13 +10,10 @@ from collections.abc import Callable, Collection
 import pytest
 
 from dombot_bringup import layouts
-from dombot_bringup.offers import PILE_BOXES, PILE_CORES
 from dombot_bringup.run_report import GapDecision
-from dombot_bringup.task.attempts import offers_with_pile
 from dombot_bringup.task.cell import PlaceRequest, Plan, Posture
 from dombot_bringup.task.gaps import gap_slots, moves
 from dombot_bringup.task.loop import Turn, run
-from dombot_bringup.task.picking import candidates
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_planner.errors import ErrorCode
@@ -152,33 +149,3 @@ def test_with_no_dominoes_to_ask_with_the_gaps_stay_as_laid_out() -> None:
     assert gap_slots(run_job) == [4]
     assert cell.place_requests == [] and run_job.report.safety_gaps == []
     assert gap_slots(line_job(cell, 10, gap_probe_dominoes=0)) == [4]
-
-
-def test_the_domino_that_planned_at_a_gap_is_kept_for_it() -> None:
-    """Two gaps (slots 5 and 10), each asked with its own domino: the first with
-    perception's best, the second with the next. Each is kept for its gap: offered there
-    first and with its pile at no other slot, followed when a pick nudges it (S-curve of
-    20, seed 0: the last gap's slot, filled from the thinned pile, took 25 s simulated)."""
-    pile = [flat(0.52 + 0.03 * k) for k in range(3)]
-    cell = ScriptedCell(pile=pile, place=lambda request: planned("approach_grasp"))
-    run_job = line_job(cell, 14)
-    assert gap_slots(run_job) == [4, 9]
-    assert [r.domino is pile[k].pose for k, r in enumerate(cell.place_requests)] == [True, True]
-    assert sorted(run_job.state.kept) == [4, 9]
-
-    def first_offers(slot: int) -> list[float]:
-        """x of the dominoes offered with their pile's boxes (the cores' tier: the same)."""
-        found, _ = candidates(run_job, [], slot)
-        offers = offers_with_pile(run_job, slot, found)
-        assert [c for c, pile in offers if pile == PILE_BOXES] == [
-            c for c, pile in offers if pile == PILE_CORES
-        ]
-        return [round(c.pose[0, 3], 3) for c, pile in offers if pile == PILE_BOXES]
-
-    assert first_offers(0) == [0.58]
-    assert first_offers(4) == [0.52, 0.58]
-    assert first_offers(9) == [0.55, 0.58]
-    cell.pile = [flat(0.527), *pile[1:]]  # nudged 7 mm by a pick beside it
-    assert first_offers(0) == [0.58]
-    cell.pile = [flat(0.535), *pile[1:]]  # then 15 mm from where it was first seen
-    assert first_offers(4) == [0.535, 0.58]

@@ -6,7 +6,7 @@ measures the ranking that runs.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, MutableMapping, Sequence
+from collections.abc import Sequence
 from typing import Protocol, TypeVar
 
 import numpy as np
@@ -46,14 +46,6 @@ class Offer(Protocol):
 OfferT = TypeVar("OfferT", bound=Offer)
 
 
-class Lying(Protocol):
-    def spot(self) -> np.ndarray:  # (x, y) where it lies
-        ...
-
-
-LyingT = TypeVar("LyingT", bound=Lying)
-
-
 def roomiest_first(candidates: Sequence[OfferT]) -> list[OfferT]:
     """Scored before unscored, flat before leaning, then the most room for the fingers:
     the order of the last resort, offers planned without their pile."""
@@ -67,42 +59,6 @@ def with_pile_first(candidates: Sequence[OfferT]) -> list[OfferT]:
     of the 6 grasps that closed on nothing; they placed about as often, 64 of 69)."""
     scored = sorted((c for c in candidates if c.scored), key=lambda c: c.leaning)
     return scored + [c for c in roomiest_first(candidates) if not c.scored]
-
-
-def kept_first(
-    candidates: Sequence[LyingT], kept: Mapping[int, np.ndarray], slot: int, radius: float
-) -> list[LyingT]:
-    """``candidates`` for ``slot`` with the pile dominoes kept for a safety gap's last slot
-    (``kept``: slot → (x, y), the same domino within ``radius``): the one kept for ``slot``
-    first, those kept for other slots left out. A gap's last slot goes in between two
-    standing neighbours once the pile has thinned, where only holds that do not lean along
-    the run can be placed, and what was left of the pile then often had none (S-curve of
-    20: 17-23 offers refused or foreseen in that one slot, then pushes through the pile);
-    the domino the planner placed there before the build is kept for it (``task.gaps``).
-    Offered last elsewhere, each was taken by another slot whose other offers were refused
-    (S-curve of 20, seed 0: all three, and two gaps then cost 27 and 33 s simulated)."""
-
-    def kept_for(candidate: LyingT) -> int | None:
-        spot = candidate.spot()
-        return next((s for s, at in kept.items() if np.linalg.norm(spot - at) < radius), None)
-
-    slots = [kept_for(c) for c in candidates]
-    mine = [c for c, s in zip(candidates, slots, strict=True) if s == slot]
-    return mine + [c for c, s in zip(candidates, slots, strict=True) if s is None]
-
-
-def follow_kept(
-    kept: MutableMapping[int, np.ndarray], spots: Sequence[np.ndarray], radius: float
-) -> None:
-    """Each of ``kept``'s spots moved to the nearest of ``spots`` (a new look's) within
-    ``radius``: the same domino, nudged by the picks beside it, stays kept over the build."""
-    if not len(spots):
-        return
-    seen = np.asarray(spots, dtype=float).reshape(-1, 2)
-    for slot, at in kept.items():
-        distances = np.linalg.norm(seen - at, axis=1)
-        if distances.min() < radius:
-            kept[slot] = seen[int(distances.argmin())]
 
 
 def pile_cores(centre: np.ndarray, neighbours: Sequence[np.ndarray], shrink: float) -> np.ndarray:

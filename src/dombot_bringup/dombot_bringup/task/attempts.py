@@ -15,7 +15,6 @@ from dombot_bringup.offers import (
     PILE_BOXES,
     PILE_CORES,
     PILE_IGNORED,
-    kept_first,
     roomiest_first,
     with_pile_first,
 )
@@ -186,20 +185,16 @@ def offers_with_pile(
     job: Job, index: int, found: Sequence[Candidate]
 ) -> list[tuple[Candidate, str]]:
     """The offers planned with their pile for slot ``index``, in order: the best ranked
-    with their pile's boxes, then the roomiest with their pile's cores, in each the domino
-    kept for the slot first and none kept for another slot (``offers.kept_first``);
-    none refused so already, until a pick or push nearby (the default job, seed 0, asked
-    for one domino with its pile's cores at three slots, five times with no pick or push
-    within 5 cm of it between, and five times it was refused); leaning ones no push will
-    lay flat behind the flat ones after them (``leaning_behind_flat``)."""
+    with their pile's boxes, then the roomiest with their pile's cores; none refused so
+    already, until a pick or push nearby (the default job, seed 0, asked for one domino
+    with its pile's cores at three slots, five times with no pick or push within 5 cm of
+    it between, and five times it was refused); leaning ones no push will lay flat behind
+    the flat ones after them (``leaning_behind_flat``)."""
     state = job.state
-    found = kept_first(found, state.kept, index, SAME_SPOT)
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), state.crowded)]
-    ranked = kept_first(ranked, state.kept, index, SAME_SPOT)[: job.settings.max_candidates]
     cored = [c for c in last_resort(job, found) if not near_any(c.spot(), state.cored)]
-    cored = kept_first(cored, state.kept, index, SAME_SPOT)
     offers = [
-        *((c, PILE_BOXES) for c in ranked),
+        *((c, PILE_BOXES) for c in ranked[: job.settings.max_candidates]),
         *((c, PILE_CORES) for c in cored),
     ]
     return leaning_behind_flat(job, index, offers)

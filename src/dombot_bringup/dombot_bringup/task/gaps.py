@@ -11,13 +11,6 @@ the gap moves to the nearest position in its stretch whose last slot plans, at m
 ``gap_moves`` slots either way; when none does it is dropped, and its stretch is built in
 run order. A grasp refusal says nothing of the slot: the next flat domino is asked (at
 most ``gap_probe_dominoes``); when none answers about the slot, the gap is kept as it is.
-
-The domino that planned at a gap's last slot is kept for it (``BuildState.kept``): offered
-there first and with its pile at no other slot (``offers.kept_first``), each gap asked
-with the dominoes kept for none first. Left to the end, the thinned pile often had no
-domino whose hold suits a slot between two standing neighbours (S-curve of 20, seed 0: 25
-s simulated in one such slot, 23 offers refused or foreseen and two pushes through the
-pile).
 """
 
 from __future__ import annotations
@@ -26,13 +19,10 @@ from collections.abc import Collection
 from dataclasses import dataclass, replace
 from enum import Enum
 
-import numpy as np
-
 from dombot_bringup.layouts import gap_at, safety_gaps
 from dombot_bringup.offers import PILE_IGNORED
 from dombot_bringup.run_report import GapDecision
 from dombot_bringup.task.cell import CellError, Detections, Later, Posture
-from dombot_bringup.task.geometry import near_any
 from dombot_bringup.task.picking import Candidate, look_at_pile, pile_candidate, place_request
 from dombot_bringup.task.state import Job, log
 from dombot_planner.errors import ErrorCode
@@ -53,7 +43,6 @@ class Probe:
     fill: Fill
     why: str  # the planner's refusal, or why nothing was learnt
     plans: int  # planning calls made
-    spot: np.ndarray | None = None  # PLANS: (x, y) of the domino that planned
 
 
 def gap_slots(job: Job) -> list[int]:
@@ -90,21 +79,19 @@ def decide(job: Job, gaps: list[range], dominoes: list[Candidate]) -> list[range
     """Each of ``gaps`` kept, moved within its stretch (between the gap before it, as
     decided, and the one after it) or dropped; every decision in the log and the report."""
     decided: list[range] = []
-    kept = job.state.kept
     for number, gap in enumerate(gaps):
         later = {i for other in gaps[number + 1 :] for i in other}
         low = decided[-1].stop + 1 if decided else 1
         high = gaps[number + 1].start if number + 1 < len(gaps) else len(job.layout)
-        free = sorted(dominoes, key=lambda c: near_any(c.spot(), [*kept.values()]))
-        asked = probe(job, gap[-1], others_standing(job, gap, later), free)
-        plans, now, spot = asked.plans, gap, asked.spot
+        asked = probe(job, gap[-1], others_standing(job, gap, later), dominoes)
+        plans, now = asked.plans, gap
         if asked.fill is Fill.REFUSED:
             now = None
             for other in moves(job, gap, low, high):
-                tried = probe(job, other[-1], others_standing(job, other, later), free)
+                tried = probe(job, other[-1], others_standing(job, other, later), dominoes)
                 plans += tried.plans
                 if tried.fill is Fill.PLANS:
-                    now, spot = other, tried.spot
+                    now = other
                     break
         verdict = "dropped" if now is None else "kept" if now == gap else "moved"
         job.report.safety_gaps.append(
@@ -113,9 +100,6 @@ def decide(job: Job, gaps: list[range], dominoes: list[Candidate]) -> list[range
         log(f"safety gap at {names(gap)}: {verdict}{verdict_words(asked, now)}")
         if now is not None:
             decided.append(now)
-        if now is not None and spot is not None and not near_any(spot, [*kept.values()]):
-            kept[now[-1]] = spot
-            log(f"the pile domino at {spot.round(3).tolist()} kept for {names(now[-1:])}")
     return decided
 
 
@@ -159,7 +143,7 @@ def probe(
             return Probe(Fill.UNKNOWN, str(error), plans)
         plans += 1
         if plan.success:
-            return Probe(Fill.PLANS, "", plans, candidate.spot())
+            return Probe(Fill.PLANS, "", plans)
         why = plan.message.split(" (")[0]
         log(f"{job.domino(slot)} {where} refused: {why}")
         if plan.error in PLACE_REFUSALS:

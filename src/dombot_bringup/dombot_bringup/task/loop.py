@@ -118,7 +118,6 @@ def build(job: Job, turn: Callable[[Job, int, bool], Turn]) -> dict[int, Turn]:
             log(empty_message(index, reason))
         else:
             deferred.clear()
-            job.state.kept.pop(index, None)  # its domino stands there, or another does
         queue = requeue(job, queue, standing, order)
     return ended
 

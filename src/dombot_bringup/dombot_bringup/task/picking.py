@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dombot_bringup.layouts import DOMINO_LENGTH
-from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED, follow_kept, pile_cores
+from dombot_bringup.offers import PILE_BOXES, PILE_CORES, PILE_IGNORED, pile_cores
 from dombot_bringup.sections import count_refusal
 from dombot_bringup.task import ahead
 from dombot_bringup.task.cell import (
@@ -26,7 +26,6 @@ from dombot_bringup.task.cell import (
 )
 from dombot_bringup.task.checks import look_again, settle
 from dombot_bringup.task.geometry import (
-    SAME_SPOT,
     in_the_way,
     near,
     near_any,
@@ -150,7 +149,6 @@ def candidates(
     run += toppled_candidates(job, index, avoid)
     detections, unexplained = look_at_pile(job)
     pile = [pile_candidate(d, detections, unexplained) for d in detections]
-    follow_kept(job.state.kept, [c.spot() for c in pile], SAME_SPOT)
     graspable = [c for c in pile if c.posture in PICKABLE_POSTURES]
     offers = [c for c in graspable if not near_any(c.spot(), avoid)]
     stuck = [c for c in pile if c.posture not in PICKABLE_POSTURES] + [

@@ -46,10 +46,6 @@ class BuildState:
     # run dominoes seen standing off target and left there (``checks.second_look``): kept
     # while they stay where they were left, without another look
     left_off: set[int] = field(default_factory=set)
-    # pile dominoes kept for a safety gap's last slot (layout index → (x, y)): the one the
-    # planner placed there before the build (``task.gaps``), offered there first and with
-    # its pile nowhere else (``offers.kept_first``)
-    kept: dict[int, np.ndarray] = field(default_factory=dict)
     crowded: list[np.ndarray] = field(default_factory=list)  # (x, y) refused with its pile
     cored: list[np.ndarray] = field(default_factory=list)  # ... and with its pile's cores
     # (x, y) of pile dominoes pushed to lay them flat, or whose pushes were all refused:
