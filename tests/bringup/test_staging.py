@@ -93,6 +93,27 @@ def test_a_domino_lying_between_standing_neighbours_is_reached_by_setting_one_as
     assert cell.place_requests[-1].domino is fallen  # picked for its slot after
 
 
+def test_the_slot_of_a_neighbour_set_aside_is_built_again_with_attempts_of_its_own() -> None:
+    """arc10_cycles5 seed 2, cycle 3: domino 2, placed at its 4th attempt, was set aside
+    for slot 3 and its slot given up at once (max_attempts used before). The set aside is
+    the task's own doing: the slot gets its attempts afresh."""
+    aside: list = []
+
+    def place(request):
+        if request.domino is job.state.standing.get(7) and not aside:
+            aside.append(request)
+            return planned("set aside")
+        return planned("place") if aside else refused(ErrorCode.GRASP_UNREACHABLE)
+
+    cell = ScriptedCell(pile=[flat(0.55)], place=place)
+    job, _ = enclosed_job(cell)
+    job.report.dominoes[7].attempts = job.settings.max_attempts  # placed at its last
+    assert place_slot(job, 8, may_defer=False) is Turn.PLACED
+    assert aside and 7 not in job.state.standing
+    assert place_slot(job, 7, may_defer=False) is Turn.PLACED
+    assert job.report.dominoes[7].attempts == job.settings.max_attempts + 1
+
+
 def test_nothing_is_set_aside_when_a_sweep_plans_or_none_is_allowed() -> None:
     cell = ScriptedCell(pile=[flat(0.55)], strike=lambda request: planned("sweep"))
     job, _ = enclosed_job(cell)

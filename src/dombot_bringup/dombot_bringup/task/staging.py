@@ -172,6 +172,7 @@ def set_aside(job: Job, index: int) -> bool:
                 return True
             state.standing.pop(neighbour)
             state.left_off.discard(neighbour)
+            state.set_aside_after[neighbour] = job.report.dominoes[neighbour].attempts
             job.report.dominoes[neighbour].placed = False
             state.forget_refusals_near(spot_of(standing))
             state.forget_refusals_near(np.array([spot.x, spot.y]))
