@@ -6,6 +6,7 @@ picked for the slot, and the neighbour's slot is to be built again."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from dombot_bringup.task.cell import Motion
 from dombot_bringup.task.geometry import spot_of
 from dombot_bringup.task.loop import Turn, place_slot
 from dombot_bringup.task.settings import ArmJobSettings
-from dombot_bringup.task.staging import blocked_between, staging_spots
+from dombot_bringup.task.staging import aside_request, blocked_between, staging_spots
 from dombot_bringup.task.state import Job
 from dombot_planner.errors import ErrorCode
 from support.scripted_cell import ScriptedCell, flat, lying, planned, refused
@@ -83,13 +84,34 @@ def test_a_domino_lying_between_standing_neighbours_is_reached_by_setting_one_as
     (request,) = aside
     assert math.dist(spot_of(request.place), PILE_CENTRE) == pytest.approx(0.14)
     assert math.dist(spot_of(request.place), (0.55, -0.30)) > 0.1  # not in the pile
-    assert any(p is fallen for p in request.standing)  # kept clear of, as it lay
+    assert any(p is fallen for p in request.pile)  # beside the 8th: the pads may nudge it
     # the 8th is no longer standing: its slot is to be built again
     assert 7 not in job.state.standing and not job.report.dominoes[7].placed
     assert job.report.dominoes[8].set_aside[0].startswith("domino 8 set aside beside the pile")
     assert job.report.dominoes[8].placed
     assert job.report.summary()["set_aside"] == 1
     assert cell.place_requests[-1].domino is fallen  # picked for its slot after
+
+
+def test_the_slot_of_a_neighbour_set_aside_is_built_again_with_attempts_of_its_own() -> None:
+    """arc10_cycles5 seed 2, cycle 3: domino 2, placed at its 4th attempt, was set aside
+    for slot 3 and its slot given up at once (max_attempts used before). The set aside is
+    the task's own doing: the slot gets its attempts afresh."""
+    aside: list = []
+
+    def place(request):
+        if request.domino is job.state.standing.get(7) and not aside:
+            aside.append(request)
+            return planned("set aside")
+        return planned("place") if aside else refused(ErrorCode.GRASP_UNREACHABLE)
+
+    cell = ScriptedCell(pile=[flat(0.55)], place=place)
+    job, _ = enclosed_job(cell)
+    job.report.dominoes[7].attempts = job.settings.max_attempts  # placed at its last
+    assert place_slot(job, 8, may_defer=False) is Turn.PLACED
+    assert aside and 7 not in job.state.standing
+    assert place_slot(job, 7, may_defer=False) is Turn.PLACED
+    assert job.report.dominoes[7].attempts == job.settings.max_attempts + 1
 
 
 def test_nothing_is_set_aside_when_a_sweep_plans_or_none_is_allowed() -> None:
@@ -117,3 +139,89 @@ def test_a_set_aside_that_fails_counts_and_the_neighbour_is_looked_at_again() ->
     assert len(tries) == 2 and all("stopped short" in t for t in tries), tries
     assert 7 in job.state.standing  # seen standing by the placement check after each
     assert len(cell.checks) == 2
+
+
+def test_a_domino_fallen_against_the_neighbour_is_a_pile_neighbour_of_its_pick() -> None:
+    """arc10_cycles5 seed 2, cycle 4: domino 4 lay fallen against the standing 5th, 21 mm
+    from its centre; sent as an obstacle, the planner refused every grasp of the 5th (the
+    held domino "in collision at the pose") and slot 4 was left empty. As a pile
+    neighbour (which the held domino may touch at its pick) the 5th is set aside and the
+    fallen one picked for its slot; the run and the pile stay obstacles."""
+    fallen = fallen_across(0.598, 0.162, 106.0)
+    far = fallen_across(0.66, 0.10, 30.0)  # lying 9 cm from the 5th: still kept clear of
+    pile = flat(0.55)
+    aside: list = []
+
+    def place(request):
+        if request.domino is job.state.standing.get(4) and not aside:
+            if any(p is fallen for p in request.standing):
+                return refused(ErrorCode.GRASP_UNREACHABLE, "in collision at the pose (held)")
+            aside.append(request)
+            return planned("set aside")
+        if aside and request.domino is fallen:
+            return planned("place")
+        return refused(ErrorCode.GRASP_UNREACHABLE)
+
+    cell = ScriptedCell(pile=[pile], place=place)
+    job = Job.new(cell, ARC, "arc", ArmJobSettings())
+    job.state.standing = {k: job.targets[k] for k in (1, 2, 4, 5, 6, 7, 8, 9)}
+    job.state.fallen = {3: fallen}
+    job.state.toppled = [far]
+    assert place_slot(job, 3, may_defer=False) is Turn.PLACED
+    (request,) = aside
+    assert len(request.pile) == 1 and request.pile[0] is fallen
+    obstacles = [id(p) for p in request.standing]
+    assert id(far) in obstacles and id(pile.pose) in obstacles
+    assert {id(job.targets[k]) for k in (1, 2, 5, 6, 7, 8, 9)} <= set(obstacles)
+    assert job.report.dominoes[3].set_aside[0].startswith("domino 5 set aside beside the pile")
+    assert 4 not in job.state.standing and job.report.dominoes[3].placed
+
+
+@pytest.mark.slow
+def test_in_drake_the_neighbour_a_domino_fell_against_is_set_aside() -> None:
+    """In Drake, the real planner and the world: domino 4 fallen flat against the standing
+    5th (1 mm from its face, settled), the 6th standing beyond. With it an obstacle no
+    grasp of the 5th plans (the evidence's refusal); as a pile neighbour the pick plans,
+    and run in the world the 5th stands at the staging spot and the 6th still stands."""
+    from dombot_bringup.sim_cell import SimCell
+    from dombot_description.scenario import load_scenario
+    from dombot_planner.planner import PickPlacePlanner
+    from dombot_planner.settings import PlannerSettings
+    from dombot_sim.world import CellWorld, WorldConfig
+    from support.planning_clock import UNHURRIED
+
+    scenario = load_scenario()
+    world = CellWorld(WorldConfig(cameras=False, domino_capacity=3), scenario)
+    planner = PickPlacePlanner(scenario, PlannerSettings(default_time_budget=UNHURRIED))
+    cell = SimCell(world, None, planner)
+    job = Job.new(cell, ARC, "arc", ArmJobSettings(plan_budget=0.0))
+    fifth = ARC[4]
+    outward = np.array(
+        [math.cos(fifth.heading - math.pi / 2), math.sin(fifth.heading - math.pi / 2)]
+    )
+    x, y = np.array([fifth.x, fifth.y]) + outward * 0.025  # half widths 12 + 12 mm, 1 mm apart
+    fallen = fallen_across(x, y, math.degrees(fifth.heading))
+    world.set_domino_poses({0: job.targets[4], 1: job.targets[5], 2: fallen})
+    world.settle(1.0)
+    truth = [t.X_WD for t in world.domino_truth()]
+    job.state.standing = {4: truth[0], 5: truth[1]}
+    job.state.fallen = {3: truth[2]}
+    spot = staging_spots(PILE_CENTRE, 0.14, (fifth.x, fifth.y), [], np.zeros((0, 3)), 0.03)[0]
+
+    request = aside_request(job, 4, spot, [])
+    assert len(request.pile) == 1 and request.pile[0] is truth[2]
+    as_obstacle = replace(request, standing=(*request.standing, *request.pile), pile=())
+    refusal = cell.plan_place(as_obstacle)
+    assert refusal.error is ErrorCode.GRASP_UNREACHABLE, refusal.message
+    assert "held–standing" in refusal.message  # the held domino against the fallen one
+    plan = cell.plan_place(request)
+    assert plan.success, plan.message
+    for segment in plan.segments:
+        if len(segment.trajectory.times):
+            assert cell.execute(segment.trajectory).ok
+        if segment.gripper_after:
+            cell.gripper(segment.gripper_position, segment.gripper_max_effort)
+    cell.wait_for_sim_time(1.0)
+    aside, sixth, _ = (t for t in world.domino_truth())
+    assert aside.upright and math.dist(aside.X_WD[:2, 3], (spot.x, spot.y)) < 0.005
+    assert sixth.upright and math.dist(sixth.X_WD[:2, 3], (ARC[5].x, ARC[5].y)) < 0.002

@@ -135,18 +135,23 @@ def requeue(
 
 
 def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
-    """Attempts at slot ``index`` until PLACED; FAILED after max_attempts carries or
-    max_missed_picks picks that failed; or DEFERRED: nothing planned (e.g. fallen dominoes
-    lie where it stands) and other slots may be built first, which may use up those fallen
-    dominoes; FAILED at once when it cannot be put off and no domino can be placed there
-    (``attempts.no_place``). A deferral costs planning calls, not an attempt; so does a
-    sweep of debris out of the slot."""
+    """Attempts at slot ``index`` until PLACED; FAILED after max_attempts carries (since
+    its domino was set aside, if it was: ``staging``) or max_missed_picks picks that
+    failed; or DEFERRED: nothing planned (e.g. fallen dominoes lie where it stands) and
+    other slots may be built first, which may use up those fallen dominoes; FAILED at once
+    when it cannot be put off and no domino can be placed there (``attempts.no_place``).
+    A deferral costs planning calls, not an attempt; so does a sweep of debris out of the
+    slot."""
     outcome, settings, cell = job.report.dominoes[index], job.settings, job.cell
     failed: list[np.ndarray] = []  # spots refused for this slot, or whose pick failed
     refusals: list[Refusal] = []  # the planner's, since the last plan (``attempts.no_place``)
     missed = sweeps = 0
+    earlier = job.state.set_aside_after.get(index, 0)  # attempts before its set aside
     sim_start, wall_start, spent = cell.sim_time, time.monotonic(), dict(cell.time_spent)
-    while outcome.attempts - missed < settings.max_attempts and missed < settings.max_missed_picks:
+    while (
+        outcome.attempts - earlier - missed < settings.max_attempts
+        and missed < settings.max_missed_picks
+    ):
         try:
             tried = attempt(job, index, failed, ignore_pile=not may_defer, refusals=refusals)
         except CellError as error:

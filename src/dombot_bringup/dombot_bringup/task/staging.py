@@ -22,11 +22,11 @@ import numpy as np
 
 from dombot_bringup.debris import sweep_pushes
 from dombot_bringup.footprints import footprints_meet
-from dombot_bringup.layouts import DominoPlacement
-from dombot_bringup.task.cell import PlaceRequest, Pose
+from dombot_bringup.layouts import DOMINO_LENGTH, DominoPlacement
+from dombot_bringup.task.cell import Detection, PlaceRequest, Pose
 from dombot_bringup.task.checks import check
 from dombot_bringup.task.clearing import foreseen_strike, sweep_margin, sweep_request
-from dombot_bringup.task.geometry import placement_pose, spot_of
+from dombot_bringup.task.geometry import near, placement_pose, spot_of
 from dombot_bringup.task.picking import in_its_way, look_at_pile
 from dombot_bringup.task.placing import execute
 from dombot_bringup.task.state import Job, log
@@ -107,6 +107,31 @@ def frees_a_sweep(job: Job, index: int, neighbour: int, way: Sequence[Pose]) -> 
     return False
 
 
+def aside_request(
+    job: Job, neighbour: int, spot: DominoPlacement, detections: Sequence[Detection]
+) -> PlaceRequest:
+    """The pick of standing ``neighbour`` and its place at ``spot``: the rest of the run
+    and the pile (``detections``) kept clear of, and every lying domino but those within
+    a domino length of the neighbour. Those go as pile neighbours, which the lifted
+    domino may touch at its pick and the pads nudge (docs/PLANNER.md): in arc10_cycles5
+    (seed 2, cycle 4) a domino fallen against the neighbour, as an obstacle, had every
+    grasp refused with the held domino "in collision at the pose"."""
+    standing = job.state.standing[neighbour]
+    others = [pose for k, pose in job.state.standing.items() if k != neighbour]
+    lying = job.state.lying()
+
+    def beside(pose: Pose) -> bool:
+        return near(spot_of(pose), spot_of(standing), DOMINO_LENGTH)
+
+    return PlaceRequest(
+        domino=standing,
+        place=placement_pose(spot),
+        standing=(*others, *(d.pose for d in detections), *(p for p in lying if not beside(p))),
+        pile=tuple(p for p in lying if beside(p)),
+        time_budget=job.settings.plan_budget,
+    )
+
+
 def set_aside(job: Job, index: int) -> bool:
     """Pick up a standing neighbour of slot ``index`` (``blocked_between``) and stand it
     at a free spot beside the pile (``staging_spots``, the planner asked for at most
@@ -129,15 +154,8 @@ def set_aside(job: Job, index: int) -> bool:
     )
     for neighbour in neighbours:
         standing = state.standing[neighbour]
-        others = [pose for k, pose in state.standing.items() if k != neighbour]
         for spot in spots[:STAGING_PLANS]:
-            request = PlaceRequest(
-                domino=standing,
-                place=placement_pose(spot),
-                standing=(*others, *seen),
-                time_budget=settings.plan_budget,
-            )
-            plan = job.cell.plan_place(request)
+            plan = job.cell.plan_place(aside_request(job, neighbour, spot, detections))
             where = f"[{spot.x:.3f}, {spot.y:.3f}]"
             if not plan.success:
                 log(
@@ -154,6 +172,7 @@ def set_aside(job: Job, index: int) -> bool:
                 return True
             state.standing.pop(neighbour)
             state.left_off.discard(neighbour)
+            state.set_aside_after[neighbour] = job.report.dominoes[neighbour].attempts
             job.report.dominoes[neighbour].placed = False
             state.forget_refusals_near(spot_of(standing))
             state.forget_refusals_near(np.array([spot.x, spot.y]))

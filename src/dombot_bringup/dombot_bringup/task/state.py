@@ -58,6 +58,11 @@ class BuildState:
     # and nothing near it moved (arc cycle 5: one toppled domino's two sweeps refused 26
     # times over the turns of the three slots it blocked)
     unswept: list[tuple[np.ndarray, np.ndarray, frozenset[int]]] = field(default_factory=list)
+    # layout index → its attempts when its domino, standing, was set aside beside the pile
+    # (``staging``): the slot is built again with max_attempts of its own (arc10_cycles5
+    # seed 2, cycle 3: slot 2, placed at its 4th attempt and then set aside, was given up
+    # at once)
+    set_aside_after: dict[int, int] = field(default_factory=dict)
 
     def lying(self) -> list[Pose]:
         """Every domino known to lie in the build area: the run's fallen, the toppled, the
