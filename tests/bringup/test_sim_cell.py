@@ -23,6 +23,7 @@ from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from support.cell_protocol import differences, protocol_members
+from support.plan_runs import run_segments
 from support.planning_clock import UNHURRIED
 
 if TYPE_CHECKING:
@@ -154,11 +155,7 @@ def test_a_domino_on_its_edge_no_grasp_holds_is_pushed_over_and_then_plans() -> 
     direction, distance = lay_flat_pushes(lying, np.array(scenario.pile_center))[0]
     push = cell.plan_strike(StrikeRequest(lying, sweep=direction[:2], push_distance=distance))
     assert push.success, push.message
-    for segment in push.segments:
-        if len(segment.trajectory.times):
-            assert cell.execute(segment.trajectory).ok
-        if segment.gripper_after:
-            cell.gripper(segment.gripper_position, segment.gripper_max_effort)
+    run_segments(cell, push.segments)
     cell.wait_for_sim_time(1.0)
     flat = world.domino_truth()[0].X_WD
     assert abs(flat[2, 2]) > math.cos(math.radians(5.0))  # its thickness axis vertical

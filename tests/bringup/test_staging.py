@@ -20,6 +20,7 @@ from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.staging import aside_request, blocked_between, staging_spots
 from dombot_bringup.task.state import Job
 from dombot_planner.errors import ErrorCode
+from support.plan_runs import run_segments
 from support.scripted_cell import ScriptedCell, flat, lying, planned, refused
 
 ARC = layouts.arc((0.0, 0.0), 0.6, math.radians(5.0), 10)  # the default run
@@ -216,11 +217,7 @@ def test_in_drake_the_neighbour_a_domino_fell_against_is_set_aside() -> None:
     assert "held–standing" in refusal.message  # the held domino against the fallen one
     plan = cell.plan_place(request)
     assert plan.success, plan.message
-    for segment in plan.segments:
-        if len(segment.trajectory.times):
-            assert cell.execute(segment.trajectory).ok
-        if segment.gripper_after:
-            cell.gripper(segment.gripper_position, segment.gripper_max_effort)
+    run_segments(cell, plan.segments)
     cell.wait_for_sim_time(1.0)
     aside, sixth, _ = (t for t in world.domino_truth())
     assert aside.upright and math.dist(aside.X_WD[:2, 3], (spot.x, spot.y)) < 0.005
