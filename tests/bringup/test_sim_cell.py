@@ -23,8 +23,7 @@ from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from dombot_description import DOMINO_SIZE, tilt_from_vertical
 from support.cell_protocol import differences, protocol_members
-from support.plan_runs import run_segments
-from support.planning_clock import UNHURRIED
+from support.sim_cells import blind_cell, run_segments
 
 if TYPE_CHECKING:
     from dombot_sim.world import DominoTruth
@@ -134,16 +133,9 @@ def test_a_domino_on_its_edge_no_grasp_holds_is_pushed_over_and_then_plans() -> 
     """In Drake: the planner refuses a pile domino standing on its long edge (no grasp of
     the family holds it so); the bring-up's first push over (``spread.lay_flat_pushes``),
     planned as a sweep and run in the world, leaves it lying flat, and its pick plans."""
-    from dombot_description.scenario import load_scenario
     from dombot_planner.errors import ErrorCode
-    from dombot_planner.planner import PickPlacePlanner
-    from dombot_planner.settings import PlannerSettings
-    from dombot_sim.world import CellWorld, WorldConfig
 
-    scenario = load_scenario()
-    world = CellWorld(WorldConfig(cameras=False, domino_capacity=1), scenario)
-    planner = PickPlacePlanner(scenario, PlannerSettings(default_time_budget=UNHURRIED))
-    cell = SimCell(world, None, planner)
+    world, cell = blind_cell(domino_capacity=1)
     world.set_domino_poses({0: on_edge(0.55, -0.25, yaw=0.3)})
     world.settle(1.0)
     lying = world.domino_truth()[0].X_WD
@@ -152,7 +144,7 @@ def test_a_domino_on_its_edge_no_grasp_holds_is_pushed_over_and_then_plans() -> 
     refused = cell.plan_place(PlaceRequest(lying, place))
     assert refused.error is ErrorCode.GRASP_UNREACHABLE, refused.message
 
-    direction, distance = lay_flat_pushes(lying, np.array(scenario.pile_center))[0]
+    direction, distance = lay_flat_pushes(lying, np.array(world.scenario.pile_center))[0]
     push = cell.plan_strike(StrikeRequest(lying, sweep=direction[:2], push_distance=distance))
     assert push.success, push.message
     run_segments(cell, push.segments)

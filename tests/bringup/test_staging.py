@@ -20,8 +20,8 @@ from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.staging import aside_request, blocked_between, staging_spots
 from dombot_bringup.task.state import Job
 from dombot_planner.errors import ErrorCode
-from support.plan_runs import run_segments
 from support.scripted_cell import ScriptedCell, flat, lying, planned, refused
+from support.sim_cells import blind_cell, run_segments
 
 ARC = layouts.arc((0.0, 0.0), 0.6, math.radians(5.0), 10)  # the default run
 PILE_CENTRE = (0.55, -0.30)
@@ -184,17 +184,7 @@ def test_in_drake_the_neighbour_a_domino_fell_against_is_set_aside() -> None:
     5th (1 mm from its face, settled), the 6th standing beyond. With it an obstacle no
     grasp of the 5th plans (the evidence's refusal); as a pile neighbour the pick plans,
     and run in the world the 5th stands at the staging spot and the 6th still stands."""
-    from dombot_bringup.sim_cell import SimCell
-    from dombot_description.scenario import load_scenario
-    from dombot_planner.planner import PickPlacePlanner
-    from dombot_planner.settings import PlannerSettings
-    from dombot_sim.world import CellWorld, WorldConfig
-    from support.planning_clock import UNHURRIED
-
-    scenario = load_scenario()
-    world = CellWorld(WorldConfig(cameras=False, domino_capacity=3), scenario)
-    planner = PickPlacePlanner(scenario, PlannerSettings(default_time_budget=UNHURRIED))
-    cell = SimCell(world, None, planner)
+    world, cell = blind_cell(domino_capacity=3)
     job = Job.new(cell, ARC, "arc", ArmJobSettings(plan_budget=0.0))
     fifth = ARC[4]
     outward = np.array(
