@@ -27,6 +27,7 @@ from dombot_bringup.task.picking import Candidate, in_its_way, toppled_candidate
 from dombot_bringup.task.records import at_slot
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
+from dombot_bringup.task.strike import strike
 from dombot_description import tilt_from_vertical, tipped_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.errors import ErrorCode
@@ -440,6 +441,21 @@ def test_an_unfitted_struck_domino_is_looked_at_again_as_the_next_cycle_starts()
     assert any(r.domino is found for r in cell.place_requests[3:])
     second_cycle = jobs[1].report.cycles[1]
     assert (second_cycle.toppled_found, second_cycle.toppled_picked) == (3, 3)
+
+
+def test_a_run_domino_left_lying_is_not_forgotten_when_its_slots_new_domino_falls() -> None:
+    """Slot 2's fallen domino, which no grasp took, still lies beside the slot, built
+    from the pile; struck, slot 2's new domino falls: both lie in the build area for the
+    next cycle (the first was overwritten by the second's pose, unknown debris)."""
+    old = lying(0.47, 0.030)
+    cell = toppling_cell()
+    job = Job.new(cell, LINE, "line", ASK_EVERY_OFFER)
+    job.state.standing = {k: job.targets[k] for k in range(3)}
+    job.state.fallen = {1: old}
+    strike(job, [0, 1, 2])
+    lying_now = job.state.lying()
+    assert len(lying_now) == 4
+    assert any(pose is old for pose in lying_now)
 
 
 def looking_again(moved: Pose, seen_now: tuple, gone: Pose, unfit: Pose) -> ScriptedCell:
