@@ -24,9 +24,9 @@ dominoes instead of 24.
 
 An expected pose that is not upright is a domino seen lying there before (the next
 cycle's look at what a strike left, after something near it moved): refitted from that
-pose, FALLEN where it is found within ``search_radius``; else NOT_SEEN when hidden,
-FALLEN without a pose while something no pose explains lies on its footprint, else
-MISSING.
+pose, else from it turned about the vertical (``lying_turns``), FALLEN where it is found
+within ``search_radius``; else NOT_SEEN when hidden, FALLEN without a pose while
+something no pose explains lies on its footprint, else MISSING.
 
 In hand (``PlacementConfig.in_hand``) the domino is checked before the fingers let go,
 anywhere up to above its slot: the pads pinch its top (their lower edges ~29-31 mm above
@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from scipy.spatial.transform import Rotation
 
 from dombot_description import tilt_from_vertical, tipped_pose
 from dombot_perception.backprojection import WorkRegion, organised_cloud
@@ -94,6 +95,9 @@ class PlacementConfig:
     # rad from vertical, where a place's domino is sought when nothing else located it
     # (``_tipped_fit``): a struck run's lean on the next (~75°), and flat (the last)
     lying_leans: tuple[float, ...] = (np.radians(75.0), np.radians(90.0))
+    # rad about the vertical: a domino seen lying is refitted from its pose turned so too
+    # when not found as it was (``_refit``)
+    lying_turns: tuple[float, ...] = (np.radians(90.0),)
 
     @property
     def fitted_length(self) -> float:
@@ -172,7 +176,12 @@ def _fit_unlocated(
     """``results`` with each place left FALLEN or MISSING without a pose fitted in the
     points no pose explains (those of the places fitted so far, in order, left out): an
     upright place from where its domino must lie (``_tipped_fit``), a lying one from its
-    pose (the domino seen there before, looked at again), else ``_unfitted``."""
+    pose (the domino seen there before, looked at again), else ``_unfitted``; one
+    unfitted with something on its footprint then from its pose turned about the vertical
+    by each of ``lying_turns`` (a pick or push nearby turns a lying domino, and the fit
+    does not come round more than ~50°: one turned 60-120° was down but not fitted, an
+    obstacle never picked), after every other place had its fit (a turned pose reaching
+    over a neighbour would take its points)."""
     unlocated = [
         i
         for i, r in enumerate(results)
@@ -189,15 +198,44 @@ def _fit_unlocated(
         if tilt_from_vertical(pose) <= config.max_tilt:
             fitted = _tipped_fit(pose, rest, views, config)
         else:
-            fitted, _ = _lying_fit(pose, rest, views, config)
-            if fitted is not None and _horizontal(fitted, pose) > config.search_radius:
-                fitted = None
+            fitted = _refit(pose, 0.0, rest, views, config)
             if fitted is None:
                 results[i] = _unfitted(pose, rest, views, config)
         if fitted is not None:
             results[i] = _placement(FALLEN, fitted, pose)
             rest = rest[~_on(fitted, rest, config.inlier_distance)]
+    for turn in config.lying_turns:
+        for i in unlocated:
+            pose, result = expected[i], results[i]
+            if (
+                result.status != FALLEN  # nothing there, or hidden
+                or result.measured is not pose  # fitted
+                or tilt_from_vertical(pose) <= config.max_tilt  # an upright place
+            ):
+                continue
+            fitted = _refit(pose, turn, rest, views, config)
+            if fitted is not None:
+                results[i] = _placement(FALLEN, fitted, pose)
+                rest = rest[~_on(fitted, rest, config.inlier_distance)]
     return results
+
+
+def _refit(
+    expected: np.ndarray,
+    turn: float,
+    points: np.ndarray,
+    views: list[CameraView],
+    config: PlacementConfig,
+) -> np.ndarray | None:
+    """The box of a domino seen lying at ``expected`` fitted to ``points`` from that pose
+    turned ``turn`` rad about the vertical, when its centre is within ``search_radius``
+    of ``expected``; else None."""
+    seed = expected.copy()
+    seed[:3, :3] = Rotation.from_rotvec([0.0, 0.0, turn]).as_matrix() @ expected[:3, :3]
+    fitted, _ = _lying_fit(seed, points, views, config)
+    if fitted is None or _horizontal(fitted, expected) > config.search_radius:
+        return None
+    return fitted
 
 
 def _unfitted(

@@ -174,7 +174,7 @@ def fell(job: Job, index: int, placing: int, reading: Reading) -> None:
     """Domino ``index`` no longer stands (``placing``: the slot being built): built again
     from where it lies, or, where perception cannot fit it, left there."""
     state = job.state
-    state.standing.pop(index, None)
+    state.knocked_down(index)
     state.left_off.discard(index)
     state.disturbed.append(spot_of(job.targets[index]))  # it fell there, or went
     if remember_fallen(job, index, reading.status, reading.measured, reading.tilt):

@@ -69,6 +69,15 @@ class BuildState:
         unfitted; one remembered twice (within SAME_SPOT) once."""
         return distinct([*self.fallen.values(), *self.toppled, *self.unfitted])
 
+    def knocked_down(self, index: int) -> None:
+        """Slot ``index``'s domino no longer stands. A run domino still remembered fallen
+        from that slot (no grasp took it, and the slot was built from elsewhere) is
+        another domino: kept as a toppled one, not overwritten by this one's pose and
+        forgotten (arc cycles seed 2, cycle 3: run domino 2, refused at [0.598, 0.053],
+        still lay there when slot 2, built from the pile, was struck)."""
+        if self.standing.pop(index, None) is not None and index in self.fallen:
+            self.toppled.append(self.fallen.pop(index))
+
     def forget_refusals_near(self, spot: np.ndarray) -> None:
         """A pick or push at ``spot`` moved the dominoes around it: offer them again, and
         look at the toppled ones there again before picking one."""

@@ -61,7 +61,7 @@ def strike(job: Job, standing: Sequence[int]) -> None:
     unfitted = []  # one line for them all: after a strike most lie in a heap
     for position, i in enumerate(built):  # where they lie, for a next cycle to pick up
         if fallen[i]:
-            job.state.standing.pop(i, None)
+            job.state.knocked_down(i)
             status, tilt = answer.status[position], answer.tilt[position]
             if remember_fallen(job, i, status, answer.measured[position], tilt):
                 unfitted.append(str(i + 1))
