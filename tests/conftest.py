@@ -62,6 +62,7 @@ CPU_S = {
     "tests/perception/test_placement_check.py": 7.8,
     "tests/planner/test_published_trajectories.py": 7.2,
     "tests/foundation/test_parameter_files.py": 7.2,
+    "tests/bringup/test_pile_view.py": 7.4,
     "tests/planner/test_stretch_start.py": 5.1,
     "tests/bringup/test_task.py": 4.3,
 }

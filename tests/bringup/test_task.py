@@ -1500,8 +1500,8 @@ def test_the_next_look_at_the_pile_is_made_while_the_arm_places_clear_of_the_pil
     at a slot near the pile, after any other motion, or when that look found nothing, the
     pile is looked at afresh."""
     cell = ScriptedCell(sim_time=7.0, pile=[flat(0.55)])
-    run_job = job(cell)
-    far, near_pile = 3, 0  # slot 1 lies 0.316 m from the pile's centre
+    run_job = job(cell, look_while_placing=0.32)
+    far, near_pile = 3, 0  # slot 1 lies 0.316 m from the pile's centre, slot 4 0.399 m
     place = [Segment("place", path("place"), GripperEvent.OPEN, 0.034, 0.0), "retreat"]
     held = np.eye(4)
     execute(run_job, planned(*place).segments, Hold(far, held, held))
@@ -1518,7 +1518,7 @@ def test_the_next_look_at_the_pile_is_made_while_the_arm_places_clear_of_the_pil
     look_at_pile(run_job)
     assert cell.looks == [7.0, 9.0, 9.0, 9.0]  # the look while placing was dropped
     empty = ScriptedCell(sim_time=7.0)
-    run_job = job(empty)
+    run_job = job(empty, look_while_placing=0.32)
     execute(run_job, planned(*place).segments, Hold(far, held, held))
     empty.sim_time = 9.0
     empty.pile = [flat(0.55)]

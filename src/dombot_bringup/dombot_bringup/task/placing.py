@@ -257,10 +257,10 @@ def in_hand(job: Job, hold: Hold) -> InHand:
 
 
 def pile_in_view(job: Job, index: int) -> bool:
-    """Whether the pile cameras see the pile past the arm holding a domino above slot
-    ``index`` or placing it there: the slot at least look_while_placing from the pile's
-    centre. The pile has been still since the lift, so a look from then on serves the
-    next pick."""
+    """Whether perception sees the pile as with the arm away while the arm holds a domino
+    above slot ``index`` or places it there: the slot at least look_while_placing from the
+    pile's centre (the hand then out of perception's pile region). The pile has been still
+    since the lift, so a look from then on serves the next pick."""
     slot = job.releases[index][:2, 3]
     return bool(np.hypot(*(slot - job.settings.pile_center)) >= job.settings.look_while_placing)
 

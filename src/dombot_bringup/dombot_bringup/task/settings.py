@@ -72,13 +72,20 @@ class ArmJobSettings:
     spread_radius: float = 0.13  # m
     spread_plans: int = 6
     pile_center: tuple[float, float] = (0.55, -0.30)  # m, the scenario's pile_area
-    # Placing at a slot this far from the pile's centre, the arm leaves the pile cameras'
-    # view of it clear (perception looks within 0.16 m of the centre, from beyond the
-    # pile's far side; the hand and the held domino reach ~0.15 m around the TCP), so the
-    # next pick's look at the pile is asked for as the carry ends above the slot (before
-    # the hand check, which perception serves beside it) and made while the arm holds the
-    # domino there and places it.
-    look_while_placing: float = 0.32  # m
+    # Placing at a slot this far from the pile's centre, the arm leaves perception's look
+    # at the pile as it is with the arm at home, so the next pick's look at the pile is
+    # asked for as the carry ends above the slot (before the hand check, which perception
+    # serves beside it) and made while the arm holds the domino there and places it.
+    # Rendered in Drake with the arm where the carry ends, down the descent, at the release
+    # and where the retreat ends (benchmarks/bench_pile_view.py, docs/SPEED.md): camera_0
+    # and camera_1 lost no pile pixel at any slot 0.20-0.36 m from the centre (the arm
+    # comes from the far side of the pile). At 0.20-0.21 m the slot's domino and the hand
+    # lie in perception's pile region (0.21 m around the centre, up to 0.07 m): it is
+    # detected there as a pile domino, the hand's points are obstacles; from 0.22 m on,
+    # the same detections and scene points as with the arm at home. 0.235 m: the S-curve's
+    # first slot, 15 mm beyond. 0.32 m left the S-curve's slots 1-3 with no look while
+    # placing (and nothing planned ahead for slots 2-4).
+    look_while_placing: float = 0.235  # m
     # Ask for the next slot's first pick as a domino starts down to its slot, or once the
     # pile look answers while it is placed (``ahead``): the planner then plans on the other
     # core while the arm places and retreats and perception checks the placement. False:
