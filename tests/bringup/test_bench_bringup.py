@@ -2,21 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
-BENCH = Path(__file__).parents[2] / "benchmarks" / "bench_bringup.py"
-
-
-def bench_bringup():
-    spec = importlib.util.spec_from_file_location("bench_bringup", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from support.benchmarks import load_benchmark
 
 
 def test_a_run_may_take_a_cycle_timeout_per_cycle() -> None:
-    bench = bench_bringup()
+    bench = load_benchmark("bench_bringup")
     limit = bench.CYCLE_TIMEOUT
     assert bench.run_timeout(bench.CASES["arc10"]) == limit
     assert bench.run_timeout(bench.CASES["arc10_cycles5"]) == 5 * limit
@@ -27,7 +19,7 @@ def test_a_run_may_take_a_cycle_timeout_per_cycle() -> None:
 
 
 def test_the_limit_says_whether_it_killed_the_run(tmp_path: Path) -> None:
-    bench = bench_bringup()
+    bench = load_benchmark("bench_bringup")
     _, _, timed_out = bench.run_logged(["sleep", "600"], tmp_path / "a.log", "slow", 0.2)
     assert timed_out
     code, tail, timed_out = bench.run_logged(
@@ -37,7 +29,7 @@ def test_the_limit_says_whether_it_killed_the_run(tmp_path: Path) -> None:
 
 
 def test_the_ledger_alone_reports_its_runs_of_a_case() -> None:
-    bench = bench_bringup()
+    bench = load_benchmark("bench_bringup")
     arguments = tuple(bench.CASES["circle30"])
 
     def run(case: str, seed: int, placed: int, options: tuple = arguments) -> dict:

@@ -5,9 +5,7 @@ of the pile cameras, ``benchmarks/bench_pile_view.py``'s measure)."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,9 +14,9 @@ from dombot_bringup import layouts
 from dombot_bringup.task.placing import pile_in_view
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
+from support.benchmarks import load_benchmark
 from support.scripted_cell import ScriptedCell
 
-BENCH = Path(__file__).parents[2] / "benchmarks" / "bench_pile_view.py"
 # a hand-laid pile: flat dominoes (x, y, yaw) at its centre and out to the edge of
 # perception's pile region (0.21 m) on the build area's side, where the arm places
 PILE = (
@@ -32,17 +30,10 @@ PILE = (
 )
 
 
-def bench_pile_view():
-    spec = importlib.util.spec_from_file_location("bench_pile_view", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_every_slot_of_the_s_curve_is_placed_with_the_pile_looked_at() -> None:
     """The S-curve of docs/SPEED.md's table starts 0.235 m from the pile's centre: at 0.32 m
     its slots 1-3 had no look while placing, and nothing planned ahead for slots 2-4."""
-    start, heading, length, amplitude, count = bench_pile_view().S_CURVE
+    start, heading, length, amplitude, count = load_benchmark("bench_pile_view").S_CURVE
     layout = layouts.s_curve(start, math.radians(heading), length, amplitude, count)
     job = Job.new(ScriptedCell(), layout, "s-curve", ArmJobSettings())
     assert [i + 1 for i in range(count) if not pile_in_view(job, i)] == []
@@ -62,7 +53,7 @@ def pile_view():
     carried = len(PILE)  # lying off the pile, as a pile domino picked would be carried
     pile[carried] = flat_pose(0.45, 0.20, 0.4).GetAsMatrix4()
     planner = PickPlacePlanner(world.scenario, PlannerSettings())
-    return bench_pile_view(), world, pile, carried, planner
+    return load_benchmark("bench_pile_view"), world, pile, carried, planner
 
 
 @pytest.mark.parametrize("bearing", [60.0, 90.0, 120.0])  # deg from +x: the build area
