@@ -443,14 +443,43 @@ def _local_fit(
 
     The first fit uses only points higher than a lying domino: one that fell and lies
     at this domino's foot would otherwise pull its bottom aside and tilt the box.
+
+    In hand the fit also starts a thickness either side of the expected pose when the
+    one from it fails: the points of the one face a camera sees fit a box on either side
+    of that face, and a hold a few mm off through its thickness (a 6° turn about the
+    pinch axis moves the foot ~4 mm) drew the box from the expected pose onto the far
+    side, which the depth check rightly saw through (s_curve30 slot 10: NOT_SEEN though
+    camera_3 saw 175 points of it, issue 23).
     """
     high = points[points[:, 2] > config.min_fit_height]
     if high.shape[0] < config.min_points:
         return None
     fit_config = BoxFitConfig()
+    starts = [expected]
     if config.in_hand:
         fit_config = replace(fit_config, iterations=config.in_hand_iterations)
-    pose = refine_pose(expected, high, fit_config)
+        for side in (1.0, -1.0):
+            start = expected.copy()
+            start[:3, 3] += side * DOMINO_SIZE[2] * expected[:3, 2]
+            starts.append(start)
+    for start in starts:
+        pose = _fit_from(start, expected, points, high, views, config, fit_config)
+        if pose is not None:
+            return pose
+    return None
+
+
+def _fit_from(
+    start: np.ndarray,
+    expected: np.ndarray,
+    points: np.ndarray,
+    high: np.ndarray,
+    views: list[CameraView],
+    config: PlacementConfig,
+    fit_config: BoxFitConfig,
+) -> np.ndarray | None:
+    """``_local_fit``'s box fitted from ``start``, if it stands at ``expected``."""
+    pose = refine_pose(start, high, fit_config)
     on_box = np.abs(box_signed_distance((points - pose[:3, 3]) @ pose[:3, :3]))
     inliers = on_box < config.inlier_distance
     if inliers.sum() < config.min_points:
