@@ -1278,7 +1278,8 @@ def test_a_slot_no_flat_domino_can_be_placed_at_is_given_up_without_a_push(capsy
     run_job = job(cell, count=1)
     report = run(run_job)
     assert cell.strike_requests == []  # no spread, no lay-flat push (and nothing to strike)
-    assert len(cell.place_requests) == 4  # each once, with its pile
+    assert [bool(r.pile) for r in cell.place_requests] == [True] * 4 + [False]  # each once,
+    # with its pile, then the last with its pile ignored
     why = "no domino can be placed there: the planner refused 4 flat dominoes' place"
     why += f" ({NO_PLACE_POSE})"
     assert report.dominoes[0].failures == [why]
@@ -1286,6 +1287,34 @@ def test_a_slot_no_flat_domino_can_be_placed_at_is_given_up_without_a_push(capsy
     ((slot, reason),) = [(e.slot, e.reason) for e in report.empty_slots]
     assert slot == 1 and reason == f"{why}; the planner refused: PLACE_UNREACHABLE x4"
     assert f"domino 1 could not be placed ({why}" in capsys.readouterr().out
+
+
+def test_a_slot_whose_place_plans_with_the_pile_ignored_is_not_given_up(capsys) -> None:
+    """s_curve30 seed 0, slot 30 (0.78 m out, one neighbour standing): three flat dominoes
+    refused the place with their crowded pile, and the slot was left empty with 31 in the
+    pile; the planner placed each of them there with the pile ignored (other holds). Asked
+    so before giving up, the slot goes on to the pile's pushes and the pick ignoring it:
+    here of the one whose grasps its pile blocked (the three refused for the slot are not
+    offered for it again)."""
+
+    def place(request: PlaceRequest) -> Plan:
+        if not request.pile:
+            return planned()
+        if x_of(request.domino) == pytest.approx(0.50):
+            return refused(ErrorCode.GRASP_UNREACHABLE)
+        return refused(ErrorCode.PLACE_UNREACHABLE, NO_PLACE_POSE)
+
+    cell = unplaceable(FOUR_FLAT)
+    cell.place = place
+    run_job = job(cell, count=1, max_spreads=0)
+    report = run(run_job)
+    assert report.dominoes[0].placed and not report.empty_slots
+    assert not any("no domino can be placed" in why for why in report.dominoes[0].failures)
+    probe, *ignoring = [r for r in cell.place_requests if not r.pile]
+    assert x_of(probe.domino) == pytest.approx(0.65)  # the last one refused for the slot
+    assert ignoring and all(x_of(r.domino) == pytest.approx(0.50) for r in ignoring)
+    said = "domino 1/1: a flat domino's place plans with its pile ignored"
+    assert said in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(

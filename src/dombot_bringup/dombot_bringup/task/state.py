@@ -63,6 +63,9 @@ class BuildState:
     # seed 2, cycle 3: slot 2, placed at its 4th attempt and then set aside, was given up
     # at once)
     set_aside_after: dict[int, int] = field(default_factory=dict)
+    # layout index → the slots standing when a flat domino's place there planned with its
+    # pile ignored (``attempts.places_ignoring_pile``): not asked again while they stand
+    place_planned: dict[int, frozenset[int]] = field(default_factory=dict)
 
     def lying(self) -> list[Pose]:
         """Every domino known to lie in the build area: the run's fallen, the toppled, the
