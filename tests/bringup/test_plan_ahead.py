@@ -1,21 +1,27 @@
 """Planning ahead (``task.ahead``): the next slot's first request goes to the planner
-as the domino just carried starts down to its slot (once the look at the pile asked for
-as the carry ended has answered; else the moment it answers while the arm descends,
-lets go and retreats, else after the retreat),
-before perception has checked the placement, and its answer serves that slot's turn
-only when the turn makes the very same request with the arm where the plan starts."""
+as the domino just picked starts its carry, made from the look it was picked from less
+it, and is kept once the look asked for as the carry ended makes the same request (else
+dropped and that one sent); without it (plan_ahead_at_carry off, the first tests here),
+as the domino starts down to its slot (once that look has answered; else the moment it
+answers while the arm descends, lets go and retreats, else after the retreat), before
+perception has checked the placement. Its answer serves that slot's turn only when the
+turn makes the same request (within perception's repeatability: ``ahead.serves``) with
+the arm where the plan starts."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
 from dombot_bringup.task import ahead
 from dombot_bringup.task.cell import (
+    Detection,
     Detections,
     GripperEvent,
     Later,
@@ -31,7 +37,17 @@ from dombot_bringup.task.cell import (
 from dombot_bringup.task.loop import run
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
-from support.scripted_cell import ScriptedCell, closing, flat, path, planned, seen
+from support.scripted_cell import (
+    ScriptedCell,
+    closing,
+    flat,
+    lying,
+    path,
+    planned,
+    refused,
+    seen,
+    shifted,
+)
 
 ARM = ("a1", "a2")
 RETREAT_END = {"a1": 0.3, "a2": -0.2}  # where every retreat leaves the arm
@@ -50,9 +66,12 @@ PICK_AND_PLACE = (
 
 def line_job(cell: ScriptedCell, count: int = 3, **settings) -> Job:
     """A line along +y from (0.45, 0.10): every slot ~0.41 m from the pile's centre, so
-    the pile is looked at while the arm places (``placing.pile_in_view``)."""
+    the pile is looked at while the arm places (``placing.pile_in_view``). Nothing asked
+    at the carry unless told: this cell's looks see the picked dominoes still there
+    (``shrinking`` does not)."""
     layout = layouts.line((0.45, 0.10), math.pi / 2, count)
-    settings = {"in_hand_tolerance": 0.0, **settings}  # no hand check unless told
+    # no hand check unless told
+    settings = {"in_hand_tolerance": 0.0, "plan_ahead_at_carry": False, **settings}
     return Job.new(cell, layout, "line", ArmJobSettings(**settings))
 
 
@@ -91,9 +110,11 @@ def counts(
     after_retreat: int = 0,
     used: int = 0,
     dropped: int = 0,
+    carry: int = 0,
 ) -> dict[str, int]:
     """The report's planned_ahead."""
     return {
+        "carry": carry,
         "descent": descent,
         "look_answered": look_answered,
         "after_retreat": after_retreat,
@@ -350,3 +371,114 @@ def test_a_domino_put_back_on_the_pile_drops_the_look_and_the_request() -> None:
     assert report.built and report.dominoes[0].attempts == 2
     assert looked[:3] == [(0, 1), (1, 2), (0, 3)]  # slot 0 again after a look of its own
     assert report.planned_ahead["dropped"] == 1
+
+
+def shrinking(cell: ScriptedCell, nudged: float = 0.0) -> None:
+    """Each look sees the pile less the dominoes picked so far (the first of it at each
+    pick: they score alike), the next one ``nudged`` metres along x by the pick before."""
+    pile, looking = list(cell.pile), cell.detect
+
+    def detect(not_before: float) -> Detections:
+        picks = ran(cell, "approach_grasp")
+        left = pile[picks:]
+        if picks and left and nudged:
+            left[0] = Detection(shifted(left[0].pose, nudged), left[0].posture, 0.9, 0.01)
+        cell.pile = left
+        return looking(not_before)
+
+    cell.detect = detect
+
+
+def test_the_next_slots_pick_is_asked_for_as_the_carry_starts() -> None:
+    """Slot k+1's request goes out as slot k's carry starts, before the look asked as it
+    ends, made from the look slot k's domino was picked from less that domino; the look
+    since makes the same request, and its answer is used."""
+    cell, _ = recording_cell()
+    shrinking(cell)
+    sent: list[tuple[int, int, int]] = []  # (slot, carries begun, looks so far)
+    planning = cell.place
+
+    def place(request: PlaceRequest) -> Plan:
+        sent.append((slot_of(request), ran(cell, "transfer"), len(cell.looks)))
+        return planning(request)
+
+    cell.place = place
+    report = run(line_job(cell, plan_ahead_at_carry=True, in_hand_tolerance=0.003))
+    assert report.built
+    assert sent == [(0, 0, 1), (1, 1, 1), (2, 2, 2)]  # as the carry ran, before its look
+    assert report.planned_ahead == counts(carry=2, used=2)
+    requests = cell.place_requests
+    assert [r.domino[0, 3] for r in requests] == [0.50, 0.55, 0.60]
+    assert requests[1].start == RETREAT_END
+    assert len(requests[1].pile) == 2  # the picked domino no obstacle
+
+
+def test_a_pile_the_pick_moved_drops_the_request_asked_at_the_carry() -> None:
+    """The pick nudged the next domino 3 mm: the look asked as the carry ended makes
+    another request, which goes out as the descent starts, and the one asked at the carry
+    is dropped; the turn uses the new one."""
+    cell, _ = recording_cell()
+    shrinking(cell, nudged=0.003)
+    report = run(line_job(cell, plan_ahead_at_carry=True))
+    assert report.built
+    assert report.planned_ahead == counts(carry=2, descent=2, dropped=2, used=2)
+    asked = [round(float(r.domino[0, 3]), 4) for r in cell.place_requests]
+    assert asked == [0.50, 0.55, 0.553, 0.60, 0.603]
+
+
+def request(**changes) -> PlaceRequest:
+    pile = (lying(0.55, -0.3), lying(0.60, -0.3))
+    return replace(
+        PlaceRequest(domino=lying(0.50, -0.3), place=lying(0.45, 0.1), pile=pile), **changes
+    )
+
+
+def turned(pose: Pose, degrees: float) -> Pose:
+    moved = pose.copy()
+    moved[:3, :3] = Rotation.from_euler("z", degrees, degrees=True).as_matrix()
+    return moved
+
+
+@pytest.mark.parametrize(
+    ("wanted", "served"),
+    [
+        (request(), True),
+        (request(domino=shifted(lying(0.50, -0.3), 0.0008)), True),  # a reading apart
+        (request(domino=turned(lying(0.50, -0.3), 0.8)), True),
+        (request(domino=shifted(lying(0.50, -0.3), 0.002)), False),
+        (request(domino=turned(lying(0.50, -0.3), 2.0)), False),
+        (request(pile=(lying(0.55, -0.3),)), True),  # one obstacle fewer: still clear
+        (request(pile=(*request().pile, lying(0.50, -0.25))), False),  # one bared
+        (request(pile=(shifted(lying(0.55, -0.3), 0.002), lying(0.60, -0.3))), False),
+        (request(pile_points=np.array([[0.5, -0.25, 0.01]])), False),
+        (request(standing=(lying(0.45, 0.1),)), False),
+        (request(pads_into_pile=True), False),
+    ],
+)
+def test_an_answer_serves_the_same_pick_with_no_obstacle_it_did_not_keep_clear_of(
+    wanted: PlaceRequest, served: bool
+) -> None:
+    assert ahead.serves(request(), wanted) is served
+
+
+def test_seen_points_are_served_by_the_same_points_read_again_or_more() -> None:
+    points = np.array([[0.5, -0.25, 0.01], [0.52, -0.25, 0.01]])
+    asked = request(pile_points=points)
+    assert ahead.serves(asked, request(pile_points=points + 0.0005))
+    assert ahead.serves(asked, request(pile_points=points[:1]))
+    assert not ahead.serves(request(pile_points=points[:1]), request(pile_points=points))
+
+
+def test_a_refusal_with_an_obstacle_the_turn_does_not_see_is_not_used() -> None:
+    """Asked with a pile domino since gone (the pick moved it), a refusal says nothing of
+    the turn's request: dropped; a plan clear of more is clear of less: used."""
+    cell, _ = recording_cell()
+    job = line_job(cell)
+    job.upcoming = 1
+    cell.joint_positions = (list(ARM), list(RETREAT_END.values()))
+    fewer = request(pile=request().pile[:1])
+    for answer, used in ((planned("retreat"), True), (refused(), False)):
+        cell.place = lambda r, answer=answer: answer
+        ahead.send(job, 0, lambda job, index: request(), RETREAT_END, "carry")
+        assert (ahead.answer(job, fewer) is not None) is used
+    assert job.report.planned_ahead == counts(carry=2, used=1, dropped=1)

@@ -44,7 +44,7 @@ from dombot_bringup.task.picking import (
     is_among,
     place_request,
 )
-from dombot_bringup.task.placing import DESCENT, REGRASP_PREFIX, Hold, Ran, execute
+from dombot_bringup.task.placing import CARRY, DESCENT, REGRASP_PREFIX, Hold, Ran, execute
 from dombot_bringup.task.records import (
     Truth,
     at_slot,
@@ -401,11 +401,15 @@ def say_what_lay_there(job: Job, index: int, dominoes: Truth, held: str) -> None
 def ask_ahead(
     job: Job, index: int, candidate: Candidate, when: str, start: Mapping[str, float]
 ) -> None:
-    """As ``candidate`` starts down to slot ``index``, or while it is placed there
-    (``when``): the next slot's first pick asked for ahead, from ``start``, the arm's
-    joints where the plan ends. Polled while the arm places: cheap but at the descent."""
-    if when == DESCENT:
+    """As ``candidate`` starts its carry or its descent to slot ``index``, or while it is
+    placed there (``when``): the next slot's first pick asked for ahead, from ``start``,
+    the arm's joints where the plan ends; as the carry starts, from the look it was picked
+    from. Polled while the arm places: cheap but at the carry and the descent."""
+    if when in (CARRY, DESCENT):
         carried_away(job, candidate)  # no longer where it lay, for that request
+    if when == CARRY:
+        ahead.ask_at_carry(job, index, candidate.pose, first_request, start)
+        return
     ahead.ask_early(job, index, first_request, when, start)
 
 
