@@ -426,6 +426,19 @@ def test_a_pile_the_pick_moved_drops_the_request_asked_at_the_carry() -> None:
     assert asked == [0.50, 0.55, 0.553, 0.60, 0.603]
 
 
+@pytest.mark.parametrize(("nudged", "used"), [(0.0, 2), (0.003, 0)])
+def test_with_no_look_while_placing_the_turns_own_look_decides(nudged: float, used: int) -> None:
+    """Slots too near the pile for a look while placing (``look_while_placing``): the
+    request asked at the carry waits for the turn's look, and serves it when the pile lies
+    as it did less the picked domino."""
+    cell, _ = recording_cell()
+    shrinking(cell, nudged)
+    report = run(line_job(cell, plan_ahead_at_carry=True, look_while_placing=1.0))
+    assert report.built
+    assert report.planned_ahead == counts(carry=2, used=used, dropped=2 - used)
+    assert len(cell.place_requests) == 5 - used
+
+
 def request(**changes) -> PlaceRequest:
     pile = (lying(0.55, -0.3), lying(0.60, -0.3))
     return replace(
