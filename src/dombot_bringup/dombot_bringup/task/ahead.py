@@ -120,11 +120,12 @@ def confirm(
     if ahead is None or not ahead.unconfirmed or job.pile_look is None:
         return
     request = next_request(job, index, request_for)
-    if request is not None and serves(ahead.request, request):
+    why = "no request" if request is None else difference(ahead.request, request)
+    if not why:
         job.ahead = replace(ahead, unconfirmed=False)
         log("planned ahead at the carry: the pile looked at since asks the same")
         return
-    drop(job, "the pile looked at since asks another pick")
+    drop(job, f"the pile looked at since asks another pick ({why})")
     if request is not None:
         send_request(job, replace(request, start=start), start, when)
 
@@ -207,8 +208,8 @@ def answer(job: Job, request: PlaceRequest) -> Plan | None:
     ahead = job.ahead
     if ahead is None:
         return None
-    if not serves(ahead.request, request):
-        drop(job, "the turn asks for another pick")
+    if why := difference(ahead.request, request):
+        drop(job, f"the turn asks for another pick ({why})")
         return None
     off = off_start(job, ahead.start)
     if off > START_TOLERANCE:
@@ -259,17 +260,39 @@ def serves(asked: PlaceRequest, wanted: PlaceRequest) -> bool:
     dominoes, each within SAME_READING; and every obstacle of ``wanted`` (its pile
     dominoes, its seen points) one of ``asked``'s: a plan clear of those is clear of
     these. ``asked`` may keep more (a neighbour the pick moved away, seen where it lay)."""
-    return (
-        same_pose(asked.domino, wanted.domino)
-        and same_pose(asked.place, wanted.place)
-        and same_pose(asked.grasp, wanted.grasp)
-        and len(asked.standing) == len(wanted.standing)
-        and all(same_pose(a, w) for a, w in zip(asked.standing, wanted.standing, strict=True))
-        and all(any(same_pose(a, w) for a in asked.pile) for w in wanted.pile)
-        and among(wanted.pile_points, asked.pile_points)
-        and (asked.pads_into_pile, asked.holding, asked.time_budget)
-        == (wanted.pads_into_pile, wanted.holding, wanted.time_budget)
-    )
+    return not difference(asked, wanted)
+
+
+def difference(asked: PlaceRequest, wanted: PlaceRequest) -> str:
+    """What keeps the answer to ``asked`` from serving ``wanted`` (``serves``), or ""."""
+    for name in ("domino", "place", "grasp"):
+        if not same_pose(getattr(asked, name), getattr(wanted, name)):
+            return f"its {name} {apart(getattr(asked, name), getattr(wanted, name))}"
+    if len(asked.standing) != len(wanted.standing) or not all(
+        same_pose(a, w) for a, w in zip(asked.standing, wanted.standing, strict=True)
+    ):
+        return "the standing dominoes differ"
+    new = [w for w in wanted.pile if not any(same_pose(a, w) for a in asked.pile)]
+    if new:
+        return f"{len(new)} of {len(wanted.pile)} pile dominoes not among those asked with"
+    if not among(wanted.pile_points, asked.pile_points):
+        return "seen points not among those asked with"
+    if (asked.pads_into_pile, asked.holding, asked.time_budget) != (
+        wanted.pads_into_pile,
+        wanted.holding,
+        wanted.time_budget,
+    ):
+        return "another tier"
+    return ""
+
+
+def apart(a: Pose | None, b: Pose | None) -> str:
+    """How far two poses lie apart, for the log."""
+    if a is None or b is None:
+        return "given once only"
+    cos = (np.trace(a[:3, :3].T @ b[:3, :3]) - 1.0) / 2.0
+    turned = math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
+    return f"{np.linalg.norm(a[:3, 3] - b[:3, 3]) * 1e3:.1f} mm, {turned:.1f}° apart"
 
 
 def same_pose(a: Pose | None, b: Pose | None) -> bool:
