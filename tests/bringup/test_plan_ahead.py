@@ -19,7 +19,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
+from dombot_bringup.offers import PILE_BOXES, PILE_CORES
 from dombot_bringup.task import ahead
+from dombot_bringup.task.attempts import offers_with_pile
 from dombot_bringup.task.cell import (
     Detection,
     Detections,
@@ -35,6 +37,7 @@ from dombot_bringup.task.cell import (
     Trajectory,
 )
 from dombot_bringup.task.loop import run
+from dombot_bringup.task.picking import candidates
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
 from support.scripted_cell import (
@@ -466,6 +469,7 @@ def turned(pose: Pose, degrees: float) -> Pose:
         (request(pile_points=np.array([[0.5, -0.25, 0.01]])), False),
         (request(standing=(lying(0.45, 0.1),)), False),
         (request(pads_into_pile=True), False),
+        (request(grasp=lying(0.50, -0.3)), True),  # the planner's first try only
     ],
 )
 def test_an_answer_serves_the_same_pick_with_no_obstacle_it_did_not_keep_clear_of(
@@ -495,3 +499,18 @@ def test_a_refusal_with_an_obstacle_the_turn_does_not_see_is_not_used() -> None:
         ahead.send(job, 0, lambda job, index: request(), RETREAT_END, "carry")
         assert (ahead.answer(job, fewer) is not None) is used
     assert job.report.planned_ahead == counts(carry=2, used=1, dropped=1)
+
+
+@pytest.mark.parametrize("cores", [False, True])
+def test_the_offer_planned_ahead_comes_first_in_its_tier(cores: bool) -> None:
+    """The look above the slot ranks another domino first (the pick gave it room): the
+    one planned ahead is offered first all the same, in the tier it was asked in."""
+    cell = ScriptedCell(pile=[flat(0.50), flat(0.55), flat(0.60)])
+    job = line_job(cell)
+    found, _ = candidates(job, [], 0)
+    asked = replace(request(), domino=found[2].pose.copy(), pads_into_pile=cores)
+    job.ahead = ahead.PlanAhead(asked, {}, Later(lambda: planned("retreat")))
+    offers = [(id(c), tier) for c, tier in offers_with_pile(job, 0, found)]
+    assert offers[0] == (id(found[2]), PILE_CORES if cores else PILE_BOXES)
+    job.ahead = None
+    assert sorted(offers) == sorted((id(c), t) for c, t in offers_with_pile(job, 0, found))

@@ -256,16 +256,18 @@ def off_start(job: Job, start: Mapping[str, float]) -> float:
 
 def serves(asked: PlaceRequest, wanted: PlaceRequest) -> bool:
     """Whether the planner's answer to ``asked`` is one to ``wanted`` (where the plan
-    starts is for ``answer`` to judge): the same pick and place, the same standing
+    starts is for ``answer`` to judge): the same domino and place, the same standing
     dominoes, each within SAME_READING; and every obstacle of ``wanted`` (its pile
     dominoes, its seen points) one of ``asked``'s: a plan clear of those is clear of
-    these. ``asked`` may keep more (a neighbour the pick moved away, seen where it lay)."""
+    these. ``asked`` may keep more (a neighbour the pick moved away, seen where it lay).
+    Perception's grasp, the planner's first try, may differ: chosen clear of every point
+    seen then, it is clear of those seen since (a neighbour gone gives room for others)."""
     return not difference(asked, wanted)
 
 
 def difference(asked: PlaceRequest, wanted: PlaceRequest) -> str:
     """What keeps the answer to ``asked`` from serving ``wanted`` (``serves``), or ""."""
-    for name in ("domino", "place", "grasp"):
+    for name in ("domino", "place"):
         if not same_pose(getattr(asked, name), getattr(wanted, name)):
             return f"its {name} {apart(getattr(asked, name), getattr(wanted, name))}"
     if len(asked.standing) != len(wanted.standing) or not all(

@@ -189,7 +189,8 @@ def offers_with_pile(
     already, until a pick or push nearby (the default job, seed 0, asked for one domino
     with its pile's cores at three slots, five times with no pick or push within 5 cm of
     it between, and five times it was refused); leaning ones no push will lay flat behind
-    the flat ones after them (``leaning_behind_flat``)."""
+    the flat ones after them (``leaning_behind_flat``); the one planned ahead first
+    (``asked_first``)."""
     state = job.state
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), state.crowded)]
     cored = [c for c in last_resort(job, found) if not near_any(c.spot(), state.cored)]
@@ -197,7 +198,28 @@ def offers_with_pile(
         *((c, PILE_BOXES) for c in ranked[: job.settings.max_candidates]),
         *((c, PILE_CORES) for c in cored),
     ]
-    return leaning_behind_flat(job, index, offers)
+    return asked_first(job, leaning_behind_flat(job, index, offers))
+
+
+def asked_first(job: Job, offers: list[tuple[Candidate, str]]) -> list[tuple[Candidate, str]]:
+    """``offers`` with the one planned ahead (``job.ahead``: its domino within
+    ``ahead.SAME_READING``, in its tier) first. Asked at the carry, it was the first offer
+    of the look before the pick; the pick gave its neighbours room and perception then
+    ranked another first (the arc, seed 0: at two of three slots, a domino 12-15 cm
+    away), a pick no likelier to hold that the planner has not planned."""
+    asked = job.ahead
+    if asked is None:
+        return offers
+    first = next(
+        (
+            offer
+            for offer in offers
+            if ahead.same_pose(offer[0].pose, asked.request.domino)
+            and (offer[1] == PILE_CORES) == asked.request.pads_into_pile
+        ),
+        None,
+    )
+    return offers if first is None else [first, *(o for o in offers if o is not first)]
 
 
 def leaning_behind_flat(
