@@ -276,7 +276,14 @@ def difference(asked: PlaceRequest, wanted: PlaceRequest) -> str:
         return "the standing dominoes differ"
     new = [w for w in wanted.pile if not any(same_pose(a, w) for a in asked.pile)]
     if new:
-        return f"{len(new)} of {len(wanted.pile)} pile dominoes not among those asked with"
+        nearest = min(
+            (float(np.linalg.norm(w[:3, 3] - a[:3, 3])) for w in new for a in asked.pile),
+            default=math.inf,
+        )
+        return (
+            f"{len(new)} of {len(wanted.pile)} pile dominoes not among those asked with, "
+            f"the nearest {nearest * 1e3:.1f} mm from one"
+        )
     if not among(wanted.pile_points, asked.pile_points):
         return "seen points not among those asked with"
     if (asked.pads_into_pile, asked.holding, asked.time_budget) != (
