@@ -7,7 +7,7 @@ planning, gripper, waiting, other: the run report's split), the wall seconds per
 domino, and the CPU seconds each node process used (psutil, read off the process tree);
 sim_node's CPU per simulated second over the whole job and while the arm moves (from
 its "executing a T s trajectory" to its "trajectory done" lines, against the T's), and
-how many picks were planned ahead (asked as the carry or the descent to the slot started, the
+how many picks were planned ahead (asked as the descent to the slot started, the
 moment the pile look answered while the arm placed, or after the retreat, used or
 dropped: ``task.ahead``), and the
 planner's refusals by service and error code.

@@ -1,29 +1,21 @@
 """Planning ahead (``task.ahead``): the next slot's first request goes to the planner
-as the domino just picked starts its carry, made from the look it was picked from less
-it, and is kept once the look asked for as the carry ended makes the same request (else
-dropped and that one sent); without it (plan_ahead_at_carry off, the first tests here),
-as the domino starts down to its slot (once that look has answered; else the moment it
-answers while the arm descends, lets go and retreats, else after the retreat), before
-perception has checked the placement. Its answer serves that slot's turn only when the
-turn makes the same request (within perception's repeatability: ``ahead.serves``) with
-the arm where the plan starts."""
+as the domino just carried starts down to its slot (once the look at the pile asked for
+as the carry ended has answered; else the moment it answers while the arm descends,
+lets go and retreats, else after the retreat),
+before perception has checked the placement, and its answer serves that slot's turn
+only when the turn makes the very same request with the arm where the plan starts."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from dombot_bringup import layouts
-from dombot_bringup.offers import PILE_BOXES, PILE_CORES
 from dombot_bringup.task import ahead
-from dombot_bringup.task.attempts import offers_with_pile
 from dombot_bringup.task.cell import (
-    Detection,
     Detections,
     GripperEvent,
     Later,
@@ -37,20 +29,9 @@ from dombot_bringup.task.cell import (
     Trajectory,
 )
 from dombot_bringup.task.loop import run
-from dombot_bringup.task.picking import candidates
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_bringup.task.state import Job
-from support.scripted_cell import (
-    ScriptedCell,
-    closing,
-    flat,
-    lying,
-    path,
-    planned,
-    refused,
-    seen,
-    shifted,
-)
+from support.scripted_cell import ScriptedCell, closing, flat, path, planned, seen
 
 ARM = ("a1", "a2")
 RETREAT_END = {"a1": 0.3, "a2": -0.2}  # where every retreat leaves the arm
@@ -69,12 +50,9 @@ PICK_AND_PLACE = (
 
 def line_job(cell: ScriptedCell, count: int = 3, **settings) -> Job:
     """A line along +y from (0.45, 0.10): every slot ~0.41 m from the pile's centre, so
-    the pile is looked at while the arm places (``placing.pile_in_view``). Nothing asked
-    at the carry unless told: this cell's looks see the picked dominoes still there
-    (``shrinking`` does not)."""
+    the pile is looked at while the arm places (``placing.pile_in_view``)."""
     layout = layouts.line((0.45, 0.10), math.pi / 2, count)
-    # no hand check unless told
-    settings = {"in_hand_tolerance": 0.0, "plan_ahead_at_carry": False, **settings}
+    settings = {"in_hand_tolerance": 0.0, **settings}  # no hand check unless told
     return Job.new(cell, layout, "line", ArmJobSettings(**settings))
 
 
@@ -113,11 +91,9 @@ def counts(
     after_retreat: int = 0,
     used: int = 0,
     dropped: int = 0,
-    carry: int = 0,
 ) -> dict[str, int]:
     """The report's planned_ahead."""
     return {
-        "carry": carry,
         "descent": descent,
         "look_answered": look_answered,
         "after_retreat": after_retreat,
@@ -374,143 +350,3 @@ def test_a_domino_put_back_on_the_pile_drops_the_look_and_the_request() -> None:
     assert report.built and report.dominoes[0].attempts == 2
     assert looked[:3] == [(0, 1), (1, 2), (0, 3)]  # slot 0 again after a look of its own
     assert report.planned_ahead["dropped"] == 1
-
-
-def shrinking(cell: ScriptedCell, nudged: float = 0.0) -> None:
-    """Each look sees the pile less the dominoes picked so far (the first of it at each
-    pick: they score alike), the next one ``nudged`` metres along x by the pick before."""
-    pile, looking = list(cell.pile), cell.detect
-
-    def detect(not_before: float) -> Detections:
-        picks = ran(cell, "approach_grasp")
-        left = pile[picks:]
-        if picks and left and nudged:
-            left[0] = Detection(shifted(left[0].pose, nudged), left[0].posture, 0.9, 0.01)
-        cell.pile = left
-        return looking(not_before)
-
-    cell.detect = detect
-
-
-def test_the_next_slots_pick_is_asked_for_as_the_carry_starts() -> None:
-    """Slot k+1's request goes out as slot k's carry starts, before the look asked as it
-    ends, made from the look slot k's domino was picked from less that domino; the look
-    since makes the same request, and its answer is used."""
-    cell, _ = recording_cell()
-    shrinking(cell)
-    sent: list[tuple[int, int, int]] = []  # (slot, carries begun, looks so far)
-    planning = cell.place
-
-    def place(request: PlaceRequest) -> Plan:
-        sent.append((slot_of(request), ran(cell, "transfer"), len(cell.looks)))
-        return planning(request)
-
-    cell.place = place
-    report = run(line_job(cell, plan_ahead_at_carry=True, in_hand_tolerance=0.003))
-    assert report.built
-    assert sent == [(0, 0, 1), (1, 1, 1), (2, 2, 2)]  # as the carry ran, before its look
-    assert report.planned_ahead == counts(carry=2, used=2)
-    requests = cell.place_requests
-    assert [r.domino[0, 3] for r in requests] == [0.50, 0.55, 0.60]
-    assert requests[1].start == RETREAT_END
-    assert len(requests[1].pile) == 2  # the picked domino no obstacle
-
-
-def test_a_pile_the_pick_moved_drops_the_request_asked_at_the_carry() -> None:
-    """The pick nudged the next domino 3 mm: the look asked as the carry ended makes
-    another request, which goes out as the descent starts, and the one asked at the carry
-    is dropped; the turn uses the new one."""
-    cell, _ = recording_cell()
-    shrinking(cell, nudged=0.003)
-    report = run(line_job(cell, plan_ahead_at_carry=True))
-    assert report.built
-    assert report.planned_ahead == counts(carry=2, descent=2, dropped=2, used=2)
-    asked = [round(float(r.domino[0, 3]), 4) for r in cell.place_requests]
-    assert asked == [0.50, 0.55, 0.553, 0.60, 0.603]
-
-
-@pytest.mark.parametrize(("nudged", "used"), [(0.0, 2), (0.003, 0)])
-def test_with_no_look_while_placing_the_turns_own_look_decides(nudged: float, used: int) -> None:
-    """Slots too near the pile for a look while placing (``look_while_placing``): the
-    request asked at the carry waits for the turn's look, and serves it when the pile lies
-    as it did less the picked domino."""
-    cell, _ = recording_cell()
-    shrinking(cell, nudged)
-    report = run(line_job(cell, plan_ahead_at_carry=True, look_while_placing=1.0))
-    assert report.built
-    assert report.planned_ahead == counts(carry=2, used=used, dropped=2 - used)
-    assert len(cell.place_requests) == 5 - used
-
-
-def request(**changes) -> PlaceRequest:
-    pile = (lying(0.55, -0.3), lying(0.60, -0.3))
-    return replace(
-        PlaceRequest(domino=lying(0.50, -0.3), place=lying(0.45, 0.1), pile=pile), **changes
-    )
-
-
-def turned(pose: Pose, degrees: float) -> Pose:
-    moved = pose.copy()
-    moved[:3, :3] = Rotation.from_euler("z", degrees, degrees=True).as_matrix()
-    return moved
-
-
-@pytest.mark.parametrize(
-    ("wanted", "served"),
-    [
-        (request(), True),
-        (request(domino=shifted(lying(0.50, -0.3), 0.0008)), True),  # a reading apart
-        (request(domino=turned(lying(0.50, -0.3), 0.8)), True),
-        (request(domino=shifted(lying(0.50, -0.3), 0.002)), False),
-        (request(domino=turned(lying(0.50, -0.3), 2.0)), False),
-        (request(pile=(lying(0.55, -0.3),)), True),  # one obstacle fewer: still clear
-        (request(pile=(*request().pile, lying(0.50, -0.25))), False),  # one bared
-        (request(pile=(shifted(lying(0.55, -0.3), 0.002), lying(0.60, -0.3))), False),
-        (request(pile_points=np.array([[0.5, -0.25, 0.01]])), False),
-        (request(standing=(lying(0.45, 0.1),)), False),
-        (request(pads_into_pile=True), False),
-        (request(grasp=lying(0.50, -0.3)), True),  # the planner's first try only
-    ],
-)
-def test_an_answer_serves_the_same_pick_with_no_obstacle_it_did_not_keep_clear_of(
-    wanted: PlaceRequest, served: bool
-) -> None:
-    assert ahead.serves(request(), wanted) is served
-
-
-def test_seen_points_are_served_by_the_same_points_read_again_or_more() -> None:
-    points = np.array([[0.5, -0.25, 0.01], [0.52, -0.25, 0.01]])
-    asked = request(pile_points=points)
-    assert ahead.serves(asked, request(pile_points=points + 0.0005))
-    assert ahead.serves(asked, request(pile_points=points[:1]))
-    assert not ahead.serves(request(pile_points=points[:1]), request(pile_points=points))
-
-
-def test_a_refusal_with_an_obstacle_the_turn_does_not_see_is_not_used() -> None:
-    """Asked with a pile domino since gone (the pick moved it), a refusal says nothing of
-    the turn's request: dropped; a plan clear of more is clear of less: used."""
-    cell, _ = recording_cell()
-    job = line_job(cell)
-    job.upcoming = 1
-    cell.joint_positions = (list(ARM), list(RETREAT_END.values()))
-    fewer = request(pile=request().pile[:1])
-    for answer, used in ((planned("retreat"), True), (refused(), False)):
-        cell.place = lambda r, answer=answer: answer
-        ahead.send(job, 0, lambda job, index: request(), RETREAT_END, "carry")
-        assert (ahead.answer(job, fewer) is not None) is used
-    assert job.report.planned_ahead == counts(carry=2, used=1, dropped=1)
-
-
-@pytest.mark.parametrize("cores", [False, True])
-def test_the_offer_planned_ahead_comes_first_in_its_tier(cores: bool) -> None:
-    """The look above the slot ranks another domino first (the pick gave it room): the
-    one planned ahead is offered first all the same, in the tier it was asked in."""
-    cell = ScriptedCell(pile=[flat(0.50), flat(0.55), flat(0.60)])
-    job = line_job(cell)
-    found, _ = candidates(job, [], 0)
-    asked = replace(request(), domino=found[2].pose.copy(), pads_into_pile=cores)
-    job.ahead = ahead.PlanAhead(asked, {}, Later(lambda: planned("retreat")))
-    offers = [(id(c), tier) for c, tier in offers_with_pile(job, 0, found)]
-    assert offers[0] == (id(found[2]), PILE_CORES if cores else PILE_BOXES)
-    job.ahead = None
-    assert sorted(offers) == sorted((id(c), t) for c, t in offers_with_pile(job, 0, found))

@@ -226,14 +226,6 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "planner plans it while the arm retreats and perception checks)",
     )
     cell.add_argument(
-        "--no-plan-ahead-at-carry",
-        dest="plan_ahead_at_carry",
-        action="store_false",
-        help="ask for the next pick ahead only once the pile is looked at above the slot "
-        "(default: as the carry starts, from the look before the pick less the picked "
-        "domino, used when the newer look agrees)",
-    )
-    cell.add_argument(
         "--no-foresee-refusals",
         dest="foresee_refusals",
         action="store_false",
@@ -397,7 +389,6 @@ def run_arm(args: argparse.Namespace) -> int:
         real_time_factor=args.real_time_factor,
         plan_budget=args.plan_budget,
         plan_ahead=args.plan_ahead,
-        plan_ahead_at_carry=args.plan_ahead_at_carry,
         foresee_refusals=args.foresee_refusals,
         meshcat=args.visual,
         record=args.record,

@@ -23,7 +23,7 @@ from dombot_bringup.sections import VERDICTS, exit_status, worst_status
 
 LABEL_GAP = 0.008  # m between a domino's end and its number in the picture
 # the report's planned_ahead counts (``task.ahead``): requests sent, by when; answers
-PLANNED_AHEAD = ("carry", "descent", "look_answered", "after_retreat", "used", "dropped")
+PLANNED_AHEAD = ("descent", "look_answered", "after_retreat", "used", "dropped")
 TRUTH_TOLERANCE = (3.0, 3.0)  # mm, deg: "standing where intended" in the simulator's truth
 
 

@@ -44,7 +44,7 @@ from dombot_bringup.task.picking import (
     is_among,
     place_request,
 )
-from dombot_bringup.task.placing import CARRY, DESCENT, REGRASP_PREFIX, Hold, Ran, execute
+from dombot_bringup.task.placing import DESCENT, REGRASP_PREFIX, Hold, Ran, execute
 from dombot_bringup.task.records import (
     Truth,
     at_slot,
@@ -189,8 +189,7 @@ def offers_with_pile(
     already, until a pick or push nearby (the default job, seed 0, asked for one domino
     with its pile's cores at three slots, five times with no pick or push within 5 cm of
     it between, and five times it was refused); leaning ones no push will lay flat behind
-    the flat ones after them (``leaning_behind_flat``); the one planned ahead first
-    (``asked_first``)."""
+    the flat ones after them (``leaning_behind_flat``)."""
     state = job.state
     ranked = [c for c in with_pile_first(found) if not near_any(c.spot(), state.crowded)]
     cored = [c for c in last_resort(job, found) if not near_any(c.spot(), state.cored)]
@@ -198,28 +197,7 @@ def offers_with_pile(
         *((c, PILE_BOXES) for c in ranked[: job.settings.max_candidates]),
         *((c, PILE_CORES) for c in cored),
     ]
-    return asked_first(job, leaning_behind_flat(job, index, offers))
-
-
-def asked_first(job: Job, offers: list[tuple[Candidate, str]]) -> list[tuple[Candidate, str]]:
-    """``offers`` with the one planned ahead (``job.ahead``: its domino within
-    ``ahead.SAME_READING``, in its tier) first. Asked at the carry, it was the first offer
-    of the look before the pick; the pick gave its neighbours room and perception then
-    ranked another first (the arc, seed 0: at two of three slots, a domino 12-15 cm
-    away), a pick no likelier to hold that the planner has not planned."""
-    asked = job.ahead
-    if asked is None:
-        return offers
-    first = next(
-        (
-            offer
-            for offer in offers
-            if ahead.same_pose(offer[0].pose, asked.request.domino)
-            and (offer[1] == PILE_CORES) == asked.request.pads_into_pile
-        ),
-        None,
-    )
-    return offers if first is None else [first, *(o for o in offers if o is not first)]
+    return leaning_behind_flat(job, index, offers)
 
 
 def leaning_behind_flat(
@@ -423,15 +401,11 @@ def say_what_lay_there(job: Job, index: int, dominoes: Truth, held: str) -> None
 def ask_ahead(
     job: Job, index: int, candidate: Candidate, when: str, start: Mapping[str, float]
 ) -> None:
-    """As ``candidate`` starts its carry or its descent to slot ``index``, or while it is
-    placed there (``when``): the next slot's first pick asked for ahead, from ``start``,
-    the arm's joints where the plan ends; as the carry starts, from the look it was picked
-    from. Polled while the arm places: cheap but at the carry and the descent."""
-    if when in (CARRY, DESCENT):
+    """As ``candidate`` starts down to slot ``index``, or while it is placed there
+    (``when``): the next slot's first pick asked for ahead, from ``start``, the arm's
+    joints where the plan ends. Polled while the arm places: cheap but at the descent."""
+    if when == DESCENT:
         carried_away(job, candidate)  # no longer where it lay, for that request
-    if when == CARRY:
-        ahead.ask_at_carry(job, index, candidate.pose, first_request, start)
-        return
     ahead.ask_early(job, index, first_request, when, start)
 
 

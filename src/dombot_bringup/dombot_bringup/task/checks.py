@@ -268,18 +268,6 @@ def remember_fallen(job: Job, index: int, status: Seen, measured: Pose, tilt: fl
     return False
 
 
-def to_look_again(job: Job) -> tuple[list[Pose], list[int]]:
-    """What ``look_again`` looks at: the toppled and unfitted dominoes, and the slots of
-    the fallen run dominoes, within DISTURBED_RADIUS of where something moved."""
-    state = job.state
-
-    def moved_near(pose: Pose) -> bool:
-        return any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in state.disturbed)
-
-    again = [pose for pose in [*state.toppled, *state.unfitted] if moved_near(pose)]
-    return again, [k for k, pose in state.fallen.items() if moved_near(pose)]
-
-
 def look_again(job: Job) -> None:
     """The toppled, unfitted and fallen run dominoes within DISTURBED_RADIUS of where
     something moved since they were seen (``BuildState.disturbed``) looked at again where
@@ -291,8 +279,13 @@ def look_again(job: Job) -> None:
     fallen run of circle30 seed 1 (1-18 lying shingled, picked one by one from poses
     measured when they fell: many picks closed to 0.4 mm)."""
     state = job.state
-    again, run = to_look_again(job)
-    state.disturbed = []
+    disturbed, state.disturbed = state.disturbed, []
+
+    def moved_near(pose: Pose) -> bool:
+        return any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in disturbed)
+
+    again = [pose for pose in [*state.toppled, *state.unfitted] if moved_near(pose)]
+    run = [k for k, pose in state.fallen.items() if moved_near(pose)]
     if not again and not run:
         return
     standing = list(state.standing.values())

@@ -221,8 +221,7 @@ def look_at_pile(job: Job) -> tuple[list[Detection], np.ndarray]:
     after the reset found no frames for four attempts); an empty answer after that is
     taken as the pile's end. Nothing moved since the last placement check: its frames
     serve (no frame to wait for); a look asked for while the arm placed
-    (``job.pile_look``) serves when it found dominoes. The look that found dominoes is
-    kept (``job.last_look``)."""
+    (``job.pile_look``) serves when it found dominoes."""
     early, job.pile_look = job.pile_look, None
     if early is not None:
         try:
@@ -230,7 +229,6 @@ def look_at_pile(job: Job) -> tuple[list[Detection], np.ndarray]:
         except CellError as error:
             answer = Detections(False, str(error))
         if answer.success and answer.dominoes:
-            job.last_look = answer
             return list(answer.dominoes), answer.unexplained
         log(f"perception while placing: {answer.message}; looking again")
     period = 1.0 / job.settings.camera_rate
@@ -242,7 +240,6 @@ def look_at_pile(job: Job) -> tuple[list[Detection], np.ndarray]:
         answer = job.cell.detect(not_before)
         job.pile_seen_at = not_before
         if answer.success and answer.dominoes:
-            job.last_look = answer
             return list(answer.dominoes), answer.unexplained
         log(f"perception: {answer.message}; asking again")
     if answer.success:

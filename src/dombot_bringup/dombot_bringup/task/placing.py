@@ -36,10 +36,9 @@ HOLD_CHECK_SEGMENT = "transfer"
 OPEN_SEGMENT = "open_gripper"  # the fingers open for the approach that follows
 PLACE_SEGMENT = "place"  # the fingers let go of the domino on its slot once it ends
 REGRASP_PREFIX = "regrasp_"  # the planner's turn in place before the pick proper
-# when ``Hold.ask_ahead`` is called: as the carry to the slot starts; as the descent to it
-# starts; then while the arm descends, lets go and retreats (each motion's ``meanwhile``),
-# for the look to answer
-CARRY, DESCENT, LOOK_ANSWERED = "carry", "descent", "look_answered"
+# when ``Hold.ask_ahead`` is called: as the descent to the slot starts; then while the arm
+# descends, lets go and retreats (each motion's ``meanwhile``), for the look to answer
+DESCENT, LOOK_ANSWERED = "descent", "look_answered"
 # What the in-hand check says when it cannot measure the held domino.
 IN_HAND_WORDS = {
     Seen.FALLEN: "no upright domino fitted below the pads",
@@ -71,9 +70,9 @@ class Execution:
 class Hold:
     """A domino being carried to slot ``index``: where the plan holds it above the slot,
     where it was picked (a fallen run domino is no obstacle there any more), and what to
-    do as its carry starts, as its descent starts and, from then on, while the arm waits
-    for the descent, the release and the retreat to end (the next pick asked ahead), given
-    when (CARRY, DESCENT, LOOK_ANSWERED) and where the arm's joints end (name → rad)."""
+    do as its descent starts and, from then on, while the arm waits for the descent, the
+    release and the retreat to end (the next pick asked ahead), given when (DESCENT,
+    LOOK_ANSWERED) and where the arm's joints end (name → rad)."""
 
     index: int
     held_above: Pose
@@ -105,8 +104,7 @@ def execute(
     is looked at in the hand where "transfer" ends above its slot (``in_hand``); at a slot
     the pile cameras see past, the next look at the pile is asked for just before it
     (``look_while_placing``; perception answers the hand check beside it, not after it),
-    and ``hold.ask_ahead`` is told where the plan ends once as the carry runs (its first
-    ``meanwhile``), as the descent starts and again and
+    and ``hold.ask_ahead`` is told where the plan ends as the descent starts and again and
     again while the descent, the release and the retreat run (their ``meanwhile``: on this
     thread, between polls for their end), so the next pick goes out the moment that look
     answers.
@@ -121,12 +119,9 @@ def execute(
     job.still_since = job.let_go_at = job.pile_look = None
     cell = job.cell
     opening: Later[float] | None = None  # the fingers opening while the approach moves
-    # from the carry on: the next pick, from the look before the pick, then once looked
-    asking: Meanwhile | None = None
+    asking: Meanwhile | None = None  # from the descent on: the next pick, once looked
     for index, segment in enumerate(segments):
         approach = is_approach(segment)
-        if hold is not None and hold.ask_ahead is not None and segment.label == HOLD_CHECK_SEGMENT:
-            asking = once(partial(hold.ask_ahead, CARRY, end_of(segments)))
         if hold is not None and segment.label == PLACE_SEGMENT:
             if job.pile_look is None and pile_in_view(job, hold.index):
                 look_while_placing(job)  # no transfer before it
@@ -178,19 +173,6 @@ def execute(
             if verdict.again:
                 return execute(job, verdict.again, carried=(*carried, segment))
     return Execution(Ran.DONE)
-
-
-def once(call: Meanwhile) -> Meanwhile:
-    """``call`` the first time only: a motion's ``meanwhile`` is polled until it ends."""
-    called = False
-
-    def first() -> None:
-        nonlocal called
-        if not called:
-            called = True
-            call()
-
-    return first
 
 
 def opens_while_moving(job: Job, segment: Segment, following: Sequence[Segment]) -> bool:

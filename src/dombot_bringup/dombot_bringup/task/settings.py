@@ -91,14 +91,6 @@ class ArmJobSettings:
     # core while the arm places and retreats and perception checks the placement. False:
     # asked once the check answered.
     plan_ahead: bool = True
-    # With plan_ahead, ask for it as the carry starts, from the look the pick was chosen
-    # from less the picked domino: the planner then plans while the arm carries, the hand
-    # is checked and the domino placed, where the look asked as the carry ends answers
-    # only as the descent runs or after it (1.65 s wall median). The answer is used only
-    # if the request made from that newer look is the same within perception's
-    # repeatability (``ahead.serves``); otherwise it is dropped and asked anew. False: asked
-    # once that look answers.
-    plan_ahead_at_carry: bool = True
     # A pick whose every grasp the planner would refuse before any IK (the pads' path on
     # seen points, the pads beyond its pile_nudge in a pile domino, the wrist beyond the
     # elbow's reach, a turned grasp's hold with no place pose: the planner's own tests,

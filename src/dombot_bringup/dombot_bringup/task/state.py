@@ -147,9 +147,6 @@ class Job:
     # next pick: nothing touches the pile between (any other motion drops it).
     pile_look: Later[Detections] | None = None
     pile_seen_at: float = 0.0  # simulated time of the last look's frames (not_before)
-    # The last look at the pile candidates were taken from (``picking.look_at_pile``): the
-    # next pick is asked ahead from it as the carry starts (``ahead.ask_at_carry``).
-    last_look: Detections | None = None
     # The finger opening [m] where the job's last gripper command stopped (None: not
     # commanded yet, e.g. as poured at the start).
     fingers: float | None = None
