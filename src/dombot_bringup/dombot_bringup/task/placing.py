@@ -279,6 +279,9 @@ def look_turned(job: Job, held_above: Pose, above: Mapping[str, float]) -> Place
     turn = job.settings.in_hand_look_turn
     out = base_turn(above, turn, job.settings.in_hand_look_speed)
     log(f"looking again with the arm's base turned {math.degrees(turn):+.0f}°")
+    # the look at the pile asked for above the slot may be answered from frames the turned
+    # arm is in: dropped, it is asked again as the descent starts (``execute``)
+    job.pile_look = None
     motion = job.cell.execute(out)
     if motion.ok:
         turned = about_base(turn)
