@@ -796,8 +796,9 @@ def test_a_hold_hidden_above_a_long_standing_section_is_looked_at_from_the_base_
     and turned back; perception is asked for the hold turned with the arm about the
     world's z axis, and its reading, 3 mm off there, is turned back above the slot and
     carried again from where it is held; the look at the pile asked for above the slot is
-    dropped (asked for again as a planned descent starts). With 3 at risk (a section between safety gaps)
-    it is placed as planned unseen, and so it is when the turn fails (turned back)."""
+    dropped (asked for again as a planned descent starts). With 3 at risk (a section
+    between safety gaps) it is placed as planned unseen, and so it is when the turn fails
+    (turned back)."""
     carry = planned("transfer", Segment("place", path("place"), GripperEvent.OPEN, 0.031))
     answers = [seen([NOT_SEEN]), seen([STANDING], [0.003])]
     turn = math.radians(-20.0)
