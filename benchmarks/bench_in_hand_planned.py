@@ -68,14 +68,16 @@ def render(args: argparse.Namespace) -> list[dict]:
         transfer = next(s for s in plan.segments if s.label == "transfer").pieces[-1]
         above = transfer.sample(np.array([transfer.duration]))[0][0]
         run_poses = {k: placement_pose(run[n - 1]) for k, n in enumerate(standing, start=1)}
+        world.set_robot_positions(above, DOMINO_SIZE[1])
+        tcp_above = world.tcp_pose()
         for look in args.looks:
             base = RigidTransform(RotationMatrix.MakeZRotation(math.radians(look)))
             arm = above + np.eye(len(above))[0] * math.radians(look)
             world.set_robot_positions(arm, DOMINO_SIZE[1])
+            # the base joint turns about the world's z axis: the TCP turned rigidly with it
+            assert np.allclose(world.tcp_pose(), base.GetAsMatrix4() @ tcp_above, atol=1e-9)
             target = base @ plan.held_above_place
             tcp = target @ plan.held_in_tcp.inverse()
-            # the base joint turns about the world's z axis: the TCP turned rigidly with it
-            assert np.allclose(world.tcp_pose(), tcp.GetAsMatrix4(), atol=1e-9)
             for turn in args.turns:
                 turned = RigidTransform(RotationMatrix.MakeYRotation(math.radians(turn)))
                 truth = tcp @ turned @ plan.held_in_tcp
