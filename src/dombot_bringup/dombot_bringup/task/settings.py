@@ -194,8 +194,9 @@ class ArmJobSettings:
     # carry's height (the foot 22 mm above the run's tops), and a camera sees the part
     # below the pads past the gripper (benchmarks/bench_in_hand_planned.py --looks;
     # PERCEPTION_MEASURED.md). A blind placement failed 15 % of the time in the ledger runs
-    # (2.7 % after a look that saw the hold), one in s_curve30 felling 27. 0: no second look.
-    in_hand_look_turn: float = math.radians(-20.0)
+    # (2.7 % after a look that saw the hold), one in s_curve30 felling 27. The look costs its
+    # turns (1.65 s simulated at -15°) and a camera frame. 0: no second look.
+    in_hand_look_turn: float = math.radians(-15.0)
     in_hand_look_speed: float = 0.5  # rad/s
     in_hand_look_risk: int = 3
     # However far it turned: placed as held, a domino leaning more than ~9° (its thickness
