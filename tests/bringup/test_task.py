@@ -40,7 +40,14 @@ from dombot_bringup.task.clearing import sweep_debris
 from dombot_bringup.task.geometry import foot, lowered, neighbours_of, spot_of
 from dombot_bringup.task.loop import Turn, place_slot, run
 from dombot_bringup.task.picking import Candidate, candidates, debris, look_at_pile, place_request
-from dombot_bringup.task.placing import LET_GO_OPENING, Hold, Ran, execute, grasp_problem
+from dombot_bringup.task.placing import (
+    LET_GO_OPENING,
+    Hold,
+    Ran,
+    about_base,
+    execute,
+    grasp_problem,
+)
 from dombot_bringup.task.records import (
     FALLEN_TILT_DEG,
     add_spent,
@@ -773,6 +780,65 @@ def test_a_domino_hanging_low_in_the_hand_is_carried_again_as_held(
         assert corrected == [
             f"foot {off * 1e3:.1f} mm off, leaning 0.0° (2.5 mm lower than planned)"
         ]
+
+
+@pytest.mark.parametrize(
+    ("standing", "turn_ok", "looked_again", "placed_again"),
+    [(4, True, True, True), (3, True, False, False), (4, False, True, False)],
+)
+def test_a_hold_hidden_above_a_long_standing_section_is_looked_at_from_the_base_turned(
+    standing: int, turn_ok: bool, looked_again: bool, placed_again: bool
+) -> None:
+    """Issue 23: above s_curve30's slots 21-23 the gripper hides the held domino from
+    every camera, and placed blind there it fell and felled the 27 standing beside it.
+    Not seen above its slot with more than in_hand_look_risk standing beside it, it is
+    looked at again with the arm's base joint (the plan's first) turned in_hand_look_turn
+    and turned back; perception is asked for the hold turned with the arm about the
+    world's z axis, and its reading, 3 mm off there, is turned back above the slot and
+    carried again from where it is held; the look at the pile asked for above the slot is
+    dropped (asked for again as a planned descent starts). With 3 at risk (a section
+    between safety gaps) it is placed as planned unseen, and so it is when the turn fails
+    (turned back)."""
+    carry = planned("transfer", Segment("place", path("place"), GripperEvent.OPEN, 0.031))
+    answers = [seen([NOT_SEEN]), seen([STANDING], [0.003])]
+    turn = math.radians(-20.0)
+    cell = ScriptedCell(
+        placements=lambda expected, in_hand: answers.pop(0)(expected, in_hand),
+        place=lambda request: carry,
+        motion=lambda trajectory: Motion(turn_ok or trajectory.positions[0, 0] != 0.3),
+    )
+    run_job = job(cell, count=6, in_hand_look_turn=turn)
+    run_job.state.standing = {i: run_job.targets[i] for i in range(4 - standing, 4)}
+    above = run_job.releases[4].copy()
+    above[2, 3] += 0.07
+    joints = ("iiwa_joint_1", "iiwa_joint_2")
+    transfer = Trajectory(
+        joints, np.array([0.0, 1.0]), np.array([[0.1, 0.2], [0.3, 0.4]]), np.zeros((2, 2))
+    )
+    planned_place = [
+        Segment("transfer", transfer),
+        Segment("place", gripper_after=GripperEvent.OPEN, gripper_position=0.034),
+    ]
+    assert execute(run_job, planned_place, Hold(4, above, lying(0.55, -0.3))).done
+    looks = [expected for expected, _, _ in cell.checks]
+    assert len(looks) == 1 + (looked_again and turn_ok)
+    if looked_again and turn_ok:
+        np.testing.assert_allclose(looks[1][0], about_base(turn) @ above)
+    assert len(cell.executed) == 1 + 2 * looked_again + 2 * placed_again  # carried again
+    if looked_again:
+        out, back = cell.executed[1:3]
+        assert out.joint_names == back.joint_names == joints
+        np.testing.assert_allclose(out.positions[[0, -1]], [[0.3, 0.4], [0.3 + turn, 0.4]])
+        np.testing.assert_allclose(back.positions[-1], [0.3, 0.4])
+        assert np.all(np.abs(out.velocities[:, 0]) <= run_job.settings.in_hand_look_speed + 1e-9)
+    assert cell.openings == [0.031 if placed_again else 0.034]
+    # the look at the pile asked for above the slot, from frames the turned arm may be in,
+    # is asked for again as the planned descent starts (a carry again asks none)
+    assert len(cell.looks) == 1 + (looked_again and not placed_again)
+    if placed_again:
+        (request,) = cell.place_requests
+        off = request.domino[:3, 3] - above[:3, 3]
+        np.testing.assert_allclose(off, 0.003 * np.array([math.cos(turn), -math.sin(turn), 0.0]))
 
 
 def test_a_fallen_run_domino_carried_again_is_no_obstacle_where_it_lay() -> None:

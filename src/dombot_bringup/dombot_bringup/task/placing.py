@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 from functools import partial
 
@@ -18,12 +18,14 @@ from dombot_bringup.task.cell import (
     GripperEvent,
     Later,
     Meanwhile,
+    PlacementCheck,
     PlaceRequest,
     Pose,
     Seen,
     Segment,
     Trajectory,
 )
+from dombot_bringup.task.chain import at_risk
 from dombot_bringup.task.checks import settle
 from dombot_bringup.task.geometry import foot, foot_distance, lowered
 from dombot_bringup.task.state import Job, log
@@ -166,7 +168,7 @@ def execute(
         if hold is not None and segment.label == HOLD_CHECK_SEGMENT:
             if pile_in_view(job, hold.index):
                 look_while_placing(job)
-            verdict = in_hand(job, hold)
+            verdict = in_hand(job, hold, segment)
             if verdict.put_back:
                 put_back(job, (*carried, *transfers(segments[: index + 1])))
                 return Execution(Ran.PUT_BACK, verdict.put_back)
@@ -194,11 +196,13 @@ def opens_while_moving(job: Job, segment: Segment, following: Sequence[Segment])
     )
 
 
-def in_hand(job: Job, hold: Hold) -> InHand:
-    """The held domino straight above its slot, seen by perception: when it turned or
-    slid in the hand on the way (``in_hand_tolerance``), or hangs lower than planned
-    (``in_hand_low_tolerance``), a plan from where it is held to its release pose (down
-    onto it from above, the fingers open there, then the retreat).
+def in_hand(job: Job, hold: Hold, transfer: Segment) -> InHand:
+    """The held domino straight above its slot (where ``transfer`` ended), seen by
+    perception: when it turned or slid in the hand on the way (``in_hand_tolerance``), or
+    hangs lower than planned (``in_hand_low_tolerance``), a plan from where it is held to
+    its release pose (down onto it from above, the fingers open there, then the retreat).
+    Not seen there, and a fall of it could take down more than ``in_hand_look_risk``
+    standing dominoes: looked at again from the base turned (``look_turned``).
     No plan: placed as planned (within the tolerance, read beyond ``in_hand_max_off``, not
     seen well, or no plan for a hold that may still stand). Put back: no plan, and leaning
     over ``put_back_lean`` it would fall."""
@@ -207,6 +211,15 @@ def in_hand(job: Job, hold: Hold) -> InHand:
         return InHand()
     fresh = settle(job)
     answer = job.cell.check_placement([hold.held_above], in_hand=True, not_before=fresh)
+    risk = len(at_risk(hold.index, job.state.standing))
+    if (
+        answer.success
+        and answer.status[0] == Seen.NOT_SEEN
+        and settings.in_hand_look_turn != 0.0
+        and risk > settings.in_hand_look_risk
+    ):
+        log(f"{name} in the hand: {IN_HAND_WORDS[Seen.NOT_SEEN]}, {risk} standing at risk")
+        answer = look_turned(job, hold.held_above, end_of([transfer]))
     if not (answer.success and answer.status[0] == Seen.STANDING):
         status = IN_HAND_WORDS.get(answer.status[0], "?") if answer.success else answer.message
         log(f"{name} in the hand: {status}; placing it")
@@ -254,6 +267,54 @@ def in_hand(job: Job, hold: Hold) -> InHand:
         return InHand(put_back=f"put back on the pile: held {seen}, {refused}")
     log(f"{name} in the hand: {seen}; {refused}; placing it as it is")
     return InHand()
+
+
+def look_turned(job: Job, held_above: Pose, above: Mapping[str, float]) -> PlacementCheck:
+    """The in-hand check again with the arm's base joint turned ``in_hand_look_turn`` from
+    ``above`` and back, its reading turned back to above the slot. The planner's joints
+    run from the base out: the first turns the arm, and the hold with it, rigidly about the
+    world's z axis (the scenario's origin is the arm's base), so the hold expected there is
+    the planned one turned so, and nothing moves lower than it was (the held domino's
+    foot clears the run's tops above its slot)."""
+    turn = job.settings.in_hand_look_turn
+    out = base_turn(above, turn, job.settings.in_hand_look_speed)
+    log(f"looking again with the arm's base turned {math.degrees(turn):+.0f}°")
+    # the look at the pile asked for above the slot may be answered from frames the turned
+    # arm is in: dropped, it is asked again as the descent starts (``execute``)
+    job.pile_look = None
+    motion = job.cell.execute(out)
+    if motion.ok:
+        turned = about_base(turn)
+        fresh = settle(job)
+        answer = job.cell.check_placement([turned @ held_above], in_hand=True, not_before=fresh)
+        measured = tuple(about_base(-turn) @ pose for pose in answer.measured)
+        answer = replace(answer, measured=measured)
+    else:
+        answer = PlacementCheck(False, f"turning the base failed: {motion.error}")
+    # from where a failed turn stopped, eased onto the way back as a failed approach is
+    move(job, out.reversed(0.0 if motion.ok else BACK_OUT_LEAD), "turning the base back")
+    return answer
+
+
+def base_turn(at: Mapping[str, float], turn: float, speed: float) -> Trajectory:
+    """From the joints ``at``, the first (the base) turned by ``turn`` rad, the others
+    held: a half-cosine in time, at most ``speed`` rad/s, still at both ends."""
+    names = tuple(at)
+    start = np.array([at[name] for name in names])
+    duration = math.pi * abs(turn) / (2.0 * speed)
+    phase = np.linspace(0.0, math.pi, 11)
+    positions = np.repeat(start[None, :], len(phase), axis=0)
+    velocities = np.zeros_like(positions)
+    positions[:, 0] += turn * (1.0 - np.cos(phase)) / 2.0
+    velocities[:, 0] = turn * math.pi / (2.0 * duration) * np.sin(phase)
+    return Trajectory(names, phase / math.pi * duration, positions, velocities)
+
+
+def about_base(turn: float) -> Pose:
+    """The rigid turn of ``turn`` rad about the world's z axis, the arm base's."""
+    pose = np.eye(4)
+    pose[:2, :2] = [[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]]
+    return pose
 
 
 def pile_in_view(job: Job, index: int) -> bool:

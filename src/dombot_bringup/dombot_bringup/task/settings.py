@@ -185,6 +185,20 @@ class ArmJobSettings:
     # 37. Perception reads a low hold 0.4-0.5 mm short; a higher one reads as planned (the
     # fit has nothing to pull its box up), so hanging higher is not judged.
     in_hand_low_tolerance: float = 0.001  # m
+    # Not seen there (the gripper, leaning over the run's free side, hides the part below
+    # the pads from every camera: s_curve30 slots 21-23 at every turn in the hand), a hold
+    # whose fall could take down more than in_hand_look_risk standing dominoes (no empty
+    # slot between; a section between safety gaps has at most section - 1) is looked at
+    # again with the arm's base joint turned in_hand_look_turn, at most in_hand_look_speed,
+    # and turned back: arm and hold turn rigidly about the base's vertical axis, at the
+    # carry's height (the foot 22 mm above the run's tops), and a camera sees the part
+    # below the pads past the gripper (benchmarks/bench_in_hand_planned.py --looks;
+    # PERCEPTION_MEASURED.md). A blind placement failed 15 % of the time in the ledger runs
+    # (2.7 % after a look that saw the hold), one in s_curve30 felling 27. The look costs its
+    # turns (1.65 s simulated at -15°) and a camera frame. 0: no second look.
+    in_hand_look_turn: float = math.radians(-15.0)
+    in_hand_look_speed: float = 0.5  # rad/s
+    in_hand_look_risk: int = 3
     # However far it turned: placed as held, a domino leaning more than ~9° (its thickness
     # over its height) cannot stand. The two holds read 12.1° and 12.2° off in a
     # benchmark were placed as held (the bound was 12°) and fell, one at a
