@@ -66,7 +66,9 @@ class ArmJobSettings:
     # domino is held by the canonical grasp, so every other flat one, and every one a push
     # lays flat, gets the same refusal. (A safety gap between two standing neighbours on a
     # spiral's tight curve spent 4 attempts, 2 spreads and 4 lay-flat pushes, ~10 min
-    # wall, before it was left empty.) 0: never; its attempts are spent as before.
+    # wall, before it was left empty.) Only when the last of them is refused with its pile
+    # ignored too: a crowded pile may leave a pick only holds that do not reach the slot
+    # (attempts.places_ignoring_pile). 0: never; its attempts are spent as before.
     give_up_unplaceable: int = 3
     spread_clearance: float = 0.016  # m
     spread_radius: float = 0.13  # m
