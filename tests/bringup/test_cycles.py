@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
 
 import pytest
 from scipy.spatial.transform import Rotation
@@ -94,6 +96,15 @@ def test_the_next_cycle_builds_from_the_toppled_dominoes_nearest_each_slot_first
     assert [c.cycle for c in jobs[0].report.cycles] == [1]
     line = cycle_line(two, 2)
     assert line.startswith("cycle 2/2 'line': SUCCESS, 3/3 placed") and "sim 512" in line
+
+
+def test_every_cycles_picks_are_recorded_none_written_over(tmp_path: Path) -> None:
+    """--record-picks with --cycles: one folder, numbered on across the cycles (each
+    cycle's numbering from 0 wrote over the cycle before's records)."""
+    settings = replace(ASK_EVERY_OFFER, record_picks=tmp_path)
+    run_cycles(toppling_cell(), [("line", LINE)] * 2, settings)
+    names = sorted(path.name for path in tmp_path.glob("*.json"))
+    assert names == [f"pick{n:03d}_slot{n % 3 + 1}.json" for n in range(6)]
 
 
 def test_the_next_layout_is_built_in_the_second_cycle_from_the_first_ones_toppled() -> None:

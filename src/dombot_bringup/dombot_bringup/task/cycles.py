@@ -48,6 +48,9 @@ def run_cycles(
     for number, (name, layout) in enumerate(layouts, 1):
         job = Job.new(cell, layout, name, settings)
         if jobs:
+            # numbered on from the last cycle's: each cycle's from 0 wrote over the earlier
+            # cycles' records in the one --record-picks folder
+            job.picks_recorded = jobs[-1].picks_recorded
             job.state.toppled, job.state.unfitted = left_lying(jobs[-1].state)
             # looked at again before the first pick (``checks.look_again``), nothing near
             # them having moved since: perception refits a lying one turned about the
