@@ -194,6 +194,9 @@ def main() -> None:
                 },
                 "answers_digest": digest(answers),
                 "details_digest": digest(details),
+                "plans_digest": digest(
+                    [d for a, d in zip(answers, details, strict=True) if a["code"] == "SUCCESS"]
+                ),
                 "load_average": {"before": load_before, "after": os.getloadavg()},
             },
             indent=2,

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import OrientedBox, flat_pose, pick_grasps, upright_pose
+from dombot_description.grasp import BoxArray, OrientedBox, flat_pose, pick_grasps, upright_pose
 from dombot_description.scenario import load_scenario
 from dombot_planner.arm_reach import WristReach
 from dombot_planner.errors import ErrorCode, PlanningError
@@ -67,6 +67,24 @@ def test_overlap_beyond_a_depth_is_the_penetration_depth() -> None:
     corner = np.array([SIZE[0] / 2 - 0.003, 0.0, 0.0])  # c's corner 3 mm inside a's end
     c = OrientedBox(RigidTransform(turned, corner + turned @ (SIZE * [0.5, 0.5, 0.0])), SIZE)
     assert a.overlaps(c, 0.0029) and not a.overlaps(c, 0.0031)
+
+
+def test_overlapping_many_boxes_at_once_judges_each_as_alone() -> None:
+    """The batched test gives each of 200 boxes about a box (random poses within a
+    domino's length, seeded) the verdict it gives that box alone, at three tolerances, and
+    both verdicts occur."""
+    rng = np.random.default_rng(7)
+    a = OrientedBox(RigidTransform(RotationMatrix(RollPitchYaw(rng.uniform(-3, 3, 3)))), SIZE)
+    poses = [
+        RigidTransform(RollPitchYaw(rng.uniform(-3, 3, 3)), rng.uniform(-0.05, 0.05, 3))
+        for _ in range(200)
+    ]
+    boxes = BoxArray.of([OrientedBox(pose, SIZE * rng.uniform(0.2, 1.0, 3)) for pose in poses])
+    for tolerance in (0.0, 0.002, 0.004):
+        together = a.overlapping(boxes, tolerance)
+        alone = [a.overlapping(BoxArray.of([box]), tolerance)[0] for box in boxes.boxes()]
+        assert together.tolist() == alone
+        assert 0 < together.sum() < len(poses)
 
 
 def test_pads_in_pile_at_the_canonical_grasp() -> None:

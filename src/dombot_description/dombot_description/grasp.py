@@ -95,19 +95,26 @@ class OrientedBox:
     def overlaps(self, other: OrientedBox, tolerance: float = 0.0) -> bool:
         """Separating-axis test of two boxes; overlaps shallower than ``tolerance`` (along
         the separating axes) pass."""
-        axes_a, axes_b = self.pose.rotation().matrix(), other.pose.rotation().matrix()
-        offset = other.pose.translation() - self.pose.translation()
-        half_a, half_b = self.size / 2.0, other.size / 2.0
-        candidates = [*axes_a.T, *axes_b.T] + [np.cross(u, v) for u in axes_a.T for v in axes_b.T]
-        for axis in candidates:
-            norm = np.linalg.norm(axis)
-            if norm < 1e-9:
-                continue
-            axis = axis / norm
-            reach = half_a @ np.abs(axes_a.T @ axis) + half_b @ np.abs(axes_b.T @ axis)
-            if abs(offset @ axis) >= reach - tolerance:
-                return False
-        return True
+        return bool(self.overlapping(BoxArray.of([other]), tolerance)[0])
+
+    def overlapping(self, others: BoxArray, tolerance: float = 0.0) -> np.ndarray:
+        """``overlaps`` against each of ``others`` at once (k booleans): the 15 candidate
+        axes of every pair in numpy, where a loop per box and axis cost the planner ~10 %
+        of its CPU (pads.pads_in_pile)."""
+        axes_a = self.pose.rotation().matrix()  # columns: the box's axes in world
+        rows_a = np.broadcast_to(axes_a.T, (len(others), 3, 3))
+        rows_b = np.swapaxes(others.rotations, 1, 2)
+        crosses = np.cross(rows_a[:, :, None, :], rows_b[:, None, :, :]).reshape(-1, 9, 3)
+        candidates = np.concatenate([rows_a, rows_b, crosses], axis=1)  # k×15×3
+        norms = np.linalg.norm(candidates, axis=2)
+        usable = norms >= 1e-9
+        candidates = candidates / np.where(usable, norms, 1.0)[..., None]
+        reach = np.abs(candidates @ axes_a) @ (self.size / 2.0) + np.einsum(
+            "kcj,kj->kc", np.abs(candidates @ others.rotations), others.sizes / 2.0
+        )
+        offset = np.einsum("kci,ki->kc", candidates, others.centres - self.pose.translation())
+        separated = usable & (np.abs(offset) >= reach - tolerance)
+        return ~separated.any(axis=1)
 
     def swept(self, translation: np.ndarray) -> OrientedBox:
         """The box of the same orientation covering this one moved along ``translation``

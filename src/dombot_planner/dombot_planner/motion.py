@@ -28,7 +28,6 @@ from dombot_planner.scene import (
     MOVING,
     OBSTACLES,
     PILE,
-    QUERY_DISTANCE,
     SELF,
     TARGET,
     ClearanceRules,
@@ -48,6 +47,8 @@ LINE_GRID_POINTS = 100  # TOPP-RA grid on a line (its end point is only loosely 
 LINE_END_MARGIN = 1e-3  # m beyond coarse_clearance where a line meets a coarse move
 ESCAPE_DISTANCE = 0.08  # m: the longest straight line out of a start close to something
 ESCAPE_TOLERANCE = 5e-4  # m an escape may come closer to anything than the start was
+ENDS_SHARE = 0.9  # of its ends' clearance, the most a coarse move's bound asks for
+QUERY_MARGIN = 1e-3  # m the scenes' distance queries look beyond what any rule reads
 PERCEIVED = (TARGET, PILE)  # obstacles known only from perception (± 2 mm)
 SEED_TURN = 0.8  # rad: random IK seeds turn joint 1 up to this far from the target
 UP = np.array([0.0, 0.0, 1.0])
@@ -110,6 +111,22 @@ class ArmPlanner:
             acceleration=np.full(plant.num_velocities(), self.settings.acceleration_limit),
         )
 
+    @property
+    def query_distance(self) -> float:
+        """How far the scenes' distance queries look [m]: far enough that every distance
+        the planner compares (the clearance rules, the escape's "no closer than at the
+        start", a coarse move's bound from its ends) is measured, not the cap; pairs
+        farther apart only cost the geometry engine work nobody reads."""
+        s = self.settings
+        read = max(
+            (s.coarse_clearance + s.coarse_margin) / ENDS_SHARE,
+            s.coarse_clearance + LINE_END_MARGIN + ESCAPE_TOLERANCE,
+            s.pile_arm_clearance,
+            s.fine_obstacle_clearance,
+            s.pile_clearance,
+        )
+        return read + QUERY_MARGIN
+
     def coarse_rules(self, floor: float | None = None) -> ClearanceRules:
         """Everything ``floor`` (default coarse_clearance) from the table and dominoes."""
         clearance = self.settings.coarse_clearance if floor is None else floor
@@ -171,7 +188,7 @@ class RequestMotions:
             return None
         no_closer = ClearanceRules(
             {
-                pair: min(minimum, clearance.get(pair, QUERY_DISTANCE) - ESCAPE_TOLERANCE)
+                pair: min(minimum, clearance.get(pair, scene.query_distance) - ESCAPE_TOLERANCE)
                 for pair, minimum in self.planner.coarse_rules().minimum.items()
             }
         )
@@ -347,8 +364,8 @@ class RequestMotions:
         """A KTO move from ``q_start`` to ``q_goal`` that passes the dense clearance check."""
         s = self.settings
         ends = min(scene.minimum_distance(q_start), scene.minimum_distance(q_goal))
-        bound = min(s.coarse_clearance + s.coarse_margin, 0.9 * ends)
-        rules = self.planner.coarse_rules(min(s.coarse_clearance + CHECK_MARGIN, 0.9 * ends))
+        bound = min(s.coarse_clearance + s.coarse_margin, ENDS_SHARE * ends)
+        rules = self.planner.coarse_rules(min(s.coarse_clearance + CHECK_MARGIN, ENDS_SHARE * ends))
         failure = "no attempt"
         for attempt in range(s.kto_attempts):
             self.deadline.check(label)

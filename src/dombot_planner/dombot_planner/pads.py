@@ -18,7 +18,13 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from dombot_description import DOMINO_SIZE
-from dombot_description.grasp import Grasp, OrientedBox, gripper_geometry, nearest_distance
+from dombot_description.grasp import (
+    BoxArray,
+    Grasp,
+    OrientedBox,
+    gripper_geometry,
+    nearest_distance,
+)
 
 # m: SceneGraph's penetration depth of two boxes is found to a tolerance (GJK/EPA)
 DEPTH_MARGIN = 1e-4
@@ -35,16 +41,18 @@ def pads_in_pile(grasp: Grasp, pile: Sequence[RigidTransform], depth: float) -> 
     if not len(pile):
         return False
     size = np.asarray(DOMINO_SIZE, dtype=float)
-    pads = grasp.pad_boxes(grasp.pregrasp_opening) + grasp.pad_boxes()
+    boxes = BoxArray(
+        np.array([pose.rotation().matrix() for pose in pile]),
+        np.array([pose.translation() for pose in pile]),
+        np.repeat(size[None], len(pile), 0),
+    )
     domino_radius = float(np.linalg.norm(size)) / 2.0
-    for pad in pads:
+    for pad in grasp.pad_boxes(grasp.pregrasp_opening) + grasp.pad_boxes():
         reach = domino_radius + float(np.linalg.norm(pad.size)) / 2.0
-        centre = pad.pose.translation()
-        for pose in pile:
-            if np.linalg.norm(pose.translation() - centre) < reach and pad.overlaps(
-                OrientedBox(pose, size), depth + DEPTH_MARGIN
-            ):
-                return True
+        near = np.linalg.norm(boxes.centres - pad.pose.translation(), axis=1) < reach
+        nearby = BoxArray(boxes.rotations[near], boxes.centres[near], boxes.sizes[near])
+        if near.any() and pad.overlapping(nearby, depth + DEPTH_MARGIN).any():
+            return True
     return False
 
 

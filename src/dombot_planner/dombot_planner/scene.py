@@ -39,7 +39,7 @@ TABLE, STANDING, TARGET, PILE, SELF = "table", "standing", "target", "pile", "se
 MOVING = (ARM, PADS, HELD)
 OBSTACLES = (TABLE, STANDING, TARGET, PILE)
 FINGER_BODIES = ("wsg_left_finger", "wsg_right_finger")
-QUERY_DISTANCE = 0.05  # m: pairs farther apart than this are reported as this far
+QUERY_DISTANCE = 0.05  # m: pairs farther apart than this are reported as this far (default)
 
 
 class ShadowPlants:
@@ -101,7 +101,9 @@ class Scene:
 
     ``standing``: dominoes already placed; ``target``: the domino being picked (approach)
     or just placed (retreat); ``held_in_tcp``: the held domino's pose in the TCP frame;
-    ``pile``: the other dominoes perceived around the one being picked.
+    ``pile``: the other dominoes perceived around the one being picked;
+    ``query_distance``: pairs farther apart are reported this far (``ArmPlanner.query_distance``:
+    the geometry engine's cost grows with the pairs it must measure).
     """
 
     def __init__(
@@ -112,8 +114,10 @@ class Scene:
         target: RigidTransform | None = None,
         held_in_tcp: RigidTransform | None = None,
         pile: Sequence[RigidTransform] = (),
+        query_distance: float = QUERY_DISTANCE,
     ) -> None:
         self.shadow = shadow
+        self.query_distance = query_distance
         self.plant = shadow.plant
         self.scene_graph = shadow.scene_graph
         self.tcp = self.plant.GetFrameByName(tcp_frame)
@@ -211,7 +215,7 @@ class Scene:
     def clearance(self, q: np.ndarray) -> dict[tuple[str, str], float]:
         """Smallest signed distance per (moving class, obstacle class or SELF) at ``q``.
 
-        Pairs farther apart than QUERY_DISTANCE are reported as QUERY_DISTANCE. Kept per
+        Pairs farther apart than ``query_distance`` are reported as that far. Kept per
         ``q``: the planning tiers of a request share their scenes (shared_work.SharedWork) and
         ask again for the configurations the tier before them checked.
         """
@@ -225,12 +229,12 @@ class Scene:
         query = self.scene_graph.get_query_output_port().Eval(self.graph_context)
         result = {}
         keys = self._pair_keys
-        for pair in query.ComputeSignedDistancePairwiseClosestPoints(QUERY_DISTANCE):
+        for pair in query.ComputeSignedDistancePairwiseClosestPoints(self.query_distance):
             ids = (pair.id_A, pair.id_B)
             key = keys.get(ids)
             if key is None:
                 key = keys[ids] = self._pair_key(self.classes[ids[0]], self.classes[ids[1]])
-            result[key] = min(result.get(key, QUERY_DISTANCE), pair.distance)
+            result[key] = min(result.get(key, self.query_distance), pair.distance)
         return result
 
     @staticmethod
@@ -241,4 +245,4 @@ class Scene:
 
     def minimum_distance(self, q: np.ndarray) -> float:
         """The smallest distance over all pairs (what a MinimumDistance constraint sees)."""
-        return min(self.clearance(q).values(), default=QUERY_DISTANCE)
+        return min(self.clearance(q).values(), default=self.query_distance)

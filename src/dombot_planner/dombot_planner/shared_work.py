@@ -56,6 +56,7 @@ class SharedWork:
                 pile=request.pile,
                 target=target,
                 held_in_tcp=held_in_tcp,
+                query_distance=self.planner.query_distance,
             )
         return self._scenes[key]
 

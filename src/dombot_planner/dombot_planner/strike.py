@@ -185,8 +185,9 @@ class StrikePlanning(RequestMotions):
         self.push_length = PUSHER_STANDOFF + (request.push_distance or s.push_distance)
         self.push_speed = request.push_speed or s.push_speed
         shadow, tcp = planner.plants.get(CLOSED), planner.scenario.tcp_frame
-        self.run = Scene(shadow, tcp, request.standing, target=request.domino_pose)
-        self.after = Scene(shadow, tcp, request.standing)  # the struck domino has gone
+        reach = planner.query_distance
+        self.run = Scene(shadow, tcp, request.standing, request.domino_pose, query_distance=reach)
+        self.after = Scene(shadow, tcp, request.standing, query_distance=reach)  # struck one gone
         deadline.check("scene")  # building the scenes counts against the budget
         # the pads may come as near the table as on a placement: a sweep pushes low
         low_pads = {(PADS, TABLE): s.pad_table_clearance}
