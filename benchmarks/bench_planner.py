@@ -177,6 +177,7 @@ def run(args: argparse.Namespace) -> dict:
             request.standing,
             settings.acceleration_limit,
             DOMINO_SIZE[1],
+            free_acceleration=settings.free_acceleration_limits,
         )
         check = checker.check(
             plan.sampled(settings.sample_period),

@@ -124,6 +124,7 @@ def test_a_flatter_hold_places_the_domino(planner, case) -> None:
         request.standing,
         SETTINGS.acceleration_limit,
         DOMINO_SIZE[1],
+        free_acceleration=SETTINGS.free_acceleration_limits,
     ).check(
         plan.sampled(SETTINGS.sample_period),
         request.start,

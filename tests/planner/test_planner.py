@@ -64,6 +64,7 @@ def checker_for(req: PickPlaceRequest) -> TrajectoryChecker:
         SETTINGS.acceleration_limit,
         DOMINO_SIZE[1],
         req.pile,
+        SETTINGS.free_acceleration_limits,
     )
 
 
@@ -102,6 +103,27 @@ def test_plan_has_the_gripper_events_in_order(planned) -> None:
     closing = plan.segments[1]
     assert closing.gripper_position == 0.0  # closes until the force limit stops it
     assert closing.gripper_effort == SETTINGS.grip_force
+
+
+def test_moves_without_a_held_domino_are_retimed_faster(planned) -> None:
+    """The same plan with every joint at acceleration_limit and the retreat at
+    approach_speed: the held domino's segments (lift, carry, place) take as long, the way
+    to the grasp and the retreat longer (the wrist's own limits, the retreat at 0.6 m/s)."""
+    req, plan, _ = planned
+    slow = PickPlacePlanner(
+        SCENARIO,
+        dataclasses.replace(
+            SETTINGS,
+            free_acceleration_limits=(SETTINGS.acceleration_limit,) * 7,
+            retreat_speed=SETTINGS.approach_speed,
+        ),
+    ).plan(req)
+    durations = {s.label: s.duration for s in plan.segments}
+    slower = {s.label: s.duration for s in slow.segments}
+    for label in ("lift", "transfer", "place"):
+        assert durations[label] == pytest.approx(slower[label], abs=1e-9)
+    assert durations["approach_grasp"] < slower["approach_grasp"] - 0.02
+    assert durations["retreat"] < slower["retreat"] - 0.05
 
 
 def test_plan_reaches_grasp_and_place_poses(planned) -> None:
@@ -623,6 +645,10 @@ def test_domino_overlap_test_agrees_with_sampled_points() -> None:
 def test_settings_refuse_bad_values() -> None:
     with pytest.raises(ValueError, match="acceleration_limit"):
         PlannerSettings(acceleration_limit=-1.0)
+    with pytest.raises(ValueError, match="free_acceleration_limits"):
+        PlannerSettings(free_acceleration_limits=(8.5,) * 6)
+    with pytest.raises(ValueError, match="free_acceleration_limits"):
+        PlannerSettings(free_acceleration_limits=(8.5,) * 6 + (0.0,))
     with pytest.raises(ValueError, match="workspace_reach"):
         PlannerSettings(workspace_reach=(0.8, 0.2))
     with pytest.raises(ValueError, match="approach_speed"):

@@ -110,6 +110,13 @@ class ArmPlanner:
             velocity=plant.GetVelocityUpperLimits() * self.settings.velocity_scale,
             acceleration=np.full(plant.num_velocities(), self.settings.acceleration_limit),
         )
+        # moves with no domino in the hand
+        self.free_limits = JointLimits(
+            velocity=self.limits.velocity,
+            acceleration=np.maximum(
+                self.limits.acceleration, self.settings.free_acceleration_limits
+            ),
+        )
 
     @property
     def query_distance(self) -> float:
@@ -332,15 +339,21 @@ class RequestMotions:
         return bool(np.all(q >= self.planner.lower) and np.all(q <= self.planner.upper))
 
     def timed_line(
-        self, label: str, waypoints: np.ndarray, scene: Scene, tcp_speed: float | None = None
+        self,
+        label: str,
+        waypoints: np.ndarray,
+        scene: Scene,
+        tcp_speed: float | None = None,
+        free: bool = False,
     ) -> TimedPath:
-        """A straight line retimed by TOPP-RA (TCP speed ``tcp_speed``, default approach_speed)."""
+        """A straight line retimed by TOPP-RA (TCP speed ``tcp_speed``, default
+        approach_speed; ``free``: no domino in the hand, ``free_limits``)."""
         spacing = self.settings.waypoint_spacing
         timed = retime(
             label,
             line_path(waypoints, spacing),
             scene.plant,
-            self.planner.limits,
+            self.planner.free_limits if free else self.planner.limits,
             fine=True,
             tcp=scene.tcp,
             tcp_speed=tcp_speed or self.settings.approach_speed,
@@ -360,8 +373,10 @@ class RequestMotions:
         q_start: np.ndarray,
         q_goal: np.ndarray,
         attempts: dict[str, int],
+        free: bool = False,
     ) -> TimedPath:
-        """A KTO move from ``q_start`` to ``q_goal`` that passes the dense clearance check."""
+        """A KTO move from ``q_start`` to ``q_goal`` that passes the dense clearance check
+        (``free``: no domino in the hand, retimed to ``free_limits``)."""
         s = self.settings
         ends = min(scene.minimum_distance(q_start), scene.minimum_distance(q_goal))
         bound = min(s.coarse_clearance + s.coarse_margin, ENDS_SHARE * ends)
@@ -386,7 +401,8 @@ class RequestMotions:
             if rise > s.max_coarse_rise:  # the ends lie in different IK branches: so will any
                 failure = f"the TCP swung {rise:.2f} m above the higher end"
                 break
-            timed = retime(label, path, scene.plant, self.planner.limits)
+            limits = self.planner.free_limits if free else self.planner.limits
+            timed = retime(label, path, scene.plant, limits)
             if timed is not None:
                 return timed
             failure = "TOPP-RA found no timing"

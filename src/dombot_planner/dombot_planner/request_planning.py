@@ -337,13 +337,21 @@ class RequestPlanning(RequestMotions):
         attempts: dict[str, int] = {}
         start, escape = self.request.start, self.escape_line
         begin = start if escape is None else escape[-1]
-        to_pick = self.coarse_move("approach_grasp", self.approach, begin, pick.above, attempts)
+        to_pick = self.coarse_move(
+            "approach_grasp", self.approach, begin, pick.above, attempts, free=True
+        )
         to_place = self.coarse_move("transfer", transfer, pick.above, place.above, attempts)
         self.deadline.check("retiming")
         openings, force = self.openings, self.settings.grip_force
         pieces = {
-            "escape": [] if escape is None else [self.timed_line("escape", escape, self.approach)],
-            "down_to_grasp": self.timed_line("descend_to_grasp", pick.line[::-1], self.approach),
+            "escape": (
+                []
+                if escape is None
+                else [self.timed_line("escape", escape, self.approach, free=True)]
+            ),
+            "down_to_grasp": self.timed_line(
+                "descend_to_grasp", pick.line[::-1], self.approach, free=True
+            ),
             "lift": self.timed_line("lift", pick.line, transfer),
         }
         segments = [
@@ -392,7 +400,9 @@ class RequestPlanning(RequestMotions):
         return Segment("place", [down], openings["closed"], GRIPPER_OPEN, openings["release"])
 
     def _retreat_segment(self, place: End) -> Segment:
-        line = self.timed_line("retreat", place.line, self.retreat)
+        line = self.timed_line(
+            "retreat", place.line, self.retreat, self.settings.retreat_speed, free=True
+        )
         return Segment("retreat", [line], self.openings["release"])
 
 

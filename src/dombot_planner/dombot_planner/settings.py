@@ -7,6 +7,7 @@ from dataclasses import dataclass, fields
 
 # m: the canonical TCP is this far from the end of the domino the pads hold
 MAX_GRASP_SHIFT = 0.005
+ARM_JOINTS = 7
 # The ``time`` function each budget clock reads (motion.Deadline).
 BUDGET_CLOCKS = {"wall": "monotonic", "cpu": "thread_time"}
 
@@ -53,6 +54,12 @@ class PlannerSettings:
     # rad/s², every joint (not in the URDF): the LBR iiwa 14's measured limits are 8.57
     # (joints 1, 2), 8.74 (3), 11.36 (4), 12.23 (5), 15.72 (6, 7) (Drake's iiwa models).
     acceleration_limit: float = 8.5
+    # rad/s², per joint, on moves with no domino in the hand (the coarse move and the line
+    # down to a grasp, the retreat after the let-go): those limits rounded down. Moves
+    # holding a domino keep acceleration_limit: with these on the carry too, two held
+    # dominoes of an S-curve run turned ~7° in the hand and were placed edge-on.
+    free_acceleration_limits: tuple[float, ...] = (8.5, 8.5, 8.5, 11.3, 12.2, 15.7, 15.7)
+    retreat_speed: float = 0.6  # m/s TCP limit on the retreat line after the let-go
     sample_period: float = 0.01  # s between published trajectory points
     # Gripper: the close command aims at a fully closed gripper, so its force limit (not a
     # position) sets the squeeze, as a WSG grasp command does.
@@ -108,7 +115,12 @@ class PlannerSettings:
             )
             if not isinstance(value, tuple) and field.name not in may_be_zero and value <= 0:
                 raise ValueError(f"{field.name} must be positive, got {value!r}")
-            if isinstance(value, tuple) and not values[0] < values[1]:
+            if field.name == "free_acceleration_limits":
+                if len(values) != ARM_JOINTS or min(values) <= 0:
+                    raise ValueError(
+                        f"{field.name} must be {ARM_JOINTS} positive numbers, got {value!r}"
+                    )
+            elif isinstance(value, tuple) and not values[0] < values[1]:
                 raise ValueError(f"{field.name} must be (low, high) with low < high, got {value}")
         if self.budget_clock not in BUDGET_CLOCKS:
             raise ValueError(

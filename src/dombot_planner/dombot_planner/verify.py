@@ -110,6 +110,7 @@ class CellChecker:
         dominoes: Sequence[RigidTransform],
         acceleration_limit: float,
         pile_count: int = 0,
+        free_acceleration: Sequence[float] | None = None,
     ) -> None:
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
@@ -129,6 +130,11 @@ class CellChecker:
         self.upper = self.plant.GetPositionUpperLimits()[: len(scenario.arm_joints)]
         self.velocity = self.plant.GetVelocityUpperLimits()[: len(scenario.arm_joints)]
         self.acceleration = acceleration_limit
+        # per joint, with no domino in the hand (PlannerSettings.free_acceleration_limits)
+        self.free_acceleration = np.maximum(
+            acceleration_limit,
+            acceleration_limit if free_acceleration is None else free_acceleration,
+        )
         self.classes = self._classes(len(dominoes) - pile_count)
 
     def _classes(self, first_pile: int) -> dict:
@@ -162,9 +168,13 @@ class CellChecker:
         for joint in self.fingers:
             joint.set_translation(self.plant_context, opening / 2.0)
 
-    def _check_limits_and_joins(self, segments, start, result: Check) -> None:
+    def _check_limits_and_joins(self, segments, start, result: Check, holding=None) -> None:
+        """Position, velocity and acceleration limit use, and jumps between segments;
+        ``holding`` (per segment, default all): a segment without a domino in the hand is
+        judged by the free acceleration limits."""
         previous = np.asarray(start, dtype=float)
-        for segment in segments:
+        holding = [True] * len(segments) if holding is None else holding
+        for segment, held in zip(segments, holding, strict=True):
             q = segment.positions
             result.largest_jump = max(result.largest_jump, float(np.max(np.abs(q[0] - previous))))
             previous = q[-1]
@@ -172,7 +182,8 @@ class CellChecker:
             result.position_limit_excess = max(result.position_limit_excess, float(excess))
             velocity = np.max(np.abs(segment.velocities) / self.velocity)
             result.velocity_use = max(result.velocity_use, float(velocity))
-            acceleration = np.max(np.abs(segment.accelerations)) / self.acceleration
+            limit = self.acceleration if held else self.free_acceleration
+            acceleration = np.max(np.abs(segment.accelerations) / limit)
             result.acceleration_use = max(result.acceleration_use, float(acceleration))
 
     @staticmethod
@@ -224,8 +235,15 @@ class TrajectoryChecker(CellChecker):
         acceleration_limit: float,
         closed_width: float,
         pile: Sequence[RigidTransform] = (),
+        free_acceleration: Sequence[float] | None = None,
     ) -> None:
-        super().__init__(scenario, [domino_pose, *standing, *pile], acceleration_limit, len(pile))
+        super().__init__(
+            scenario,
+            [domino_pose, *standing, *pile],
+            acceleration_limit,
+            len(pile),
+            free_acceleration,
+        )
         self.domino_pose, self.place_pose = domino_pose, place_pose
         self.closed_width = closed_width
 
@@ -244,10 +262,11 @@ class TrajectoryChecker(CellChecker):
         """
         grasps_for = grasps_for or defined_grasps
         result = Check()
-        self._check_limits_and_joins(segments, start, result)
         states, lines, grasp_errors, releases = self._follow_domino(
             segments, grasps_for, approach_distances
         )
+        holding = [held_in_tcp is not None for _, held_in_tcp, _ in states]
+        self._check_limits_and_joins(segments, start, result, holding)
         result.grasp_error = max(grasp_errors, key=lambda e: e[0] + 0.01 * e[1])
         symmetric = [self.place_pose @ RigidTransform(s) for s in SYMMETRIES]
         result.place_error = nearest_error(releases[-1], symmetric)
