@@ -70,6 +70,7 @@ CASES = {
     ),
     "spiral30": shlex.split("--layout spiral --count 30 --pile 50"),
 }
+EXIT_REFUSED = 2  # bringup's bad options or environment: nothing ran
 DEFAULT_CASES = ("arc10", "arc10_cycles5", "s_curve20")
 SEEDS = (1, 2, 3)
 CYCLE_TIMEOUT = 3600.0  # s of wall time per cycle (a --cycles run has as many) ...
@@ -412,6 +413,8 @@ def main() -> None:
             )
             if runs[-1].get("timed_out"):
                 log(f"{name} seed {seed}: cut off by the wall-time limit: not kept in the ledger")
+            elif runs[-1].get("exit") == EXIT_REFUSED:
+                log(f"{name} seed {seed}: refused before it started: not kept in the ledger")
             elif args.ledger is not None:
                 with args.ledger.open("a") as ledger_file:
                     ledger_file.write(json.dumps(runs[-1]) + "\n")

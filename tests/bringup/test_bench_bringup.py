@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from support.benchmarks import load_benchmark
@@ -56,3 +57,21 @@ def test_the_ledger_alone_reports_its_runs_of_a_case() -> None:
         (2, 30),
     ]
     assert [r["seed"] for r in bench.ledger_runs(ledger, case, [2, 5])] == [2]
+
+
+def test_a_run_refused_before_it_started_is_not_kept_in_the_ledger(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """bringup's exit 2 (bad options or environment, e.g. a ROS_DOMAIN_ID Fast DDS cannot
+    open): nothing ran, so the ledger does not count it as a run that failed; a run that
+    failed on its way (exit 1) is kept."""
+    bench = load_benchmark("bench_bringup")
+    ledger = tmp_path / "ledger.jsonl"
+    for code in (2, 1):
+        run = {"exit": code, "completed": False, "timed_out": False, "commit": "abc1234"}
+        monkeypatch.setattr(bench, "run_case", lambda *args, run=run: dict(run))
+        argv = ["bench_bringup.py", "--cases", "arc10", "--seeds", "4", "--again"]
+        monkeypatch.setattr("sys.argv", [*argv, "--out", str(tmp_path), "--ledger", str(ledger)])
+        bench.main()
+    assert [json.loads(line)["exit"] for line in ledger.read_text().splitlines()] == [1]
+    assert "refused before it started: not kept in the ledger" in capsys.readouterr().err

@@ -11,6 +11,7 @@ from dombot_bringup.arm_job import hold_viewer, recorder_command
 from dombot_bringup.bringup import (
     circle_count,
     cycle_layouts,
+    domain_problem,
     main,
     make_layout,
     parse_args,
@@ -36,6 +37,22 @@ from dombot_description.scenario import load_scenario
 def test_a_bad_option_value_is_refused_with_its_name(option: str, value: str, message: str) -> None:
     with pytest.raises(LayoutError, match=message):
         run_arm(parse_args([option, value]))
+
+
+@pytest.mark.parametrize("domain", ["233", "999", "one", "-1"])
+def test_a_domain_fast_dds_cannot_open_is_refused_before_any_node_starts(
+    capsys, monkeypatch, domain: str
+) -> None:
+    """Each node would fail on its own ("Calculated port number is too high") and the job
+    wait for them: refused at once, exit 2, saying what a domain may be."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", domain)
+    monkeypatch.setattr("dombot_bringup.bringup.run_arm", lambda args: pytest.fail("started"))
+    assert main(["--count", "4"]) == 2
+    assert f"ROS_DOMAIN_ID='{domain}' cannot work: a domain is a whole number 0-232" in (
+        capsys.readouterr().err
+    )
+    assert domain_problem({"ROS_DOMAIN_ID": "232"}) is None
+    assert domain_problem({}) is None
 
 
 def test_foxglove_without_the_sdk_says_how_to_install_it(capsys, monkeypatch) -> None:

@@ -31,8 +31,10 @@ from __future__ import annotations
 import argparse
 import copy
 import math
+import os
 import shlex
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import NoReturn
 
@@ -48,6 +50,8 @@ from dombot_bringup.task.settings import ArmJobSettings
 from dombot_description.scenario import ScenarioError, load_scenario
 
 MAX_CYCLES = 50  # --cycles: each takes minutes; more is a typo
+# the highest ROS_DOMAIN_ID with valid Fast DDS ports (ROS 2 docs, "The ROS_DOMAIN_ID")
+MAX_DOMAIN_ID = 232
 
 
 def node_command(package: str, executable: str, parameters: dict) -> list[str]:
@@ -412,10 +416,27 @@ def run_layer(args: argparse.Namespace) -> int:
     return run_layer_job(args.out, radius, args.sweep, args.layer_spacing, args.speed, node_command)
 
 
+def domain_problem(environ: Mapping[str, str]) -> str | None:
+    """Why ``environ``'s ROS_DOMAIN_ID cannot work, or None. Each node would fail to open
+    its Fast DDS ports on its own ("Calculated port number is too high"), and the job
+    would wait for nodes that never answer."""
+    value = environ.get("ROS_DOMAIN_ID", "").strip()
+    if not value or (value.isdigit() and int(value) <= MAX_DOMAIN_ID):
+        return None
+    return (
+        f"ROS_DOMAIN_ID={value!r} cannot work: a domain is a whole number 0-{MAX_DOMAIN_ID} "
+        "(Fast DDS's ports for a higher one lie beyond 65535)"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.foxglove is not None and not foxglove_available():
         print(f"bringup: {FOXGLOVE_MISSING}", file=sys.stderr)
+        return 2
+    problem = domain_problem(os.environ)
+    if problem:
+        print(f"bringup: {problem}", file=sys.stderr)
         return 2
     try:
         return run_arm(args) if args.job == "arm" else run_layer(args)
