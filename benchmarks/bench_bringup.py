@@ -36,6 +36,7 @@ from ament_index_python.packages import get_package_prefix
 
 from dombot_bringup.bringup import parse_args
 from dombot_bringup.process_group import end_process
+from dombot_bringup.sections import EXIT_REFUSED
 
 CASES = {
     "arc10": ["--layout", "arc", "--count", "10", "--pile", "30"],
@@ -70,7 +71,6 @@ CASES = {
     ),
     "spiral30": shlex.split("--layout spiral --count 30 --pile 50"),
 }
-EXIT_REFUSED = 2  # bringup's bad options or environment: nothing ran
 DEFAULT_CASES = ("arc10", "arc10_cycles5", "s_curve20")
 SEEDS = (1, 2, 3)
 CYCLE_TIMEOUT = 3600.0  # s of wall time per cycle (a --cycles run has as many) ...

@@ -45,6 +45,7 @@ from dombot_bringup.arm_job import run_arm_job
 from dombot_bringup.layer_job import PathRejectedError, run_layer_job
 from dombot_bringup.process_group import NodeDiedError, say
 from dombot_bringup.recording import FOXGLOVE_MISSING, foxglove_available
+from dombot_bringup.sections import EXIT_REFUSED
 from dombot_bringup.task.cell import CellError
 from dombot_bringup.task.settings import ArmJobSettings
 from dombot_description.scenario import ScenarioError, load_scenario
@@ -433,16 +434,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.foxglove is not None and not foxglove_available():
         print(f"bringup: {FOXGLOVE_MISSING}", file=sys.stderr)
-        return 2
+        return EXIT_REFUSED
     problem = domain_problem(os.environ)
     if problem:
         print(f"bringup: {problem}", file=sys.stderr)
-        return 2
+        return EXIT_REFUSED
     try:
         return run_arm(args) if args.job == "arm" else run_layer(args)
     except layouts.LayoutError as error:
         print(f"bringup: layout rejected: {error}", file=sys.stderr)
-        return 2
+        return EXIT_REFUSED
     except NodeDiedError as error:
         print(f"bringup: {error}", file=sys.stderr)
     except (

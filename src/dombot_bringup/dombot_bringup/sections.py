@@ -33,8 +33,9 @@ from dombot_planner.errors import ErrorCode
 TOPPLE_REACH = DOMINO_LENGTH + DOMINO_THICKNESS  # m
 TOPPLE_HALF_WIDTH = DOMINO_WIDTH  # m: both dominoes' half widths
 
-# Exit statuses of the arm job (bringup's 2 and 130 are refused layouts and Ctrl-C)
-EXIT_SUCCESS, EXIT_FAILED, EXIT_PARTIAL = 0, 1, 3
+# Exit statuses of the arm job (bringup's 130 is Ctrl-C); EXIT_REFUSED: bad options, layout
+# or environment, refused before any node starts
+EXIT_SUCCESS, EXIT_FAILED, EXIT_REFUSED, EXIT_PARTIAL = 0, 1, 2, 3
 VERDICTS = {EXIT_SUCCESS: "SUCCESS", EXIT_PARTIAL: "PARTIAL", EXIT_FAILED: "FAILED"}
 
 
