@@ -48,13 +48,18 @@ ASK_EVERY_OFFER = ArmJobSettings(pile=8, foresee_refusals=False)
 def toppling_cell(fallen_y: Sequence[float] = FALLEN_Y) -> ScriptedCell:
     """A cell where every placement stands and every strike topples the run: its
     dominoes are then seen lying at ``fallen_y`` along the line (perception answers them
-    in slot order). A domino looked for lying (``checks.look_again``) lies where it was
-    seen."""
+    in slot order) until anything else moves (a sweep, a pick), then every upright place
+    looked at stands again. A domino looked for lying (``checks.look_again``) lies where
+    it was seen."""
     cell = ScriptedCell(pile=[flat(0.50), flat(0.60)], place=lambda request: planned("place"))
     cell.strike = lambda request: planned("strike")
 
     def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
-        struck = cell.executed and cell.executed[-1].joint_names == ("strike",)
+        struck = (
+            cell.executed
+            and cell.executed[-1].joint_names == ("strike",)
+            and cell.strike_requests[-1].sweep is None
+        )
         upright = [pose for pose in expected if tilt_from_vertical(pose) < math.radians(15.0)]
         fell = iter(fallen_y)
         answers = [
@@ -471,15 +476,24 @@ def test_a_run_domino_left_lying_is_not_forgotten_when_its_slots_new_domino_fall
 
 def looking_again(moved: Pose, seen_now: tuple, gone: Pose, unfit: Pose) -> ScriptedCell:
     """A cell whose look again finds ``moved`` lying as ``seen_now`` (pose, position
-    error, tilt), ``gone`` missing and ``unfit`` down but not fitted."""
+    error, tilt), ``gone`` missing and ``unfit`` down but not fitted; any other place
+    (a slot's) empty."""
+    answers = {
+        id(moved): (Seen.FALLEN, *seen_now),
+        id(gone): (Seen.MISSING, gone, 0.0, 0.0),
+        id(unfit): (Seen.FALLEN, unfit, 0.0, 0.0),
+    }
+    return answering(answers)
+
+
+def answering(answers: dict[int, tuple]) -> ScriptedCell:
+    """A cell whose placement checks answer each pose by its id in ``answers`` (status,
+    measured, position error, tilt), any other MISSING."""
 
     def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
-        answers = {
-            id(moved): (Seen.FALLEN, *seen_now),
-            id(gone): (Seen.MISSING, gone, 0.0, 0.0),
-            id(unfit): (Seen.FALLEN, unfit, 0.0, 0.0),
-        }
-        columns = zip(*(answers[id(pose)] for pose in expected), strict=True)
+        empty = [(Seen.MISSING, pose, 0.0, 0.0) for pose in expected]
+        rows = (answers.get(id(pose), row) for pose, row in zip(expected, empty, strict=True))
+        columns = zip(*rows, strict=True)
         return PlacementCheck(True, "", *(tuple(column) for column in columns))
 
     return ScriptedCell(placements=placements)
@@ -502,7 +516,8 @@ def test_toppled_dominoes_near_where_something_moved_are_looked_at_again() -> No
     job.state.forget_refusals_near(spot_of(lying(0.45, 0.03)))  # a pick there
     look_again(job)
     ((asked, _, _),) = cell.checks
-    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit)]
+    slots = [id(target) for target in job.targets]  # none stands, each near the pick
+    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit), *slots]
     assert job.state.toppled == [far, now] and job.state.unfitted == [unfit]
     assert job.state.disturbed == []
 
@@ -520,6 +535,34 @@ def test_fallen_run_dominoes_near_where_something_moved_are_looked_at_again() ->
     job.state.forget_refusals_near(spot_of(lying(0.45, 0.03)))  # a pick there
     look_again(job)
     ((asked, _, _),) = cell.checks
-    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit)]
+    assert [id(p) for p in asked[:3]] == [id(moved), id(gone), id(unfit)]
     assert job.state.fallen == {0: now, 5: far}
     assert job.state.unfitted == [unfit] and job.state.toppled == []
+
+
+def test_a_domino_unknown_so_far_found_lying_at_an_unbuilt_slot_is_taken_as_toppled() -> None:
+    """Arc cycles seed 3: a pick knocked a domino onto slot 6, unseen, and four
+    placements there fell off it. The unbuilt slots near what moved are looked at: one
+    fitted lying there whose footprint meets no known lying domino is toppled (then in
+    the slot's way); one that meets a known one is that one fitted again; one down but
+    not fitted gives nothing to act on; a standing slot and one far off are not asked."""
+    line = layouts.line((0.45, 0.0), math.pi / 2, 7)  # slots 28.8 mm apart along y
+    known = lying(0.45, 0.0576)  # over slot 3
+    unknown = lying(0.46, 0.0288)  # over slot 2, 10 mm across the run
+    answers: dict[int, tuple] = {}
+    cell = answering(answers)
+    job = Job.new(cell, line, "line", ArmJobSettings())
+    targets = job.targets
+    answers[id(known)] = (Seen.FALLEN, known, 0.0, math.radians(88.0))
+    answers[id(targets[1])] = (Seen.FALLEN, unknown, 0.01, math.radians(88.0))
+    answers[id(targets[2])] = (Seen.FALLEN, lying(0.451, 0.058), 0.0, math.radians(87.0))
+    answers[id(targets[3])] = (Seen.FALLEN, targets[3], 0.0, 0.0)  # down, not fitted
+    job.state.toppled = [known]
+    job.state.standing = {0: job.targets[0]}
+    job.state.disturbed = [spot_of(job.targets[2])]  # a pick over slot 3
+    look_again(job)
+    ((asked, _, _),) = cell.checks
+    assert [id(p) for p in asked] == [id(targets[0]), id(known), *map(id, targets[1:6])]
+    assert [id(p) for p in job.state.toppled] == [id(known), id(unknown)]
+    assert job.state.unfitted == []
+    assert [id(p) for p in in_its_way(job, 1)] == [id(unknown)]

@@ -77,16 +77,21 @@ def seen(
     tilts: Sequence[float] | None = None,
 ) -> Callable[[Sequence[Pose], bool], PlacementCheck]:
     """Placement checks answering ``statuses`` (one per expected pose), each measured
-    ``errors`` off in x (1 mm unless told) and tilted ``tilts`` (0 unless told)."""
+    ``errors`` off in x (1 mm unless told) and tilted ``tilts`` (0 unless told); expected
+    poses beyond those (the slots ``checks.look_again`` adds) are empty places (MISSING)."""
 
     def check(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
-        off = list(errors or [0.001] * len(expected))
+        told = len(statuses)
+        if len(expected) < told:
+            raise ValueError(f"{told} statuses scripted for {len(expected)} expected poses")
+        empty = len(expected) - told
+        off = [*(errors or [0.001] * told), *[0.0] * empty]
         return PlacementCheck(
             True,
-            status=tuple(statuses),
+            status=(*statuses, *[Seen.MISSING] * empty),
             measured=tuple(shifted(p, e) for p, e in zip(expected, off, strict=True)),
             position_error=tuple(off),
-            tilt=tuple(tilts or [0.0] * len(expected)),
+            tilt=(*(tilts or [0.0] * told), *[0.0] * empty),
         )
 
     return check

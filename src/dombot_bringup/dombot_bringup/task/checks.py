@@ -9,10 +9,17 @@ from enum import Enum
 
 import numpy as np
 
+from dombot_bringup.footprints import footprints_meet
 from dombot_bringup.task.cell import PlacementCheck, Pose, Seen
 from dombot_bringup.task.chain import at_risk, chain_breaks
 from dombot_bringup.task.geometry import SAME_SPOT, near, spot_of
 from dombot_bringup.task.state import DISTURBED_RADIUS, Job, log
+from dombot_description import domino_corners
+
+# m: a pick or push moves dominoes whose centres lie within DISTURBED_RADIUS of it up to a
+# length on (arc cycles seed 3: 30 mm), their far ends a half-length beyond: the unbuilt
+# slots this close to it are looked at (``look_again``)
+SLOT_LOOK_RADIUS = 0.10
 
 
 def settle(job: Job, seconds: float = 0.0) -> float:
@@ -277,28 +284,52 @@ def look_again(job: Job) -> None:
     gone (MISSING) is forgotten. A toppled pose gone stale (up to 44 mm off after the
     build's falls, arc cycle 3) made picks close on nothing; so, presumably, did the
     fallen run of circle30 seed 1 (1-18 lying shingled, picked one by one from poses
-    measured when they fell: many picks closed to 0.4 mm)."""
+    measured when they fell: many picks closed to 0.4 mm). The places of the unbuilt
+    slots within SLOT_LOOK_RADIUS of what moved are looked at in the same call
+    (``new_at_slot``)."""
     state = job.state
     disturbed, state.disturbed = state.disturbed, []
 
-    def moved_near(pose: Pose) -> bool:
-        return any(near(spot_of(pose), spot, DISTURBED_RADIUS) for spot in disturbed)
+    def moved_near(pose: Pose, radius: float = DISTURBED_RADIUS) -> bool:
+        return any(near(spot_of(pose), spot, radius) for spot in disturbed)
 
     again = [pose for pose in [*state.toppled, *state.unfitted] if moved_near(pose)]
     run = [k for k, pose in state.fallen.items() if moved_near(pose)]
-    if not again and not run:
+    slots = [
+        k
+        for k, target in enumerate(job.targets)
+        if k not in state.standing and moved_near(target, SLOT_LOOK_RADIUS)
+    ]
+    if not again and not run and not slots:
         return
     standing = list(state.standing.values())
     fresh = settle(job) if job.still_since is None else job.still_since
-    expected = [*standing, *again, *(state.fallen[k] for k in run)]
+    expected = [
+        *standing,
+        *again,
+        *(state.fallen[k] for k in run),
+        *(job.targets[k] for k in slots),
+    ]
     answer = job.cell.check_placement(expected, not_before=fresh)
     if not answer.success:
-        log(f"looking again at {len(again) + len(run)} lying dominoes failed: {answer.message}")
+        log(f"looking again at {len(expected) - len(standing)} places failed: {answer.message}")
         return
-    first = len(standing)
-    seen = list(zip(answer.status, answer.measured, answer.tilt, strict=True))[first:]
+    readings = zip(answer.status, answer.measured, answer.tilt, strict=True)
+    seen = iter(list(readings)[len(standing) :])
+    refit_toppled(job, again, [next(seen) for _ in again])
+    refit_fallen(job, run, [next(seen) for _ in run])
+    for k, (status, measured, tilt) in zip(slots, seen, strict=True):
+        new_at_slot(job, k, status, measured, tilt)
+
+
+Seeing = tuple[Seen, Pose, float]  # perception's status, measured pose and tilt of a place
+
+
+def refit_toppled(job: Job, again: Sequence[Pose], seen: Sequence[Seeing]) -> None:
+    """The toppled and unfitted dominoes ``again`` as perception saw them now (``refit``)."""
+    state = job.state
     toppled, unfitted = list(state.toppled), list(state.unfitted)
-    for pose, (status, measured, tilt) in zip(again, seen[: len(again)], strict=True):
+    for pose, (status, measured, tilt) in zip(again, seen, strict=True):
         where = f"toppled domino at {spot_of(pose).round(3).tolist()}"
         found = refit(job, where, pose, status, measured, tilt)
         if found is Found.AS_IT_WAS:
@@ -309,15 +340,36 @@ def look_again(job: Job) -> None:
             unfitted.append(pose)
         elif found is Found.THERE:
             toppled.append(measured)
-    for k, (status, measured, tilt) in zip(run, seen[len(again) :], strict=True):
+    state.toppled, state.unfitted = toppled, unfitted
+
+
+def refit_fallen(job: Job, run: Sequence[int], seen: Sequence[Seeing]) -> None:
+    """The fallen run dominoes of slots ``run`` as perception saw them now (``refit``)."""
+    state = job.state
+    for k, (status, measured, tilt) in zip(run, seen, strict=True):
         found = refit(job, f"fallen domino {k + 1}", state.fallen[k], status, measured, tilt)
         if found is Found.THERE:
             state.fallen[k] = measured
         elif found is Found.UNFITTED:
-            unfitted.append(state.fallen.pop(k))
+            state.unfitted.append(state.fallen.pop(k))
         elif found is Found.GONE:
             state.fallen.pop(k)
-    state.toppled, state.unfitted = toppled, unfitted
+
+
+def new_at_slot(job: Job, index: int, status: Seen, measured: Pose, tilt: float) -> None:
+    """A domino perception fits lying at unbuilt slot ``index``'s place, its footprint
+    meeting none the task knows lying, is taken as toppled: in the slot's way it becomes
+    the slot's domino or is swept aside (``attempts.clear_the_way``) where a domino placed
+    on it would fall. Arc cycles seed 3, cycle 4: a pick 45 mm away knocked one onto slot
+    6, unseen; four placements there fell off it and the slot was left empty."""
+    if status != Seen.FALLEN or tilt <= job.settings.place_tilt_tolerance:
+        return  # nothing there, or nothing perception can fit (no pose to act on)
+    seen = domino_corners(measured)[:, :2]
+    if any(footprints_meet(seen, domino_corners(p)[:, :2]) for p in job.state.lying()):
+        return  # one the task knows of
+    spot = spot_of(measured).round(3).tolist()
+    log(f"a domino lies at slot {index + 1}'s place, at {spot}, unknown so far: taken as toppled")
+    job.state.toppled.append(measured)
 
 
 class Found(Enum):
