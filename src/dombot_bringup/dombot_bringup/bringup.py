@@ -43,6 +43,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from dombot_bringup import layouts
 from dombot_bringup.arm_job import run_arm_job
 from dombot_bringup.layer_job import PathRejectedError, run_layer_job
+from dombot_bringup.pad_room import crowded_slots, crowded_words
 from dombot_bringup.process_group import NodeDiedError, say
 from dombot_bringup.recording import FOXGLOVE_MISSING, foxglove_available
 from dombot_bringup.sections import EXIT_REFUSED
@@ -344,6 +345,8 @@ def cycle_layouts(
             layouts.validate(placements, area)
         except layouts.LayoutError as error:
             raise layouts.LayoutError(f"{where}{error}") from None
+        for line in crowded_words(crowded_slots(placements)):
+            say(f"{where}layout: {line}")
         if args.pile < len(placements):
             raise layouts.LayoutError(
                 f"{where}a run of {len(placements)} needs at least as many dominoes in the "
