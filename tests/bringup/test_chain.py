@@ -179,7 +179,8 @@ def test_a_run_domino_the_chain_would_stop_at_is_picked_up_again_upright_in_an_o
     upright domino it is, not as fallen."""
     run = job(8, [0, 1, 2])
     off = {1: (STANDING, 0.014, 0.0, math.radians(1.0))}
-    looks(run, off, off, {})  # and looked at again where it was left, before the pick
+    # looked at again where it was left before the pick, then the unbuilt slots near it
+    looks(run, off, off, {}, {})
     assert check(run, 3)
     assert sorted(run.state.standing) == [0, 2, 3] and sorted(run.state.fallen) == [1]
     said = capsys.readouterr().out

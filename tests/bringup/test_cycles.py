@@ -515,9 +515,9 @@ def test_toppled_dominoes_near_where_something_moved_are_looked_at_again() -> No
     assert cell.checks == []  # nothing moved
     job.state.forget_refusals_near(spot_of(lying(0.45, 0.03)))  # a pick there
     look_again(job)
-    ((asked, _, _),) = cell.checks
-    slots = [id(target) for target in job.targets]  # none stands, each near the pick
-    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit), *slots]
+    (asked, _, _), (slots, _, _) = cell.checks  # the lying ones, then the slots
+    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit)]
+    assert [id(p) for p in slots] == [id(t) for t in job.targets]  # none stands, all near
     assert job.state.toppled == [far, now] and job.state.unfitted == [unfit]
     assert job.state.disturbed == []
 
@@ -534,18 +534,20 @@ def test_fallen_run_dominoes_near_where_something_moved_are_looked_at_again() ->
     job.state.fallen = {0: moved, 1: gone, 2: unfit, 5: far}
     job.state.forget_refusals_near(spot_of(lying(0.45, 0.03)))  # a pick there
     look_again(job)
-    ((asked, _, _),) = cell.checks
-    assert [id(p) for p in asked[:3]] == [id(moved), id(gone), id(unfit)]
+    (asked, _, _), _ = cell.checks
+    assert [id(p) for p in asked] == [id(moved), id(gone), id(unfit)]
     assert job.state.fallen == {0: now, 5: far}
     assert job.state.unfitted == [unfit] and job.state.toppled == []
 
 
 def test_a_domino_unknown_so_far_found_lying_at_an_unbuilt_slot_is_taken_as_toppled() -> None:
     """Arc cycles seed 3: a pick knocked a domino onto slot 6, unseen, and four
-    placements there fell off it. The unbuilt slots near what moved are looked at: one
-    fitted lying there whose footprint meets no known lying domino is toppled (then in
-    the slot's way); one that meets a known one is that one fitted again; one down but
-    not fitted gives nothing to act on; a standing slot and one far off are not asked."""
+    placements there fell off it. The unbuilt slots near what moved are looked at, after
+    the lying dominoes and apart from them (an upright place took a lying one's points):
+    one fitted lying there whose footprint meets no known lying domino is toppled (then
+    in the slot's way); one that meets a known one is that one fitted again; one down
+    but not fitted gives nothing to act on; a standing slot and one far off are not
+    asked."""
     line = layouts.line((0.45, 0.0), math.pi / 2, 7)  # slots 28.8 mm apart along y
     known = lying(0.45, 0.0576)  # over slot 3
     unknown = lying(0.46, 0.0288)  # over slot 2, 10 mm across the run
@@ -561,8 +563,9 @@ def test_a_domino_unknown_so_far_found_lying_at_an_unbuilt_slot_is_taken_as_topp
     job.state.standing = {0: job.targets[0]}
     job.state.disturbed = [spot_of(job.targets[2])]  # a pick over slot 3
     look_again(job)
-    ((asked, _, _),) = cell.checks
-    assert [id(p) for p in asked] == [id(targets[0]), id(known), *map(id, targets[1:6])]
+    (lying_asked, _, _), (slots_asked, _, _) = cell.checks
+    assert [id(p) for p in lying_asked] == [id(targets[0]), id(known)]
+    assert [id(p) for p in slots_asked] == [id(targets[0]), *map(id, targets[1:6])]
     assert [id(p) for p in job.state.toppled] == [id(known), id(unknown)]
     assert job.state.unfitted == []
     assert [id(p) for p in in_its_way(job, 1)] == [id(unknown)]

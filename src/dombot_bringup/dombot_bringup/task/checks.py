@@ -14,7 +14,7 @@ from dombot_bringup.task.cell import PlacementCheck, Pose, Seen
 from dombot_bringup.task.chain import at_risk, chain_breaks
 from dombot_bringup.task.geometry import SAME_SPOT, near, spot_of
 from dombot_bringup.task.state import DISTURBED_RADIUS, Job, log
-from dombot_description import domino_corners
+from dombot_description import domino_corners, tilt_from_vertical
 
 # m: a pick or push moves dominoes whose centres lie within DISTURBED_RADIUS of it up to a
 # length on (arc cycles seed 3: 30 mm), their far ends a half-length beyond: the unbuilt
@@ -285,8 +285,11 @@ def look_again(job: Job) -> None:
     build's falls, arc cycle 3) made picks close on nothing; so, presumably, did the
     fallen run of circle30 seed 1 (1-18 lying shingled, picked one by one from poses
     measured when they fell: many picks closed to 0.4 mm). The places of the unbuilt
-    slots within SLOT_LOOK_RADIUS of what moved are looked at in the same call
-    (``new_at_slot``)."""
+    slots within SLOT_LOOK_RADIUS of what moved are looked at after that, in a call of
+    their own (``new_at_slot``): asked beside the lying ones, an upright place took the
+    points and the detection of a domino lying across it from that domino's own refit
+    (arc cycles seed 3, cycle 3: a debris domino fitted as the slot's fallen one was then
+    "no longer there", and four placements fell off it)."""
     state = job.state
     disturbed, state.disturbed = state.disturbed, []
 
@@ -302,27 +305,29 @@ def look_again(job: Job) -> None:
     ]
     if not again and not run and not slots:
         return
-    standing = list(state.standing.values())
     fresh = settle(job) if job.still_since is None else job.still_since
-    expected = [
-        *standing,
-        *again,
-        *(state.fallen[k] for k in run),
-        *(job.targets[k] for k in slots),
-    ]
-    answer = job.cell.check_placement(expected, not_before=fresh)
-    if not answer.success:
-        log(f"looking again at {len(expected) - len(standing)} places failed: {answer.message}")
-        return
-    readings = zip(answer.status, answer.measured, answer.tilt, strict=True)
-    seen = iter(list(readings)[len(standing) :])
-    refit_toppled(job, again, [next(seen) for _ in again])
-    refit_fallen(job, run, [next(seen) for _ in run])
-    for k, (status, measured, tilt) in zip(slots, seen, strict=True):
-        new_at_slot(job, k, status, measured, tilt)
+    if again or run:
+        seen = look(job, [*again, *(state.fallen[k] for k in run)], fresh)
+        if seen is not None:
+            refit_toppled(job, again, seen[: len(again)])
+            refit_fallen(job, run, seen[len(again) :])
+    seen = look(job, [job.targets[k] for k in slots], fresh) if slots else None
+    for k, (status, measured, _) in zip(slots, seen or [], strict=seen is not None):
+        new_at_slot(job, k, status, measured)
 
 
 Seeing = tuple[Seen, Pose, float]  # perception's status, measured pose and tilt of a place
+
+
+def look(job: Job, places: Sequence[Pose], fresh: float) -> list[Seeing] | None:
+    """Perception's word on ``places`` in frames from ``fresh`` on (the standing run asked
+    too, to keep its points), or None when the check failed (logged)."""
+    standing = list(job.state.standing.values())
+    answer = job.cell.check_placement([*standing, *places], not_before=fresh)
+    if not answer.success:
+        log(f"looking again at {len(places)} places failed: {answer.message}")
+        return None
+    return list(zip(answer.status, answer.measured, answer.tilt, strict=True))[len(standing) :]
 
 
 def refit_toppled(job: Job, again: Sequence[Pose], seen: Sequence[Seeing]) -> None:
@@ -356,14 +361,14 @@ def refit_fallen(job: Job, run: Sequence[int], seen: Sequence[Seeing]) -> None:
             state.fallen.pop(k)
 
 
-def new_at_slot(job: Job, index: int, status: Seen, measured: Pose, tilt: float) -> None:
+def new_at_slot(job: Job, index: int, status: Seen, measured: Pose) -> None:
     """A domino perception fits lying at unbuilt slot ``index``'s place, its footprint
     meeting none the task knows lying, is taken as toppled: in the slot's way it becomes
     the slot's domino or is swept aside (``attempts.clear_the_way``) where a domino placed
     on it would fall. Arc cycles seed 3, cycle 4: a pick 45 mm away knocked one onto slot
     6, unseen; four placements there fell off it and the slot was left empty."""
-    if status != Seen.FALLEN or tilt <= job.settings.place_tilt_tolerance:
-        return  # nothing there, or nothing perception can fit (no pose to act on)
+    if status != Seen.FALLEN or tilt_from_vertical(measured) <= job.settings.place_tilt_tolerance:
+        return  # nothing there, or nothing perception can fit (the upright place: no pose)
     seen = domino_corners(measured)[:, :2]
     if any(footprints_meet(seen, domino_corners(p)[:, :2]) for p in job.state.lying()):
         return  # one the task knows of
