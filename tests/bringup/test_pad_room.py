@@ -46,5 +46,7 @@ def test_the_bringup_says_so_before_anything_moves(capsys) -> None:
         "[bringup] layout: domino 15",
         "[bringup] layout: domino 16",
     ]
+    cycle_layouts(parse_args([*SPIRAL, "--pitch", "0.035", "--count", "16", "--cycles", "3"]), area)
+    assert len(capsys.readouterr().out.splitlines()) == 2  # one layout, said once
     cycle_layouts(parse_args([*SPIRAL, "--pitch", "0.05", "--count", "16"]), area)
     assert capsys.readouterr().out == ""

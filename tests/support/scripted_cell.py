@@ -78,7 +78,8 @@ def seen(
 ) -> Callable[[Sequence[Pose], bool], PlacementCheck]:
     """Placement checks answering ``statuses`` (one per expected pose), each measured
     ``errors`` off in x (1 mm unless told) and tilted ``tilts`` (0 unless told); expected
-    poses beyond those (the slots ``checks.look_again`` adds) are empty places (MISSING)."""
+    poses beyond those (e.g. the slots ``checks.look_again`` asks after the lying dominoes) are
+    empty places (MISSING)."""
 
     def check(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
         told = len(statuses)

@@ -339,7 +339,8 @@ def cycle_layouts(
         following = (after.layout, make_layout(after, area))
         say_circle_count(after, following[1])
     chosen = [first] + [following] * (args.cycles - 1)
-    for number, (name, placements) in enumerate(chosen[:2], 1):
+    distinct = chosen[:2] if following is not first else chosen[:1]  # each checked once
+    for number, (name, placements) in enumerate(distinct, 1):
         where = f"cycle {number} ('{name}'): " if following is not first else ""
         try:
             layouts.validate(placements, area)

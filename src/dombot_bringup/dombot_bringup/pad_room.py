@@ -33,25 +33,22 @@ def crowded_slots(
     settings = PlannerSettings() if settings is None else settings
     targets = [RigidTransform(placement_pose(p)) for p in placements]
     tree = cKDTree(np.array([[p.x, p.y] for p in placements]))
-    flat = RigidTransform()  # a flat domino: its thickness axis up
     crowded = {}
     for j, target in enumerate(targets):
         before = sorted(
             i for i in tree.query_ball_point(target.translation()[:2], NEAR) if i < j - 1
         )
-        if before and no_room(flat, target, [targets[i] for i in before], settings):
+        if before and no_room(target, [targets[i] for i in before], settings):
             crowded[j] = before
     return crowded
 
 
 def no_room(
-    flat: RigidTransform,
-    place: RigidTransform,
-    standing: list[RigidTransform],
-    settings: PlannerSettings,
+    place: RigidTransform, standing: list[RigidTransform], settings: PlannerSettings
 ) -> bool:
-    """Whether every grasp of the domino at ``flat`` has no place pose at ``place`` with
-    the pads clear of the dominoes ``standing``."""
+    """Whether every grasp of a flat domino has no place pose at ``place`` with the pads
+    clear of the dominoes ``standing``."""
+    flat = RigidTransform()  # its thickness axis up
     request = PickPlaceRequest(flat, place, np.zeros(7), standing=tuple(standing))
     grasps, (steeper, flatter) = ranked_grasps(request, settings)
     return all(no_place(request, settings, grasp) for grasp in [*grasps, *steeper, *flatter])

@@ -311,9 +311,9 @@ def look_again(job: Job) -> None:
         if seen is not None:
             refit_toppled(job, again, seen[: len(again)])
             refit_fallen(job, run, seen[len(again) :])
-    seen = look(job, [job.targets[k] for k in slots], fresh) if slots else None
-    for k, (status, measured, _) in zip(slots, seen or [], strict=seen is not None):
-        new_at_slot(job, k, status, measured)
+    if slots and (seen := look(job, [job.targets[k] for k in slots], fresh)) is not None:
+        for k, (status, measured, _) in zip(slots, seen, strict=True):
+            new_at_slot(job, k, status, measured)
 
 
 Seeing = tuple[Seen, Pose, float]  # perception's status, measured pose and tilt of a place
@@ -369,8 +369,8 @@ def new_at_slot(job: Job, index: int, status: Seen, measured: Pose) -> None:
     6, unseen; four placements there fell off it and the slot was left empty."""
     if status != Seen.FALLEN or tilt_from_vertical(measured) <= job.settings.place_tilt_tolerance:
         return  # nothing there, or nothing perception can fit (the upright place: no pose)
-    seen = domino_corners(measured)[:, :2]
-    if any(footprints_meet(seen, domino_corners(p)[:, :2]) for p in job.state.lying()):
+    footprint = domino_corners(measured)[:, :2]
+    if any(footprints_meet(footprint, domino_corners(p)[:, :2]) for p in job.state.lying()):
         return  # one the task knows of
     spot = spot_of(measured).round(3).tolist()
     log(f"a domino lies at slot {index + 1}'s place, at {spot}, unknown so far: taken as toppled")
