@@ -362,18 +362,25 @@ def refit_fallen(job: Job, run: Sequence[int], seen: Sequence[Seeing]) -> None:
 
 
 def new_at_slot(job: Job, index: int, status: Seen, measured: Pose) -> None:
-    """A domino perception fits lying at unbuilt slot ``index``'s place, its footprint
-    meeting none the task knows lying, is taken as toppled: in the slot's way it becomes
-    the slot's domino or is swept aside (``attempts.clear_the_way``) where a domino placed
-    on it would fall. Arc cycles seed 3, cycle 4: a pick 45 mm away knocked one onto slot
-    6, unseen; four placements there fell off it and the slot was left empty."""
+    """A domino perception fits lying at unbuilt slot ``index``'s place is taken as
+    toppled (in the slot's way it becomes the slot's domino or is swept aside:
+    ``attempts.clear_the_way``, where a domino placed on it would fall) unless its
+    footprint meets a lying domino the task knows and has in the slot's way too (or it is
+    out of the slot's way and meets one: that one fitted again). Arc cycles seed 3,
+    cycle 3: a pick 45 mm away knocked one onto slot 6, unknown; cycle 4: one lay over
+    slot 5 that the task knew 20 mm off, out of the slot's way, unfitted there; in both,
+    placements fell off it and the slot was left empty. Two poses of one domino cost a
+    look: the next one near a pick or push forgets or refits the stale one."""
     if status != Seen.FALLEN or tilt_from_vertical(measured) <= job.settings.place_tilt_tolerance:
         return  # nothing there, or nothing perception can fit (the upright place: no pose)
     footprint = domino_corners(measured)[:, :2]
-    if any(footprints_meet(footprint, domino_corners(p)[:, :2]) for p in job.state.lying()):
-        return  # one the task knows of
+    met = [p for p in job.state.lying() if footprints_meet(footprint, domino_corners(p)[:, :2])]
+    if met and (not job.in_the_way(index, measured) or any(job.in_the_way(index, p) for p in met)):
+        return  # one the task knows of, where it matters as much
     spot = spot_of(measured).round(3).tolist()
-    log(f"a domino lies at slot {index + 1}'s place, at {spot}, unknown so far: taken as toppled")
+    known = ", ".join(str(spot_of(p).round(3).tolist()) for p in met)
+    how = f"known at {known}, out of its way" if met else "unknown so far"
+    log(f"a domino lies at slot {index + 1}'s place, at {spot}, {how}: taken as toppled")
     job.state.toppled.append(measured)
 
 

@@ -26,7 +26,6 @@ from dombot_bringup.task.cell import (
 )
 from dombot_bringup.task.checks import look_again, settle
 from dombot_bringup.task.geometry import (
-    in_the_way,
     near,
     near_any,
     neighbours_of,
@@ -186,12 +185,9 @@ def toppled_candidates(job: Job, index: int, avoid: list[np.ndarray]) -> list[Ca
 
 def in_its_way(job: Job, index: int) -> list[Pose]:
     """The lying dominoes (fallen, toppled) in the way of slot ``index``'s domino and the
-    pads beside it (``geometry.in_the_way``, settings clear_margin and clear_pads): each
-    is taken as the slot's domino or swept aside before anything is placed there."""
-    settings, target = job.settings, job.targets[index]
-    along = settings.clear_margin + abs(settings.place_lead)  # let go that far ahead
-    across = settings.clear_margin + settings.clear_pads
-    return [pose for pose in job.state.lying() if in_the_way(pose, target, along, across)]
+    pads beside it (``Job.in_the_way``): each is taken as the slot's domino or swept aside
+    before anything is placed there."""
+    return [pose for pose in job.state.lying() if job.in_the_way(index, pose)]
 
 
 def is_among(pose: Pose, poses: Sequence[Pose]) -> bool:

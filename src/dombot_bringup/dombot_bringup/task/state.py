@@ -12,7 +12,14 @@ from dombot_bringup.layouts import DominoPlacement
 from dombot_bringup.process_group import say
 from dombot_bringup.run_report import DominoOutcome, RunReport, target_of
 from dombot_bringup.task.cell import Cell, Detections, Later, Pose
-from dombot_bringup.task.geometry import SAME_SPOT, distinct, near, placement_pose, spot_of
+from dombot_bringup.task.geometry import (
+    SAME_SPOT,
+    distinct,
+    in_the_way,
+    near,
+    placement_pose,
+    spot_of,
+)
 from dombot_bringup.task.settings import ArmJobSettings
 
 if TYPE_CHECKING:
@@ -185,3 +192,11 @@ class Job:
     def domino(self, index: int) -> str:
         """How the log names slot ``index``: "domino 3/10"."""
         return f"domino {index + 1}/{len(self.layout)}"
+
+    def in_the_way(self, index: int, lying: Pose) -> bool:
+        """A domino lying at ``lying`` is in the way of slot ``index``'s domino and the
+        pads beside it (``geometry.in_the_way``, settings clear_margin and clear_pads)."""
+        settings = self.settings
+        along = settings.clear_margin + abs(settings.place_lead)  # let go that far ahead
+        across = settings.clear_margin + settings.clear_pads
+        return in_the_way(lying, self.targets[index], along, across)
