@@ -368,7 +368,8 @@ def test_a_domino_a_sweep_pushes_into_the_slot_is_swept_before_anything_is_place
     are scripted not to move but for the pushes), and no pile domino is placed there
     meanwhile."""
     cell, _ = in_the_way_cell(refuse_toppled=True)
-    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    # two sweeps: pushed back into each other's way, the scripted pair would go on
+    job = Job.new(cell, LINE, "line", ArmJobSettings(max_sweeps=2))
     # over slot 1, across the run (swept +x); behind it under the pads, clear of the slot
     over, behind = lying(0.455, 0.0), lying(0.3915, 0.0)
     job.state.toppled = [over, behind]
@@ -545,12 +546,14 @@ def test_a_domino_unknown_so_far_found_lying_at_an_unbuilt_slot_is_taken_as_topp
     placements there fell off it. The unbuilt slots near what moved are looked at, after
     the lying dominoes and apart from them (an upright place took a lying one's points):
     one fitted lying there whose footprint meets no known lying domino is toppled (then
-    in the slot's way); one that meets a known one is that one fitted again; one down
-    but not fitted gives nothing to act on; a standing slot and one far off are not
-    asked."""
+    in the slot's way); one that meets a known one in the slot's way is that one fitted
+    again; one in the slot's way that meets only one known out of it (cycle 4: slot 5's,
+    known 20 mm off and unfitted there) is toppled too; one down but not fitted gives
+    nothing to act on; a standing slot and one far off are not asked."""
     line = layouts.line((0.45, 0.0), math.pi / 2, 7)  # slots 28.8 mm apart along y
     known = lying(0.45, 0.0576)  # over slot 3
     unknown = lying(0.46, 0.0288)  # over slot 2, 10 mm across the run
+    stale, beside = lying(0.53, 0.125), lying(0.49, 0.1152)  # beside slot 5, overlapping
     answers: dict[int, tuple] = {}
     cell = answering(answers)
     job = Job.new(cell, line, "line", ArmJobSettings())
@@ -559,13 +562,17 @@ def test_a_domino_unknown_so_far_found_lying_at_an_unbuilt_slot_is_taken_as_topp
     answers[id(targets[1])] = (Seen.FALLEN, unknown, 0.01, math.radians(88.0))
     answers[id(targets[2])] = (Seen.FALLEN, lying(0.451, 0.058), 0.0, math.radians(87.0))
     answers[id(targets[3])] = (Seen.FALLEN, targets[3], 0.0, 0.0)  # down, not fitted
+    answers[id(targets[4])] = (Seen.FALLEN, beside, 0.04, math.radians(88.0))
     job.state.toppled = [known]
+    job.state.unfitted = [stale]  # farther than DISTURBED_RADIUS from the pick: not asked
+    assert in_its_way(job, 4) == [] and job.in_the_way(4, beside)
     job.state.standing = {0: job.targets[0]}
     job.state.disturbed = [spot_of(job.targets[2])]  # a pick over slot 3
     look_again(job)
     (lying_asked, _, _), (slots_asked, _, _) = cell.checks
     assert [id(p) for p in lying_asked] == [id(targets[0]), id(known)]
     assert [id(p) for p in slots_asked] == [id(targets[0]), *map(id, targets[1:6])]
-    assert [id(p) for p in job.state.toppled] == [id(known), id(unknown)]
-    assert job.state.unfitted == []
+    assert [id(p) for p in job.state.toppled] == [id(known), id(unknown), id(beside)]
+    assert [id(p) for p in job.state.unfitted] == [id(stale)]
     assert [id(p) for p in in_its_way(job, 1)] == [id(unknown)]
+    assert [id(p) for p in in_its_way(job, 4)] == [id(beside)]

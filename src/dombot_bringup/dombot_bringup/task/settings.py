@@ -244,9 +244,11 @@ class ArmJobSettings:
     open_while_moving: float = 0.007  # m
     # Fallen dominoes no grasp reaches, lying within a domino length of the slot to build
     # (debris of a cascade, wedged between standing neighbours), are pushed across the
-    # run until they lie this far beyond its side; at most max_sweeps per slot.
+    # run until they lie this far beyond its side; at most max_sweeps per slot (a sweep
+    # carrying a blob along may leave another of it in the way: arc cycles seed 3's slot 5
+    # had two, then burnt its last attempts on a domino the next slot's first sweep moved).
     sweep_margin: float = 0.008  # m
-    max_sweeps: int = 2
+    max_sweeps: int = 4
     # A slot whose way is still blocked when no pick or sweep of what lies there plans
     # (pads and pusher too near its standing neighbours) has a standing neighbour picked
     # up and stood beside the pile (``staging.set_aside``), at most max_set_asides times
