@@ -576,3 +576,35 @@ def test_a_domino_unknown_so_far_found_lying_at_an_unbuilt_slot_is_taken_as_topp
     assert [id(p) for p in job.state.unfitted] == [id(stale)]
     assert [id(p) for p in in_its_way(job, 1)] == [id(unknown)]
     assert [id(p) for p in in_its_way(job, 4)] == [id(beside)]
+
+
+def test_what_lies_in_a_slots_way_is_looked_at_again_before_the_slot_is_given_up() -> None:
+    """Arc cycles seed 3 (at 2c413eb): slot 1 was left empty in cycles 1-4 for a domino
+    remembered 19 mm from where it lay, every grasp and sweep of the remembered pose
+    refused. Before an attempt is spent on what lies in a slot's way (or the slot put
+    off), it is looked at again: found out of the way, the slot is built from the pile."""
+    remembered, lies = lying(0.45, 0.020), lying(0.53, 0.0)  # in slot 1's way; beside it
+
+    def placements(expected: Sequence[Pose], in_hand: bool) -> PlacementCheck:
+        rows = [
+            (Seen.FALLEN, lies, 0.08, math.radians(89.0))
+            if pose is remembered
+            else (Seen.STANDING, pose, 0.001, 0.0)
+            if tilt_from_vertical(pose) < math.radians(15.0)
+            else (Seen.MISSING, pose, 0.0, 0.0)
+            for pose in expected
+        ]
+        return PlacementCheck(True, "", *(tuple(c) for c in zip(*rows, strict=True)))
+
+    cell = ScriptedCell(pile=[flat(0.50, PILE_Y)], placements=placements)
+    cell.place = lambda request: (
+        planned("place") if request.domino[1, 3] == PILE_Y else refused(ErrorCode.GRASP_UNREACHABLE)
+    )
+    job = Job.new(cell, LINE, "line", ArmJobSettings())
+    job.state.toppled = [remembered]
+    assert in_its_way(job, 0) == [remembered]
+    assert place_slot(job, 0, may_defer=False) is Turn.PLACED
+    asked = [pose for expected, _, _ in cell.checks for pose in expected]
+    assert any(pose is remembered for pose in asked)
+    assert [id(p) for p in job.state.toppled] == [id(lies)] and in_its_way(job, 0) == []
+    assert job.report.dominoes[0].attempts == 1

@@ -20,7 +20,7 @@ from dombot_bringup.run_report import EmptySlot, RunReport
 from dombot_bringup.sections import empty_message, empty_reason
 from dombot_bringup.task.attempts import Attempt, Outcome, attempt
 from dombot_bringup.task.cell import CellError
-from dombot_bringup.task.clearing import sweep_debris
+from dombot_bringup.task.clearing import look_at_the_way, sweep_debris
 from dombot_bringup.task.enclosure import enclosed
 from dombot_bringup.task.gaps import gap_slots
 from dombot_bringup.task.order import build_order
@@ -141,11 +141,13 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
     other slots may be built first, which may use up those fallen dominoes; FAILED at once
     when it cannot be put off and no domino can be placed there (``attempts.no_place``).
     A deferral costs planning calls, not an attempt; so does a sweep of debris out of the
-    slot."""
+    slot, and a look again at what lies in its way when nothing moved for it (once a
+    turn: ``clearing.look_at_the_way``)."""
     outcome, settings, cell = job.report.dominoes[index], job.settings, job.cell
     failed: list[np.ndarray] = []  # spots refused for this slot, or whose pick failed
     refusals: list[Refusal] = []  # the planner's, since the last plan (``attempts.no_place``)
     missed = sweeps = 0
+    looked = False
     earlier = job.state.set_aside_after.get(index, 0)  # attempts before its set aside
     sim_start, wall_start, spent = cell.sim_time, time.monotonic(), dict(cell.time_spent)
     while (
@@ -171,6 +173,11 @@ def place_slot(job: Job, index: int, may_defer: bool) -> Turn:
             continue
         if not tried.moved and set_aside(job, index):
             failed.clear()  # refused beside the neighbour set aside
+            refusals.clear()
+            continue
+        if not tried.moved and not looked and look_at_the_way(job, index):
+            looked = True  # once a turn: what lies there as perception sees it now
+            failed.clear()
             refusals.clear()
             continue
         if not tried.moved and may_defer:
