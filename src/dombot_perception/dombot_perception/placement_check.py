@@ -59,6 +59,14 @@ from dombot_perception.depth_check import (
 from dombot_perception.domino_model import DOMINO_SIZE, HALF_SIZE, box_signed_distance
 from dombot_perception.frames import CameraView, Detection
 from dombot_perception.pipeline import PerceptionPipeline
+from dombot_perception.side_by_side import (
+    along_seam,
+    is_flat,
+    level_beside,
+    on_its_side,
+    pair_seeds,
+    seam_across,
+)
 
 STANDING, FALLEN, MISSING, NOT_SEEN = 0, 1, 2, 3  # values of dombot_msgs/CheckPlacement
 FLAT_HEIGHT_SPREAD = 0.005  # m: ends of the length axis this close in height both touch down
@@ -271,6 +279,34 @@ def _tipped_fit(
 
 
 def _lying_fit(
+    seed: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
+) -> tuple[np.ndarray | None, int]:
+    """``_lying_box`` from ``seed``, unless it lies flat with its face going on, level,
+    past a long side (``side_by_side``: across two dominoes side by side, or straddling
+    one and its neighbour, or beside one): then, with a seam on its face, the one of the
+    dominoes either side of the seam with the most points on it, of those fitted along
+    the seam with no seam on them; with none, where the dominoes lie is unknown and none
+    is fitted (the pads would come down on the face beside it either way)."""
+    pose, count = _lying_box(seed, points, views, config)
+    if pose is None or not is_flat(pose):
+        return pose, count
+    if not level_beside(pose, points[_around_box(points, pose, config.fit_margin)]):
+        return pose, count
+    if (seam := seam_across(pose, views)) is None:
+        return None, 0
+    fits = [
+        _lying_box(s, points[on_its_side(points, seam, s)], views, config)
+        for s in pair_seeds(pose, seam)
+    ]
+    whole = [
+        (p, n)
+        for p, n in fits
+        if p is not None and is_flat(p) and along_seam(p, seam) and not seam_across(p, views)
+    ]
+    return max(whole, key=lambda fit: fit[1], default=(None, 0))
+
+
+def _lying_box(
     seed: np.ndarray, points: np.ndarray, views: list[CameraView], config: PlacementConfig
 ) -> tuple[np.ndarray | None, int]:
     """The box of a domino lying near ``seed`` fitted to the ``points`` around it, and how
