@@ -168,8 +168,7 @@ def _line_axes(turn: float) -> tuple[np.ndarray, np.ndarray]:
 def _brightness(points: np.ndarray, view: CameraView) -> np.ndarray:
     """The grey level of the pixel each of ``points`` (world) projects to, NaN where it
     falls outside the image or something nearer the camera hides it."""
-    camera_from_world = np.linalg.inv(view.X_WC)
-    in_camera = points @ camera_from_world[:3, :3].T + camera_from_world[:3, 3]
+    in_camera = (points - view.X_WC[:3, 3]) @ view.X_WC[:3, :3]
     depth = in_camera[:, 2]
     pixels = in_camera @ np.asarray(view.K).T
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -181,6 +180,6 @@ def _brightness(points: np.ndarray, view: CameraView) -> np.ndarray:
     rows, columns = v[inside].astype(int), u[inside].astype(int)
     measured = np.asarray(view.depth, dtype=float).reshape(height, width)[rows, columns]
     visible = np.abs(measured - depth[inside]) < DEPTH_TOLERANCE
-    grey = np.asarray(view.rgb[..., :3], dtype=float).mean(axis=2)[rows, columns]
+    grey = np.asarray(view.rgb[rows, columns, :3], dtype=float).mean(axis=1)
     result[np.flatnonzero(inside)[visible]] = grey[visible]
     return result

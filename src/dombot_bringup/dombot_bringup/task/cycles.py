@@ -64,13 +64,13 @@ def run_cycles(
             stale = [*earlier.toppled, *earlier.unfitted]
             job.state.disturbed = [spot_of(pose) for pose in stale]
             unfitted = len(job.state.unfitted)
-            again = (
-                f", {unfitted} more seen down but not fitted" if unfitted else ""
-            ) + f": {len(stale)} seen before the strike or not fitted looked at again first"
+            again = f", {unfitted} more seen down but not fitted" if unfitted else ""
+            if stale:
+                again += f": {len(stale)} seen before the strike or not fitted"
+                again += " looked at again first"
             log(
                 f"cycle {number}/{len(layouts)}: building '{name}' ({len(layout)} dominoes) "
-                f"from {len(job.state.toppled)} toppled dominoes seen lying and the pile"
-                + (again if stale else "")
+                f"from {len(job.state.toppled)} toppled dominoes seen lying and the pile{again}"
             )
         found = len(job.state.toppled) + len(job.state.unfitted)
         job.report.cycles = list(outcomes)  # the report of a cycle cut short has the others
